@@ -1,0 +1,769 @@
+//! The constrained Newton-Euler equations and everything evaluated on them.
+//!
+//! For body k with mass m_k, global inertia J_k = A_k J'_k A_k^T, centre-of-mass velocity v_k and
+//! angular velocity w_k (global):
+//!
+//! ```text
+//!   m_k a_k = f_k - (G^T lambda)_k,          J_k alpha_k = n_k - w_k x J_k w_k - (G^T lambda)_k
+//!   G a = gamma - 2 alpha_B Phi' - beta_B^2 Phi                      (Baumgarte, 1972)
+//! ```
+//!
+//! where G is the constraint Jacobian with respect to the velocities (6 columns per body),
+//! gamma = -(dG/dt) v + s''(t) the velocity-quadratic terms, and alpha_B, beta_B the Baumgarte
+//! parameters. With the block-diagonal mass matrix the multipliers follow from the reduced system
+//! `(G M^-1 G^T) lambda = G M^-1 Q - rhs`, solved by [`PsdSolver`] (minimum-norm when constraints are
+//! redundant), and then `a = M^-1 (Q - G^T lambda)`. The rotation is carried by Euler parameters
+//! with `q' = 1/2 (0, w) (x) q`, free of the singularities of Euler angles; the rotation matrix is
+//! built from q/|q|, so the slow drift of |q| under integration never distorts the body.
+
+use nalgebra::{DMatrix, Matrix3, Quaternion, UnitQuaternion, Vector3};
+
+use crate::error::{Error, Result};
+use crate::linalg::PsdSolver;
+use crate::model::{GROUND, Model, Prim, State};
+use crate::scene::LoadFrame;
+use crate::ode::OdeSystem;
+
+/// Relative pivot tolerance of the reduced-matrix factorisation: pivots below it count as
+/// redundant constraint directions.
+pub const RANK_TOL: f64 = 1e-10;
+
+/// Kinematics of one body at the current state (global).
+#[derive(Debug, Clone, Copy)]
+pub struct Kin {
+    pub r: Vector3<f64>,
+    pub rot: Matrix3<f64>,
+    pub v: Vector3<f64>,
+    pub w: Vector3<f64>,
+}
+
+impl Default for Kin {
+    fn default() -> Self {
+        Kin {
+            r: Vector3::zeros(),
+            rot: Matrix3::identity(),
+            v: Vector3::zeros(),
+            w: Vector3::zeros(),
+        }
+    }
+}
+
+/// One constraint row: Jacobian blocks (v, w) of its two bodies.
+#[derive(Debug, Clone, Copy)]
+pub struct Row {
+    pub a: usize,
+    pub b: usize,
+    pub ja: [f64; 6],
+    pub jb: [f64; 6],
+}
+
+/// Scratch memory of the right-hand side; also holds the last evaluation's results
+/// (multipliers, accelerations, constraint residuals) for the recorders.
+#[derive(Debug, Clone)]
+pub struct Workspace {
+    /// Per body, with the ground appended at index nb.
+    pub kin: Vec<Kin>,
+    /// Inverse global inertia per body.
+    pub inv_j: Vec<Matrix3<f64>>,
+    /// Applied generalized forces per body: force (N) and torque about the COM (N m).
+    pub q: Vec<[f64; 6]>,
+    /// M^-1 Q per body.
+    pub minv_q: Vec<[f64; 6]>,
+    pub rows: Vec<Row>,
+    /// Phi, Phi' (= G v - s') and the Baumgarte right-hand side per row.
+    pub phi: Vec<f64>,
+    pub phi_dot: Vec<f64>,
+    pub rhs: Vec<f64>,
+    /// M^-1 G^T per row (blocks for a and b).
+    wrows: Vec<([f64; 6], [f64; 6])>,
+    s: Vec<f64>,
+    solver: PsdSolver,
+    /// Multipliers of the last evaluation.
+    pub lambda: Vec<f64>,
+    /// Accelerations of the last evaluation per body: a (m/s^2), alpha (rad/s^2).
+    pub acc: Vec<[f64; 6]>,
+    /// Numerical rank of the reduced matrix at the last evaluation.
+    pub rank: usize,
+}
+
+impl Workspace {
+    pub fn new(m: &Model) -> Self {
+        let nb = m.nb();
+        let nr = m.n_rows;
+        let zero_row = Row {
+            a: GROUND,
+            b: GROUND,
+            ja: [0.0; 6],
+            jb: [0.0; 6],
+        };
+        Workspace {
+            kin: vec![Kin::default(); nb + 1],
+            inv_j: vec![Matrix3::zeros(); nb],
+            q: vec![[0.0; 6]; nb],
+            minv_q: vec![[0.0; 6]; nb],
+            rows: vec![zero_row; nr],
+            phi: vec![0.0; nr],
+            phi_dot: vec![0.0; nr],
+            rhs: vec![0.0; nr],
+            wrows: vec![([0.0; 6], [0.0; 6]); nr],
+            s: vec![0.0; nr * nr],
+            solver: PsdSolver::new(),
+            lambda: vec![0.0; nr],
+            acc: vec![[0.0; 6]; nb],
+            rank: 0,
+        }
+    }
+}
+
+#[inline]
+fn v3(s: &[f64]) -> Vector3<f64> {
+    Vector3::new(s[0], s[1], s[2])
+}
+
+#[inline]
+fn dot6(a: &[f64; 6], b: &[f64; 6]) -> f64 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3] + a[4] * b[4] + a[5] * b[5]
+}
+
+#[inline]
+fn block(v: &Vector3<f64>, w: &Vector3<f64>) -> [f64; 6] {
+    [v.x, v.y, v.z, w.x, w.y, w.z]
+}
+
+/// Rotation matrix of the (not necessarily unit) quaternion (w, x, y, z).
+#[inline]
+pub fn rotation(q: &[f64]) -> Matrix3<f64> {
+    let n = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
+    let (w, x, y, z) = (q[0] / n, q[1] / n, q[2] / n, q[3] / n);
+    Matrix3::new(
+        1.0 - 2.0 * (y * y + z * z),
+        2.0 * (x * y - w * z),
+        2.0 * (x * z + w * y),
+        2.0 * (x * y + w * z),
+        1.0 - 2.0 * (x * x + z * z),
+        2.0 * (y * z - w * x),
+        2.0 * (x * z - w * y),
+        2.0 * (y * z + w * x),
+        1.0 - 2.0 * (x * x + y * y),
+    )
+}
+
+impl Model {
+    /// Fills the body kinematics of the workspace from the state vector.
+    pub fn kinematics(&self, y: &[f64], ws: &mut Workspace) {
+        let nb = self.nb();
+        let np = 7 * nb;
+        for k in 0..nb {
+            let p = &y[7 * k..7 * k + 7];
+            let v = &y[np + 6 * k..np + 6 * k + 6];
+            ws.kin[k] = Kin {
+                r: v3(&p[0..3]),
+                rot: rotation(&p[3..7]),
+                v: v3(&v[0..3]),
+                w: v3(&v[3..6]),
+            };
+        }
+    }
+
+    /// Evaluates every constraint row at time t: Jacobian rows, Phi, Phi' and the Baumgarte
+    /// right-hand side. Needs [`Model::kinematics`] first.
+    pub fn constraints(&self, t: f64, ws: &mut Workspace) {
+        let nb = self.nb();
+        let kin = &ws.kin;
+        let idx = |b: usize| if b == GROUND { nb } else { b };
+        let drive_eval = |d: usize| self.drives[d].profile.eval(t);
+        for (prim, r0) in &self.prims {
+            let r0 = *r0;
+            match prim {
+                Prim::Coincident { a, sa, b, sb } => {
+                    let (ka, kb) = (&kin[idx(*a)], &kin[idx(*b)]);
+                    let sag = ka.rot * sa;
+                    let sbg = kb.rot * sb;
+                    let phi = kb.r + sbg - ka.r - sag;
+                    let phid = kb.v + kb.w.cross(&sbg) - ka.v - ka.w.cross(&sag);
+                    let gam = -(kb.w.cross(&kb.w.cross(&sbg)) - ka.w.cross(&ka.w.cross(&sag)));
+                    for k in 0..3 {
+                        let mut e = Vector3::zeros();
+                        e[k] = 1.0;
+                        // d/dv_a = -e, d/dw_a = e^T [s_a]x = (s_a x e)... written via the cross
+                        // product identity e . (w x s) = w . (s x e).
+                        let ja = block(&(-e), &sag.cross(&e).scale(-1.0));
+                        let jb = block(&e, &sbg.cross(&e));
+                        ws.rows[r0 + k] = Row { a: *a, b: *b, ja, jb };
+                        ws.phi[r0 + k] = phi[k];
+                        ws.phi_dot[r0 + k] = phid[k];
+                        ws.rhs[r0 + k] = gam[k];
+                    }
+                }
+                Prim::Perpendicular { a, u, b, v } => {
+                    let (ka, kb) = (&kin[idx(*a)], &kin[idx(*b)]);
+                    let ug = ka.rot * u;
+                    let vg = kb.rot * v;
+                    let c = ug.cross(&vg);
+                    let wu = ka.w.cross(&ug);
+                    let wv = kb.w.cross(&vg);
+                    ws.rows[r0] = Row {
+                        a: *a,
+                        b: *b,
+                        ja: block(&Vector3::zeros(), &c),
+                        jb: block(&Vector3::zeros(), &(-c)),
+                    };
+                    ws.phi[r0] = ug.dot(&vg);
+                    ws.phi_dot[r0] = (ka.w - kb.w).dot(&c);
+                    ws.rhs[r0] =
+                        -(vg.dot(&ka.w.cross(&wu)) + ug.dot(&kb.w.cross(&wv)) + 2.0 * wu.dot(&wv));
+                }
+                Prim::Distance {
+                    a,
+                    u,
+                    sa,
+                    b,
+                    sb,
+                    drive,
+                } => {
+                    let (ka, kb) = (&kin[idx(*a)], &kin[idx(*b)]);
+                    let ug = ka.rot * u;
+                    let sag = ka.rot * sa;
+                    let sbg = kb.rot * sb;
+                    let d = kb.r + sbg - ka.r - sag;
+                    let dd = kb.v + kb.w.cross(&sbg) - ka.v - ka.w.cross(&sag);
+                    let wu = ka.w.cross(&ug);
+                    let (s, sd, sdd) = drive.map_or((0.0, 0.0, 0.0), drive_eval);
+                    ws.rows[r0] = Row {
+                        a: *a,
+                        b: *b,
+                        ja: block(&(-ug), &ug.cross(&(d + sag))),
+                        jb: block(&ug, &sbg.cross(&ug)),
+                    };
+                    ws.phi[r0] = ug.dot(&d) - s;
+                    ws.phi_dot[r0] = wu.dot(&d) + ug.dot(&dd) - sd;
+                    ws.rhs[r0] = -(ka.w.cross(&wu).dot(&d)
+                        + 2.0 * wu.dot(&dd)
+                        + ug.dot(
+                            &(kb.w.cross(&kb.w.cross(&sbg)) - ka.w.cross(&ka.w.cross(&sag))),
+                        ))
+                        + sdd;
+                }
+                Prim::Angle {
+                    a,
+                    axis,
+                    ua,
+                    wa,
+                    b,
+                    ub,
+                    drive,
+                } => {
+                    let (ka, kb) = (&kin[idx(*a)], &kin[idx(*b)]);
+                    let ax = ka.rot * axis;
+                    let ubg = kb.rot * ub;
+                    let theta = ubg.dot(&(ka.rot * wa)).atan2(ubg.dot(&(ka.rot * ua)));
+                    let (s, sd, sdd) = drive_eval(*drive);
+                    let dw = kb.w - ka.w;
+                    ws.rows[r0] = Row {
+                        a: *a,
+                        b: *b,
+                        ja: block(&Vector3::zeros(), &(-ax)),
+                        jb: block(&Vector3::zeros(), &ax),
+                    };
+                    // Wrapped into (-pi, pi] so that a drive turning without bound stays smooth.
+                    let e = theta - s;
+                    ws.phi[r0] = e - (2.0 * std::f64::consts::PI) * (e / (2.0 * std::f64::consts::PI)).round();
+                    ws.phi_dot[r0] = ax.dot(&dw) - sd;
+                    ws.rhs[r0] = -ka.w.cross(&ax).dot(&dw) + sdd;
+                }
+            }
+        }
+        let (al, be) = (self.settings.alpha, self.settings.beta);
+        for i in 0..self.n_rows {
+            ws.rhs[i] -= 2.0 * al * ws.phi_dot[i] + be * be * ws.phi[i];
+        }
+    }
+
+    /// Applied forces and inertial (gyroscopic) torques per body into `ws.q`, and the global
+    /// inverse inertias into `ws.inv_j`. Needs [`Model::kinematics`] first.
+    pub fn applied_forces(&self, t: f64, ws: &mut Workspace) {
+        let _ = t;
+        let nb = self.nb();
+        for k in 0..nb {
+            let body = &self.bodies[k];
+            let kn = &ws.kin[k];
+            ws.inv_j[k] = kn.rot * body.inv_inertia * kn.rot.transpose();
+            let wb = kn.rot.transpose() * kn.w;
+            let gyro = kn.rot * wb.cross(&(body.inertia * wb));
+            let f = if self.effects.gravity {
+                self.gravity.unwrap_or_default() * body.mass
+            } else {
+                Vector3::zeros()
+            };
+            ws.q[k] = block(&f, &(-gyro));
+        }
+        if self.effects.springs {
+            for s in &self.springs {
+                let (pa, va) = point_state(ws, s.a, &s.sa);
+                let (pb, vb) = point_state(ws, s.b, &s.sb);
+                let d = pb - pa;
+                let l = d.norm();
+                if l < 1e-12 {
+                    continue; // direction undefined; a spring of zero length carries no force
+                }
+                let e = d / l;
+                let ld = e.dot(&(vb - va));
+                let fmag = s.stiffness * (l - s.free_length) + s.damping * ld;
+                add_force(ws, s.a, &(e * fmag), &pa);
+                add_force(ws, s.b, &(-e * fmag), &pb);
+            }
+        }
+        if self.effects.loads {
+            for l in &self.loads {
+                let rot = ws.kin[l.body].rot;
+                let (f, n) = match l.frame {
+                    LoadFrame::Global => (l.force, l.torque),
+                    LoadFrame::Body => (rot * l.force, rot * l.torque),
+                };
+                let p = ws.kin[l.body].r + rot * l.s;
+                add_force(ws, l.body, &f, &p);
+                let q = &mut ws.q[l.body];
+                q[3] += n.x;
+                q[4] += n.y;
+                q[5] += n.z;
+            }
+        }
+    }
+
+    /// Accelerations and multipliers at (t, y) into the workspace.
+    pub fn accelerations(&self, t: f64, y: &[f64], ws: &mut Workspace) {
+        self.kinematics(y, ws);
+        self.applied_forces(t, ws);
+        let nb = self.nb();
+        for k in 0..nb {
+            let q = &ws.q[k];
+            let m = self.bodies[k].mass;
+            let tq = ws.inv_j[k] * Vector3::new(q[3], q[4], q[5]);
+            ws.minv_q[k] = [q[0] / m, q[1] / m, q[2] / m, tq.x, tq.y, tq.z];
+        }
+        ws.acc.copy_from_slice(&ws.minv_q);
+        if !self.effects.constraints {
+            return;
+        }
+        self.constraints(t, ws);
+        let nr = self.n_rows;
+        // W = M^-1 G^T, row by row.
+        for i in 0..nr {
+            let r = &ws.rows[i];
+            ws.wrows[i] = (
+                minv_block(self, ws, r.a, &r.ja),
+                minv_block(self, ws, r.b, &r.jb),
+            );
+        }
+        // S = G M^-1 G^T (only bodies shared by two rows contribute) and b = G M^-1 Q - rhs.
+        for i in 0..nr {
+            let ri = ws.rows[i];
+            for j in i..nr {
+                let rj = &ws.rows[j];
+                let wj = &ws.wrows[j];
+                let mut s = 0.0;
+                if ri.a != GROUND {
+                    if ri.a == rj.a {
+                        s += dot6(&ri.ja, &wj.0);
+                    }
+                    if ri.a == rj.b {
+                        s += dot6(&ri.ja, &wj.1);
+                    }
+                }
+                if ri.b != GROUND {
+                    if ri.b == rj.a {
+                        s += dot6(&ri.jb, &wj.0);
+                    }
+                    if ri.b == rj.b {
+                        s += dot6(&ri.jb, &wj.1);
+                    }
+                }
+                ws.s[i * nr + j] = s;
+                ws.s[j * nr + i] = s;
+            }
+            let mut b = -ws.rhs[i];
+            if ri.a != GROUND {
+                b += dot6(&ri.ja, &ws.minv_q[ri.a]);
+            }
+            if ri.b != GROUND {
+                b += dot6(&ri.jb, &ws.minv_q[ri.b]);
+            }
+            ws.lambda[i] = b;
+        }
+        ws.solver.factor(&ws.s, nr, RANK_TOL);
+        ws.rank = ws.solver.rank();
+        ws.solver.solve(&mut ws.lambda);
+        for i in 0..nr {
+            let l = ws.lambda[i];
+            let r = &ws.rows[i];
+            let (wa, wb) = &ws.wrows[i];
+            if r.a != GROUND {
+                for c in 0..6 {
+                    ws.acc[r.a][c] -= l * wa[c];
+                }
+            }
+            if r.b != GROUND {
+                for c in 0..6 {
+                    ws.acc[r.b][c] -= l * wb[c];
+                }
+            }
+        }
+    }
+
+    /// The full right-hand side y' = f(t, y).
+    pub fn rhs(&self, t: f64, y: &[f64], ws: &mut Workspace, dy: &mut [f64]) {
+        self.accelerations(t, y, ws);
+        let nb = self.nb();
+        let np = 7 * nb;
+        for k in 0..nb {
+            let vel = &y[np + 6 * k..np + 6 * k + 6];
+            let q = &y[7 * k + 3..7 * k + 7];
+            dy[7 * k..7 * k + 3].copy_from_slice(&vel[0..3]);
+            // q' = 1/2 (0, w) (x) q, w global.
+            let (w0, w1, w2) = (vel[3], vel[4], vel[5]);
+            dy[7 * k + 3] = 0.5 * (-w0 * q[1] - w1 * q[2] - w2 * q[3]);
+            dy[7 * k + 4] = 0.5 * (w0 * q[0] + w1 * q[3] - w2 * q[2]);
+            dy[7 * k + 5] = 0.5 * (w1 * q[0] + w2 * q[1] - w0 * q[3]);
+            dy[7 * k + 6] = 0.5 * (w2 * q[0] + w0 * q[2] - w1 * q[1]);
+            dy[np + 6 * k..np + 6 * k + 6].copy_from_slice(&ws.acc[k]);
+        }
+    }
+
+    /// Brings the state onto the position and velocity constraints at its time: Newton iterations
+    /// with minimum-norm corrections for positions, then the mass-weighted projection of the
+    /// velocities, `v = v0 - M^-1 G^T S^+ (G v0 - s')`.
+    pub fn assemble(&self, state: &mut State) -> Result<AssemblyReport> {
+        let nb = self.nb();
+        let np = 7 * nb;
+        let nr = self.n_rows;
+        let mut report = AssemblyReport::default();
+        if nr == 0 {
+            return Ok(report);
+        }
+        let mut ws = Workspace::new(self);
+        let mut solver = PsdSolver::new();
+        let mut s = vec![0.0; nr * nr];
+        let tol = 1e-12;
+        let t = state.t;
+        self.kinematics(&state.y, &mut ws);
+        self.constraints(t, &mut ws);
+        report.initial_residual = max_abs(&ws.phi);
+        for it in 0..60 {
+            let res = max_abs(&ws.phi);
+            report.iterations = it;
+            if res < tol {
+                break;
+            }
+            // S = G G^T (unweighted), mu = S^+ phi, dx = -G^T mu.
+            for i in 0..nr {
+                for j in i..nr {
+                    let v = row_dot(&ws.rows[i], &ws.rows[j]);
+                    s[i * nr + j] = v;
+                    s[j * nr + i] = v;
+                }
+            }
+            solver.factor(&s, nr, RANK_TOL);
+            let mut mu = ws.phi.clone();
+            solver.solve(&mut mu);
+            let mut dx = vec![[0.0; 6]; nb];
+            for (i, r) in ws.rows.iter().enumerate() {
+                for (b, j) in [(r.a, &r.ja), (r.b, &r.jb)] {
+                    if b != GROUND {
+                        for c in 0..6 {
+                            dx[b][c] -= mu[i] * j[c];
+                        }
+                    }
+                }
+            }
+            for (k, d) in dx.iter().enumerate() {
+                for c in 0..3 {
+                    state.y[7 * k + c] += d[c];
+                }
+                let q = &state.y[7 * k + 3..7 * k + 7];
+                let q = UnitQuaternion::from_quaternion(Quaternion::new(q[0], q[1], q[2], q[3]));
+                let dq = UnitQuaternion::from_scaled_axis(Vector3::new(d[3], d[4], d[5]));
+                let qn = (dq * q).into_inner();
+                state.y[7 * k + 3..7 * k + 7].copy_from_slice(&[qn.w, qn.i, qn.j, qn.k]);
+            }
+            self.kinematics(&state.y, &mut ws);
+            self.constraints(t, &mut ws);
+        }
+        let res = max_abs(&ws.phi);
+        report.final_residual = res;
+        if !(res < 1e-9) {
+            let worst = ws
+                .phi
+                .iter()
+                .enumerate()
+                .max_by(|a, b| a.1.abs().total_cmp(&b.1.abs()))
+                .map(|(i, _)| i)
+                .unwrap_or(0);
+            return Err(Error::Assembly {
+                file: self.file.clone(),
+                time: t,
+                message: format!(
+                    "position constraints not met after {} Newton iterations: residual {:.3e} (m or rad) in {}; \
+                     check that the initial poses, joint points and drive values are compatible",
+                    report.iterations,
+                    res,
+                    self.row_owner(worst)
+                ),
+            });
+        }
+        // Velocities: mass-weighted projection.
+        self.accelerations(t, &state.y, &mut ws);
+        report.initial_velocity_residual = max_abs(&ws.phi_dot);
+        let mut mu = ws.phi_dot.clone();
+        // ws.s already holds G M^-1 G^T from the acceleration evaluation.
+        solver.factor(&ws.s, nr, RANK_TOL);
+        solver.solve(&mut mu);
+        for (i, r) in ws.rows.iter().enumerate() {
+            let (wa, wb) = &ws.wrows[i];
+            for (b, w) in [(r.a, wa), (r.b, wb)] {
+                if b != GROUND {
+                    for c in 0..6 {
+                        state.y[np + 6 * b + c] -= mu[i] * w[c];
+                    }
+                }
+            }
+        }
+        self.kinematics(&state.y, &mut ws);
+        self.constraints(t, &mut ws);
+        report.final_velocity_residual = max_abs(&ws.phi_dot);
+        Ok(report)
+    }
+
+    /// Which joint or drive owns constraint row `i`, for messages.
+    pub fn row_owner(&self, i: usize) -> String {
+        if let Some(j) = self.joints.iter().find(|j| j.rows.contains(&i)) {
+            format!("joint '{}' (row {} of its {})", j.name, i - j.rows.start, j.rows.len())
+        } else if let Some(d) = self.drives.iter().find(|d| d.row == i) {
+            format!("drive '{}'", d.name)
+        } else {
+            format!("row {i}")
+        }
+    }
+
+    /// Dense constraint Jacobian (rows x 6 nb) at (t, y), for rank analysis.
+    pub fn jacobian(&self, t: f64, y: &[f64]) -> DMatrix<f64> {
+        let mut ws = Workspace::new(self);
+        self.kinematics(y, &mut ws);
+        self.constraints(t, &mut ws);
+        let nb = self.nb();
+        let mut g = DMatrix::zeros(self.n_rows, 6 * nb);
+        for (i, r) in ws.rows.iter().enumerate() {
+            for (b, j) in [(r.a, &r.ja), (r.b, &r.jb)] {
+                if b != GROUND {
+                    for c in 0..6 {
+                        g[(i, 6 * b + c)] += j[c];
+                    }
+                }
+            }
+        }
+        g
+    }
+
+    /// Rank and redundancy analysis of the constraint Jacobian at (t, y).
+    pub fn structure(&self, t: f64, y: &[f64]) -> Structure {
+        let g = self.jacobian(t, y);
+        let rank_of = |m: DMatrix<f64>| -> usize {
+            if m.nrows() == 0 || m.ncols() == 0 {
+                return 0;
+            }
+            let sv = m.singular_values();
+            let smax = sv.iter().cloned().fold(0.0, f64::max);
+            sv.iter().filter(|s| **s > 1e-9 * smax.max(1e-300)).count()
+        };
+        let n_coords = 6 * self.nb();
+        let joint_rank = rank_of(g.rows(0, self.joint_rows).into_owned());
+        let rank = rank_of(g);
+        Structure {
+            n_coords,
+            joint_rows: self.joint_rows,
+            drive_rows: self.n_rows - self.joint_rows,
+            joint_rank,
+            rank,
+            dof: n_coords - joint_rank,
+            redundant_joint_rows: self.joint_rows - joint_rank,
+            redundant_drives: (self.n_rows - self.joint_rows) - (rank - joint_rank),
+            remaining_dof: n_coords - rank,
+        }
+    }
+
+    /// Constraint drift |Phi| (2-norm over rows, m and rad) and velocity drift |Phi'| at (t, y).
+    pub fn drift(&self, t: f64, y: &[f64], ws: &mut Workspace) -> (f64, f64) {
+        if self.n_rows == 0 {
+            return (0.0, 0.0);
+        }
+        self.kinematics(y, ws);
+        self.constraints(t, ws);
+        let n = |v: &[f64]| v.iter().map(|x| x * x).sum::<f64>().sqrt();
+        (n(&ws.phi), n(&ws.phi_dot))
+    }
+
+    /// Mechanical energy (J): kinetic + gravitational + spring potential. Drives and loads do
+    /// work on the system, so it is conserved only when neither is present.
+    pub fn energy(&self, y: &[f64], ws: &mut Workspace) -> f64 {
+        self.kinematics(y, ws);
+        let mut e = 0.0;
+        for (k, b) in self.bodies.iter().enumerate() {
+            let kn = &ws.kin[k];
+            let wb = kn.rot.transpose() * kn.w;
+            e += 0.5 * b.mass * kn.v.norm_squared() + 0.5 * wb.dot(&(b.inertia * wb));
+            if let Some(g) = self.gravity {
+                e -= b.mass * g.dot(&kn.r);
+            }
+        }
+        for s in &self.springs {
+            let (pa, _) = point_state(ws, s.a, &s.sa);
+            let (pb, _) = point_state(ws, s.b, &s.sb);
+            let dl = (pb - pa).norm() - s.free_length;
+            e += 0.5 * s.stiffness * dl * dl;
+        }
+        e
+    }
+
+    /// Reaction force (N) and torque (N m) that joint `j` exerts on its body b, global axes, the
+    /// torque taken about the joint point on b; from the multipliers of the last evaluation.
+    pub fn reaction(&self, j: usize, ws: &Workspace) -> (Vector3<f64>, Vector3<f64>) {
+        let joint = &self.joints[j];
+        let nb = self.nb();
+        let on = |side_b: bool| {
+            let mut g = [0.0; 6];
+            for i in joint.rows.clone() {
+                let r = &ws.rows[i];
+                let jj = if side_b { &r.jb } else { &r.ja };
+                for c in 0..6 {
+                    g[c] -= ws.lambda[i] * jj[c];
+                }
+            }
+            (Vector3::new(g[0], g[1], g[2]), Vector3::new(g[3], g[4], g[5]))
+        };
+        let kb = &ws.kin[if joint.body_b == GROUND { nb } else { joint.body_b }];
+        let p = kb.r + kb.rot * joint.point_b;
+        if joint.body_b != GROUND {
+            let (f, n) = on(true);
+            (f, n + (kb.r - p).cross(&f))
+        } else {
+            // Constraint wrenches of a joint are internal: equal and opposite about any point.
+            let ka = &ws.kin[joint.body_a];
+            let (f, n) = on(false);
+            (-f, -(n + (ka.r - p).cross(&f)))
+        }
+    }
+
+    /// Actuator force (N) or torque (N m) of drive `d` on body b, in the direction of increasing
+    /// joint coordinate, from the last evaluation.
+    pub fn actuator_force(&self, d: usize, ws: &Workspace) -> f64 {
+        -ws.lambda[self.drives[d].row]
+    }
+
+    /// The current value of drive `d`'s joint coordinate (m or rad) at (t, y): s(t) + Phi.
+    pub fn drive_coordinate(&self, d: usize, t: f64, ws: &Workspace) -> f64 {
+        self.drives[d].profile.eval(t).0 + ws.phi[self.drives[d].row]
+    }
+}
+
+/// Ranks and counts of the constraint Jacobian.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Structure {
+    /// Velocity coordinates (6 per body).
+    pub n_coords: usize,
+    pub joint_rows: usize,
+    pub drive_rows: usize,
+    pub joint_rank: usize,
+    pub rank: usize,
+    /// Degrees of freedom of the mechanism (joints only).
+    pub dof: usize,
+    pub redundant_joint_rows: usize,
+    /// Drives beyond what the degrees of freedom need (redundant actuation).
+    pub redundant_drives: usize,
+    /// Degrees of freedom left free by joints and drives together.
+    pub remaining_dof: usize,
+}
+
+/// Residuals before and after assembly.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct AssemblyReport {
+    pub iterations: usize,
+    /// max |Phi| (m or rad).
+    pub initial_residual: f64,
+    pub final_residual: f64,
+    /// max |Phi'| (m/s or rad/s).
+    pub initial_velocity_residual: f64,
+    pub final_velocity_residual: f64,
+}
+
+fn max_abs(v: &[f64]) -> f64 {
+    v.iter().fold(0.0, |m, x| m.max(x.abs()))
+}
+
+/// G_i . G_j over the bodies the two rows share.
+fn row_dot(ri: &Row, rj: &Row) -> f64 {
+    let mut s = 0.0;
+    for (bi, ji) in [(ri.a, &ri.ja), (ri.b, &ri.jb)] {
+        if bi == GROUND {
+            continue;
+        }
+        for (bj, jj) in [(rj.a, &rj.ja), (rj.b, &rj.jb)] {
+            if bi == bj {
+                s += dot6(ji, jj);
+            }
+        }
+    }
+    s
+}
+
+fn minv_block(m: &Model, ws: &Workspace, b: usize, j: &[f64; 6]) -> [f64; 6] {
+    if b == GROUND {
+        return [0.0; 6];
+    }
+    let mi = 1.0 / m.bodies[b].mass;
+    let t = ws.inv_j[b] * Vector3::new(j[3], j[4], j[5]);
+    [j[0] * mi, j[1] * mi, j[2] * mi, t.x, t.y, t.z]
+}
+
+fn point_state(ws: &Workspace, b: usize, s: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
+    if b == GROUND {
+        return (*s, Vector3::zeros());
+    }
+    let k = &ws.kin[b];
+    let sg = k.rot * s;
+    (k.r + sg, k.v + k.w.cross(&sg))
+}
+
+fn add_force(ws: &mut Workspace, b: usize, f: &Vector3<f64>, p: &Vector3<f64>) {
+    if b == GROUND {
+        return;
+    }
+    let n = (p - ws.kin[b].r).cross(f);
+    let q = &mut ws.q[b];
+    for c in 0..3 {
+        q[c] += f[c];
+        q[3 + c] += n[c];
+    }
+}
+
+/// A model and its workspace as an [`OdeSystem`].
+pub struct Mechanism<'m> {
+    pub model: &'m Model,
+    pub ws: Workspace,
+}
+
+impl<'m> Mechanism<'m> {
+    pub fn new(model: &'m Model) -> Self {
+        Mechanism {
+            model,
+            ws: Workspace::new(model),
+        }
+    }
+}
+
+impl OdeSystem for Mechanism<'_> {
+    fn dim(&self) -> usize {
+        13 * self.model.nb()
+    }
+    fn rhs(&mut self, t: f64, y: &[f64], dydt: &mut [f64]) {
+        self.model.rhs(t, y, &mut self.ws, dydt);
+    }
+}

@@ -1,0 +1,20 @@
+//! # jointplay-solver
+//!
+//! Rigid multibody dynamics of mechanisms in Cartesian coordinates: Newton-Euler equations of each
+//! body, ideal joints as constraints enforced by Lagrange multipliers with Baumgarte stabilisation,
+//! prescribed joint motions (drives), and the ODE integrators that advance them.
+//!
+//! Data flows one way: a scene file ([`scene::SceneSpec`], TOML) is validated and compiled into an
+//! immutable [`model::Model`] and an initial [`model::State`]; [`model::Model::assemble`] puts that
+//! state on the constraints; [`dynamics::Mechanism`] exposes the model as an [`ode::OdeSystem`] that
+//! [`ode::integrate`] advances. All quantities are SI: m, kg, s, rad, N, N m.
+
+pub mod dynamics;
+pub mod error;
+pub mod linalg;
+pub mod model;
+pub mod ode;
+pub mod profile;
+pub mod scene;
+
+pub use error::{Error, Result};

@@ -1,0 +1,557 @@
+//! Time integration of first-order ODE systems `y' = f(t, y)`; knows no mechanics.
+//!
+//! * [`OdeSystem`]: the only thing an integrator needs: a dimension and a right-hand side.
+//! * [`Method::Rk4`]: the classical fixed-step Runge-Kutta method of order 4 (Kutta 1901), with a
+//!   cubic Hermite dense output built from the end-point values and slopes (local interpolation
+//!   error O(h^4), the order of the method itself).
+//! * [`Method::Dopri5`]: the embedded Dormand-Prince 5(4) pair (Dormand & Prince, J. Comput. Appl.
+//!   Math. 6:19-26, 1980) with local extrapolation (the order-5 solution is propagated), first-same-
+//!   as-last stage reuse, a PI step-size controller and Hairer's order-4 continuous extension
+//!   (Hairer, Norsett & Wanner, *Solving ODEs I*, 2nd ed., section II.6, code DOPRI5).
+//!   [`Method::Dopri5Fixed`] takes the same tableau at a fixed step (for convergence studies).
+//!
+//! [`integrate`] advances from `t0` to `t_end`, and hands the observer the state at each requested
+//! sample time, evaluated on the dense output: the step sequence does not depend on the sampling.
+//! The last step is shortened so that `t_end` is reached exactly. A non-finite state stops the run
+//! with [`crate::Error::Diverged`] naming the time.
+
+use std::time::{Duration, Instant};
+
+use crate::error::{Error, Result};
+
+/// A first-order system `y' = f(t, y)`.
+pub trait OdeSystem {
+    /// Length of the state vector.
+    fn dim(&self) -> usize;
+    /// Writes `f(t, y)` into `dydt` (both of length [`OdeSystem::dim`]).
+    fn rhs(&mut self, t: f64, y: &[f64], dydt: &mut [f64]);
+}
+
+/// Integration method and its accuracy settings.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Method {
+    /// Classical RK4 with fixed step `step` (s).
+    Rk4 { step: f64 },
+    /// Dormand-Prince 5(4), adaptive. Error per component is measured against
+    /// `atol + rtol * max(|y_old|, |y_new|)`; `max_step` bounds the step (s).
+    Dopri5 { rtol: f64, atol: f64, max_step: f64 },
+    /// Dormand-Prince 5th-order solution at a fixed step (no error control).
+    Dopri5Fixed { step: f64 },
+}
+
+/// Counters of one integration run.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct Stats {
+    /// Steps accepted.
+    pub accepted: u64,
+    /// Steps rejected by the error control (adaptive methods only).
+    pub rejected: u64,
+    /// Right-hand-side evaluations.
+    pub rhs_evals: u64,
+    /// Wall-clock time spent in [`integrate`].
+    pub wall: Duration,
+}
+
+impl std::ops::AddAssign for Stats {
+    fn add_assign(&mut self, o: Self) {
+        self.accepted += o.accepted;
+        self.rejected += o.rejected;
+        self.rhs_evals += o.rhs_evals;
+        self.wall += o.wall;
+    }
+}
+
+/// What the observer asks the integrator to do after a sample.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Flow {
+    Continue,
+    Stop,
+}
+
+// Dormand-Prince 5(4) tableau.
+const C2: f64 = 1.0 / 5.0;
+const C3: f64 = 3.0 / 10.0;
+const C4: f64 = 4.0 / 5.0;
+const C5: f64 = 8.0 / 9.0;
+const A21: f64 = 1.0 / 5.0;
+const A31: f64 = 3.0 / 40.0;
+const A32: f64 = 9.0 / 40.0;
+const A41: f64 = 44.0 / 45.0;
+const A42: f64 = -56.0 / 15.0;
+const A43: f64 = 32.0 / 9.0;
+const A51: f64 = 19372.0 / 6561.0;
+const A52: f64 = -25360.0 / 2187.0;
+const A53: f64 = 64448.0 / 6561.0;
+const A54: f64 = -212.0 / 729.0;
+const A61: f64 = 9017.0 / 3168.0;
+const A62: f64 = -355.0 / 33.0;
+const A63: f64 = 46732.0 / 5247.0;
+const A64: f64 = 49.0 / 176.0;
+const A65: f64 = -5103.0 / 18656.0;
+const A71: f64 = 35.0 / 384.0;
+const A73: f64 = 500.0 / 1113.0;
+const A74: f64 = 125.0 / 192.0;
+const A75: f64 = -2187.0 / 6784.0;
+const A76: f64 = 11.0 / 84.0;
+// Error coefficients b - b_hat.
+const E1: f64 = 71.0 / 57600.0;
+const E3: f64 = -71.0 / 16695.0;
+const E4: f64 = 71.0 / 1920.0;
+const E5: f64 = -17253.0 / 339200.0;
+const E6: f64 = 22.0 / 525.0;
+const E7: f64 = -1.0 / 40.0;
+// Dense output coefficients (Hairer's DOPRI5, CONTD5).
+const D1: f64 = -12715105075.0 / 11282082432.0;
+const D3: f64 = 87487479700.0 / 32700410799.0;
+const D4: f64 = -10690763975.0 / 1880347072.0;
+const D5: f64 = 701980252875.0 / 199316789632.0;
+const D6: f64 = -1453857185.0 / 822651844.0;
+const D7: f64 = 69997945.0 / 29380423.0;
+
+/// Scratch memory of one integrator, allocated once per run.
+struct Work {
+    k: [Vec<f64>; 7],
+    tmp: Vec<f64>,
+    y_new: Vec<f64>,
+    /// Dense-output coefficients of the last step (5 vectors for DOPRI5, 4 for Hermite).
+    cont: [Vec<f64>; 5],
+}
+
+impl Work {
+    fn new(n: usize) -> Self {
+        let v = || vec![0.0; n];
+        Work {
+            k: [v(), v(), v(), v(), v(), v(), v()],
+            tmp: v(),
+            y_new: v(),
+            cont: [v(), v(), v(), v(), v()],
+        }
+    }
+}
+
+#[inline]
+fn axpy_stage(out: &mut [f64], y: &[f64], h: f64, terms: &[(f64, &[f64])]) {
+    for i in 0..out.len() {
+        let mut s = 0.0;
+        for (c, k) in terms {
+            s += c * k[i];
+        }
+        out[i] = y[i] + h * s;
+    }
+}
+
+/// One RK4 step from (t, y) with k1 = f(t, y) already in `w.k[0]`; result in `w.y_new`,
+/// and `w.k[4]` = f(t + h, y_new) (the next step's first stage, used by the dense output).
+fn rk4_step<S: OdeSystem>(sys: &mut S, t: f64, y: &[f64], h: f64, w: &mut Work) {
+    let n = y.len();
+    let [k1, k2, k3, k4, k5, ..] = &mut w.k;
+    for i in 0..n {
+        w.tmp[i] = y[i] + 0.5 * h * k1[i];
+    }
+    sys.rhs(t + 0.5 * h, &w.tmp, k2);
+    for i in 0..n {
+        w.tmp[i] = y[i] + 0.5 * h * k2[i];
+    }
+    sys.rhs(t + 0.5 * h, &w.tmp, k3);
+    for i in 0..n {
+        w.tmp[i] = y[i] + h * k3[i];
+    }
+    sys.rhs(t + h, &w.tmp, k4);
+    for i in 0..n {
+        w.y_new[i] = y[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+    }
+    sys.rhs(t + h, &w.y_new, k5);
+}
+
+/// One DOPRI5 step with k1 = f(t, y) in `w.k[0]`; 5th-order result in `w.y_new`, f(t+h, y_new)
+/// in `w.k[6]`, and the scaled error estimate in `w.tmp`.
+fn dopri5_step<S: OdeSystem>(sys: &mut S, t: f64, y: &[f64], h: f64, w: &mut Work) {
+    let [k1, k2, k3, k4, k5, k6, k7] = &mut w.k;
+    axpy_stage(&mut w.tmp, y, h, &[(A21, k1)]);
+    sys.rhs(t + C2 * h, &w.tmp, k2);
+    axpy_stage(&mut w.tmp, y, h, &[(A31, k1), (A32, k2)]);
+    sys.rhs(t + C3 * h, &w.tmp, k3);
+    axpy_stage(&mut w.tmp, y, h, &[(A41, k1), (A42, k2), (A43, k3)]);
+    sys.rhs(t + C4 * h, &w.tmp, k4);
+    axpy_stage(&mut w.tmp, y, h, &[(A51, k1), (A52, k2), (A53, k3), (A54, k4)]);
+    sys.rhs(t + C5 * h, &w.tmp, k5);
+    axpy_stage(
+        &mut w.tmp,
+        y,
+        h,
+        &[(A61, k1), (A62, k2), (A63, k3), (A64, k4), (A65, k5)],
+    );
+    sys.rhs(t + h, &w.tmp, k6);
+    axpy_stage(
+        &mut w.y_new,
+        y,
+        h,
+        &[(A71, k1), (A73, k3), (A74, k4), (A75, k5), (A76, k6)],
+    );
+    sys.rhs(t + h, &w.y_new, k7);
+    for i in 0..y.len() {
+        w.tmp[i] = h
+            * (E1 * k1[i] + E3 * k3[i] + E4 * k4[i] + E5 * k5[i] + E6 * k6[i] + E7 * k7[i]);
+    }
+}
+
+/// Stores the DOPRI5 continuous extension of the step just taken.
+fn dopri5_dense(y: &[f64], h: f64, w: &mut Work) {
+    let [k1, _, k3, k4, k5, k6, k7] = &w.k;
+    let [c0, c1, c2, c3, c4] = &mut w.cont;
+    for i in 0..y.len() {
+        let ydiff = w.y_new[i] - y[i];
+        let bspl = h * k1[i] - ydiff;
+        c0[i] = y[i];
+        c1[i] = ydiff;
+        c2[i] = bspl;
+        c3[i] = ydiff - h * k7[i] - bspl;
+        c4[i] = h
+            * (D1 * k1[i] + D3 * k3[i] + D4 * k4[i] + D5 * k5[i] + D6 * k6[i] + D7 * k7[i]);
+    }
+}
+
+fn dopri5_eval(w: &Work, theta: f64, out: &mut [f64]) {
+    let th1 = 1.0 - theta;
+    let [c0, c1, c2, c3, c4] = &w.cont;
+    for i in 0..out.len() {
+        out[i] = c0[i] + theta * (c1[i] + th1 * (c2[i] + theta * (c3[i] + th1 * c4[i])));
+    }
+}
+
+/// Cubic Hermite interpolation on [t, t+h] from y0, f0 (k[0]) and y1, f1 (k[4] for RK4,
+/// k[6] for DOPRI5 at a fixed step).
+fn hermite_eval(y0: &[f64], w: &Work, f1: usize, h: f64, theta: f64, out: &mut [f64]) {
+    let f0 = &w.k[0];
+    let f1 = &w.k[f1];
+    for i in 0..out.len() {
+        let dy = w.y_new[i] - y0[i];
+        out[i] = (1.0 - theta) * y0[i]
+            + theta * w.y_new[i]
+            + theta
+                * (theta - 1.0)
+                * ((1.0 - 2.0 * theta) * dy + (theta - 1.0) * h * f0[i] + theta * h * f1[i]);
+    }
+}
+
+fn error_norm(err: &[f64], y0: &[f64], y1: &[f64], rtol: f64, atol: f64) -> f64 {
+    let mut s = 0.0;
+    for i in 0..err.len() {
+        let sc = atol + rtol * y0[i].abs().max(y1[i].abs());
+        let r = err[i] / sc;
+        s += r * r;
+    }
+    (s / err.len().max(1) as f64).sqrt()
+}
+
+/// Initial step for an adaptive method (Hairer, Norsett & Wanner, section II.4, HINIT).
+fn initial_step<S: OdeSystem>(
+    sys: &mut S,
+    t: f64,
+    y: &[f64],
+    f0: &[f64],
+    rtol: f64,
+    atol: f64,
+    max_step: f64,
+    stats: &mut Stats,
+) -> f64 {
+    let n = y.len();
+    let sc = |i: usize| atol + rtol * y[i].abs();
+    let rms = |v: &dyn Fn(usize) -> f64| {
+        ((0..n).map(|i| v(i) * v(i)).sum::<f64>() / n.max(1) as f64).sqrt()
+    };
+    let d0 = rms(&|i| y[i] / sc(i));
+    let d1 = rms(&|i| f0[i] / sc(i));
+    let mut h0 = if d0 < 1e-5 || d1 < 1e-5 {
+        1e-6
+    } else {
+        0.01 * d0 / d1
+    };
+    h0 = h0.min(max_step);
+    let y1: Vec<f64> = (0..n).map(|i| y[i] + h0 * f0[i]).collect();
+    let mut f1 = vec![0.0; n];
+    sys.rhs(t + h0, &y1, &mut f1);
+    stats.rhs_evals += 1;
+    let d2 = rms(&|i| (f1[i] - f0[i]) / sc(i)) / h0;
+    let h1 = if d1.max(d2) <= 1e-15 {
+        (h0 * 1e-3).max(1e-6)
+    } else {
+        (0.01 / d1.max(d2)).powf(1.0 / 5.0)
+    };
+    (100.0 * h0).min(h1).min(max_step)
+}
+
+/// Integrates `sys` from `(t0, y)` to `t_end`, leaving the final state in `y`.
+///
+/// `samples` are the times (non-decreasing, within `[t0, t_end]`) at which `observer(t, y_t)` is
+/// called with the state evaluated on the dense output (or the step end point when it coincides).
+/// The observer may stop the run early by returning [`Flow::Stop`]; the state then stays at the
+/// end of the step that contained the sample.
+pub fn integrate<S: OdeSystem>(
+    sys: &mut S,
+    method: Method,
+    t0: f64,
+    y: &mut [f64],
+    t_end: f64,
+    samples: &[f64],
+    mut observer: impl FnMut(f64, &[f64]) -> Flow,
+) -> Result<Stats> {
+    let start = Instant::now();
+    let n = sys.dim();
+    assert_eq!(y.len(), n, "state length does not match the system dimension");
+    let mut stats = Stats::default();
+    let mut w = Work::new(n);
+    let mut ys = vec![0.0; n];
+    let mut t = t0;
+    let mut next_sample = 0usize;
+    // Samples at t0 itself.
+    while next_sample < samples.len() && samples[next_sample] <= t0 {
+        if observer(t0, y) == Flow::Stop {
+            stats.wall = start.elapsed();
+            return Ok(stats);
+        }
+        next_sample += 1;
+    }
+    if t_end <= t0 {
+        stats.wall = start.elapsed();
+        return Ok(stats);
+    }
+    sys.rhs(t, y, &mut w.k[0]);
+    stats.rhs_evals += 1;
+
+    let (mut h, adaptive, rtol, atol, max_step) = match method {
+        Method::Rk4 { step } | Method::Dopri5Fixed { step } => (step, false, 0.0, 0.0, step),
+        Method::Dopri5 {
+            rtol,
+            atol,
+            max_step,
+        } => {
+            let h = initial_step(sys, t, y, &w.k[0], rtol, atol, max_step, &mut stats);
+            (h, true, rtol, atol, max_step)
+        }
+    };
+    if !(h > 0.0 && h.is_finite()) {
+        return Err(Error::Diverged {
+            time: t,
+            message: format!("the step size must be positive and finite, got {h}"),
+        });
+    }
+    let is_rk4 = matches!(method, Method::Rk4 { .. });
+    let mut err_old: f64 = 1e-4;
+    let mut last_rejected = false;
+    let span = t_end - t0;
+    // Fixed-step methods step on the grid t0 + k h; the final step is shortened to hit t_end.
+    let mut k_step: u64 = 0;
+    while t < t_end {
+        let t_next_grid = if adaptive {
+            t + h
+        } else {
+            t0 + (k_step + 1) as f64 * h
+        };
+        // Land exactly on t_end when within a small fraction of a step of it.
+        let (h_try, t_new) = if t_next_grid >= t_end - 1e-9 * h.max(span * 1e-12) {
+            (t_end - t, t_end)
+        } else {
+            (t_next_grid - t, t_next_grid)
+        };
+        if is_rk4 {
+            rk4_step(sys, t, y, h_try, &mut w);
+            stats.rhs_evals += 4;
+        } else {
+            dopri5_step(sys, t, y, h_try, &mut w);
+            stats.rhs_evals += 6;
+        }
+        if adaptive {
+            let err = error_norm(&w.tmp, y, &w.y_new, rtol, atol);
+            if !err.is_finite() || err > 1.0 {
+                stats.rejected += 1;
+                let fac = if err.is_finite() {
+                    (0.9 * err.powf(-0.2)).clamp(0.2, 1.0)
+                } else {
+                    0.2
+                };
+                h = h_try * fac;
+                last_rejected = true;
+                if h < 1e-14 * t.abs().max(1.0) {
+                    return Err(Error::Diverged {
+                        time: t,
+                        message: format!(
+                            "step size underflow (h = {h:e} s) with error estimate {err:e}"
+                        ),
+                    });
+                }
+                continue;
+            }
+            // PI controller (Hairer's DOPRI5: beta = 0.04), step growth limited to 10x.
+            let e = err.max(1e-10);
+            let mut fac = 0.9 * e.powf(-0.7 / 5.0) * err_old.powf(0.4 / 5.0);
+            fac = fac.clamp(0.2, if last_rejected { 1.0 } else { 10.0 });
+            err_old = e;
+            last_rejected = false;
+            h = (h_try * fac).min(max_step);
+        }
+        if let Some(i) = w.y_new.iter().position(|v| !v.is_finite()) {
+            return Err(Error::Diverged {
+                time: t_new,
+                message: format!("state component {i} became non-finite"),
+            });
+        }
+        stats.accepted += 1;
+        k_step += 1;
+        let has_dense_sample = next_sample < samples.len() && samples[next_sample] < t_new;
+        if has_dense_sample && !is_rk4 {
+            dopri5_dense(y, h_try, &mut w);
+        }
+        // Emit the samples inside (t, t_new].
+        while next_sample < samples.len() && samples[next_sample] <= t_new {
+            let ts = samples[next_sample];
+            let theta = ((ts - t) / h_try).clamp(0.0, 1.0);
+            let flow = if ts == t_new {
+                observer(ts, &w.y_new)
+            } else {
+                if is_rk4 {
+                    hermite_eval(y, &w, 4, h_try, theta, &mut ys);
+                } else {
+                    dopri5_eval(&w, theta, &mut ys);
+                }
+                observer(ts, &ys)
+            };
+            next_sample += 1;
+            if flow == Flow::Stop {
+                y.copy_from_slice(&w.y_new);
+                stats.wall = start.elapsed();
+                return Ok(stats);
+            }
+        }
+        y.copy_from_slice(&w.y_new);
+        t = t_new;
+        // The last stage is f(t_new, y_new): first stage of the next step (FSAL).
+        let last = if is_rk4 { 4 } else { 6 };
+        w.k.swap(0, last);
+    }
+    stats.wall = start.elapsed();
+    Ok(stats)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// y'' = -y written as a first-order system; exact solution (cos t, -sin t).
+    struct Harmonic;
+    impl OdeSystem for Harmonic {
+        fn dim(&self) -> usize {
+            2
+        }
+        fn rhs(&mut self, _t: f64, y: &[f64], d: &mut [f64]) {
+            d[0] = y[1];
+            d[1] = -y[0];
+        }
+    }
+
+    fn final_error(method: Method) -> (f64, Stats) {
+        let mut y = [1.0, 0.0];
+        let stats = integrate(&mut Harmonic, method, 0.0, &mut y, 10.0, &[], |_, _| Flow::Continue)
+            .unwrap();
+        (((y[0] - 10f64.cos()).powi(2) + (y[1] + 10f64.sin()).powi(2)).sqrt(), stats)
+    }
+
+    fn observed_order(make: impl Fn(f64) -> Method, h: f64) -> f64 {
+        let (e1, _) = final_error(make(h));
+        let (e2, _) = final_error(make(h / 2.0));
+        (e1 / e2).log2()
+    }
+
+    #[test]
+    fn rk4_converges_with_order_four() {
+        // Halving h divides the global error by 2^p; the asymptotic regime is reached at h = 0.05
+        // here (error ~1e-6, far above rounding), so p is within 0.1 of its nominal value.
+        let p = observed_order(|h| Method::Rk4 { step: h }, 0.05);
+        assert!((p - 4.0).abs() < 0.1, "observed order {p}");
+    }
+
+    #[test]
+    fn dopri5_fixed_step_converges_with_order_five() {
+        let p = observed_order(|h| Method::Dopri5Fixed { step: h }, 0.1);
+        assert!((p - 5.0).abs() < 0.15, "observed order {p}");
+    }
+
+    #[test]
+    fn dopri5_meets_its_tolerance_and_counts_work() {
+        let (e, s) = final_error(Method::Dopri5 {
+            rtol: 1e-10,
+            atol: 1e-12,
+            max_step: f64::INFINITY,
+        });
+        // Global error over ~1.6 periods stays within a small multiple of the local tolerance.
+        assert!(e < 1e-8, "error {e}");
+        assert_eq!(s.rhs_evals, 2 + 6 * (s.accepted + s.rejected));
+    }
+
+    #[test]
+    fn dense_output_is_accurate_between_steps() {
+        let samples: Vec<f64> = (0..=1000).map(|i| i as f64 * 0.01).collect();
+        for method in [
+            Method::Dopri5 {
+                rtol: 1e-10,
+                atol: 1e-12,
+                max_step: f64::INFINITY,
+            },
+            Method::Rk4 { step: 1e-3 },
+        ] {
+            let mut worst: f64 = 0.0;
+            let mut count = 0;
+            let mut y = [1.0, 0.0];
+            integrate(&mut Harmonic, method, 0.0, &mut y, 10.0, &samples, |t, y| {
+                worst = worst.max((y[0] - t.cos()).abs());
+                count += 1;
+                Flow::Continue
+            })
+            .unwrap();
+            assert_eq!(count, samples.len());
+            // Both interpolants are accurate to the order of the method's own error:
+            // 1e-8 is ~100x the DOPRI5 tolerance and ~100x RK4's global error at h = 1e-3.
+            assert!(worst < 1e-8, "{method:?}: worst dense error {worst}");
+        }
+    }
+
+    #[test]
+    fn fixed_step_lands_exactly_on_the_end_time() {
+        let mut last = 0.0;
+        let mut y = [1.0, 0.0];
+        let s = integrate(
+            &mut Harmonic,
+            Method::Rk4 { step: 0.3 },
+            0.0,
+            &mut y,
+            1.0,
+            &[1.0],
+            |t, _| {
+                last = t;
+                Flow::Continue
+            },
+        )
+        .unwrap();
+        assert_eq!(last, 1.0);
+        assert_eq!(s.accepted, 4);
+    }
+
+    #[test]
+    fn non_finite_state_is_reported_with_its_time() {
+        struct Blowup;
+        impl OdeSystem for Blowup {
+            fn dim(&self) -> usize {
+                1
+            }
+            fn rhs(&mut self, _t: f64, y: &[f64], d: &mut [f64]) {
+                d[0] = y[0] * y[0];
+            }
+        }
+        let mut y = [1.0];
+        let err = integrate(&mut Blowup, Method::Rk4 { step: 0.1 }, 0.0, &mut y, 5.0, &[], |_, _| {
+            Flow::Continue
+        })
+        .unwrap_err();
+        assert!(matches!(err, Error::Diverged { time, .. } if time > 0.5 && time < 5.0));
+    }
+}

@@ -1,0 +1,460 @@
+//! The scene file: a mechanism declared in TOML, in SI units (m, kg, s, rad, N).
+//!
+//! [`SceneSpec`] maps the file one to one (serde, unknown fields rejected). [`SceneSpec::load`]
+//! reads and parses it; [`crate::model::Model::compile`] validates it and builds the simulation
+//! model. The format is documented with examples in the project README ("Scene format").
+//!
+//! Conventions:
+//! * every body has a body frame; `com` is the centre of mass in that frame, `inertia` is the
+//!   inertia tensor about the centre of mass in body axes (kg m^2);
+//! * `position` is the initial global position of the body-frame origin, `orientation` the initial
+//!   rotation from body to global axes, `velocity` the initial velocity of the centre of mass and
+//!   `angular_velocity` the initial angular velocity, both in global axes;
+//! * named `points` and `axes` live in their body's frame (on `[ground]`, in global coordinates); a
+//!   joint names them, or gives coordinates inline.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use serde::{Deserialize, Serialize};
+
+use crate::error::{Error, Result};
+
+/// A whole scene file.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneSpec {
+    /// Scene name (defaults to the file stem); names the output file.
+    #[serde(default)]
+    pub name: Option<String>,
+    /// Free text shown by `jointplay check`.
+    #[serde(default)]
+    pub description: Option<String>,
+    /// Gravitational acceleration vector (m/s^2, global). Absent: no gravity.
+    #[serde(default)]
+    pub gravity: Option<[f64; 3]>,
+    /// The fixed frame: named points and axes in global coordinates.
+    #[serde(default)]
+    pub ground: GroundSpec,
+    #[serde(default)]
+    pub bodies: Vec<BodySpec>,
+    #[serde(default)]
+    pub joints: Vec<JointSpec>,
+    #[serde(default)]
+    pub drives: Vec<DriveSpec>,
+    #[serde(default)]
+    pub springs: Vec<SpringSpec>,
+    #[serde(default)]
+    pub loads: Vec<LoadSpec>,
+    #[serde(default)]
+    pub solver: SolverSpec,
+    #[serde(default)]
+    pub output: OutputSpec,
+}
+
+/// Points and axes fixed in the global frame.
+#[derive(Debug, Clone, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct GroundSpec {
+    #[serde(default)]
+    pub points: BTreeMap<String, [f64; 3]>,
+    #[serde(default)]
+    pub axes: BTreeMap<String, [f64; 3]>,
+}
+
+/// A rigid body.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct BodySpec {
+    pub name: String,
+    /// Mass (kg), > 0.
+    pub mass: f64,
+    /// Inertia tensor about the centre of mass, body axes (kg m^2).
+    pub inertia: InertiaSpec,
+    /// Centre of mass in the body frame (m).
+    #[serde(default)]
+    pub com: [f64; 3],
+    /// Initial global position of the body-frame origin (m).
+    #[serde(default)]
+    pub position: [f64; 3],
+    /// Initial orientation (body to global).
+    #[serde(default)]
+    pub orientation: OrientationSpec,
+    /// Initial velocity of the centre of mass (m/s, global).
+    #[serde(default)]
+    pub velocity: [f64; 3],
+    /// Initial angular velocity (rad/s, global).
+    #[serde(default)]
+    pub angular_velocity: [f64; 3],
+    /// Named points in the body frame (m).
+    #[serde(default)]
+    pub points: BTreeMap<String, [f64; 3]>,
+    /// Named directions in the body frame (need not be unit length).
+    #[serde(default)]
+    pub axes: BTreeMap<String, [f64; 3]>,
+}
+
+/// Inertia tensor components (kg m^2); products of inertia default to zero.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct InertiaSpec {
+    pub ixx: f64,
+    pub iyy: f64,
+    pub izz: f64,
+    #[serde(default)]
+    pub ixy: f64,
+    #[serde(default)]
+    pub ixz: f64,
+    #[serde(default)]
+    pub iyz: f64,
+}
+
+/// An orientation: exactly one of `axis` + `angle`, `quaternion` (w, x, y, z), or `x` + `y`
+/// (the body's x and y axes in global coordinates; z = x cross y). Empty: identity.
+#[derive(Debug, Clone, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct OrientationSpec {
+    #[serde(default)]
+    pub axis: Option<[f64; 3]>,
+    /// Rotation angle about `axis` (rad).
+    #[serde(default)]
+    pub angle: Option<f64>,
+    #[serde(default)]
+    pub quaternion: Option<[f64; 4]>,
+    #[serde(default)]
+    pub x: Option<[f64; 3]>,
+    #[serde(default)]
+    pub y: Option<[f64; 3]>,
+}
+
+/// A point or an axis: the name of one declared on the body, or coordinates in the body frame.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(untagged)]
+pub enum VecRef {
+    Name(String),
+    Coords([f64; 3]),
+}
+
+/// Kinds of ideal joint.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum JointKind {
+    /// Points coincide (3 rows).
+    Spherical,
+    /// Points coincide, axes parallel (5 rows).
+    Revolute,
+    /// Points coincide, axis_a perpendicular to axis_b (4 rows).
+    Universal,
+    /// Axes parallel and collinear, no rotation about them (5 rows).
+    Prismatic,
+    /// Axes parallel and collinear (4 rows).
+    Cylindrical,
+    /// Axes parallel, point_b in the plane through point_a normal to axis_a (3 rows).
+    Planar,
+    /// No relative motion (6 rows).
+    Fixed,
+}
+
+impl JointKind {
+    /// Whether the joint needs `axis_a`/`axis_b`.
+    pub fn needs_axes(self) -> bool {
+        !matches!(self, JointKind::Spherical)
+    }
+    pub fn name(self) -> &'static str {
+        match self {
+            JointKind::Spherical => "spherical",
+            JointKind::Revolute => "revolute",
+            JointKind::Universal => "universal",
+            JointKind::Prismatic => "prismatic",
+            JointKind::Cylindrical => "cylindrical",
+            JointKind::Planar => "planar",
+            JointKind::Fixed => "fixed",
+        }
+    }
+}
+
+/// An ideal joint between `body_a` and `body_b` ("ground" for the fixed frame).
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct JointSpec {
+    pub name: String,
+    pub kind: JointKind,
+    pub body_a: String,
+    pub body_b: String,
+    /// Joint point on body a (name or body-frame coordinates).
+    pub point_a: VecRef,
+    /// Joint point on body b.
+    pub point_b: VecRef,
+    /// Joint axis on body a (all kinds but spherical).
+    #[serde(default)]
+    pub axis_a: Option<VecRef>,
+    /// Joint axis on body b.
+    #[serde(default)]
+    pub axis_b: Option<VecRef>,
+    /// Direction on body a, normal to axis_a, from which the joint angle is measured
+    /// (default: any normal; the angle is then zero in the initial pose).
+    #[serde(default)]
+    pub reference_a: Option<VecRef>,
+    /// Direction on body b that lies along reference_a at joint angle zero
+    /// (default: reference_a as seen from body b in the initial pose).
+    #[serde(default)]
+    pub reference_b: Option<VecRef>,
+}
+
+/// Which joint coordinate a drive prescribes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum DriveCoordinate {
+    /// Displacement of point_b from point_a along axis_a (m): prismatic, cylindrical.
+    Translation,
+    /// Angle of reference_b from reference_a about axis_a (rad): revolute, cylindrical.
+    Rotation,
+}
+
+/// A prescribed joint coordinate.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct DriveSpec {
+    pub name: String,
+    /// The driven joint.
+    pub joint: String,
+    /// Default: translation for prismatic, rotation for revolute; required for cylindrical.
+    #[serde(default)]
+    pub coordinate: Option<DriveCoordinate>,
+    pub profile: ProfileSpec,
+}
+
+/// A function of time s(t) (m or rad) with its first two derivatives.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
+pub enum ProfileSpec {
+    /// s = initial + rate t.
+    ConstantRate { initial: f64, rate: f64 },
+    /// s = mean + amplitude sin(omega t + phase).
+    Harmonic {
+        mean: f64,
+        amplitude: f64,
+        /// Angular frequency (rad/s).
+        omega: f64,
+        #[serde(default)]
+        phase: f64,
+    },
+    /// Natural cubic spline through (time, value); constant outside the table.
+    Tabulated { time: Vec<f64>, value: Vec<f64> },
+    /// Length of a leg from a fixed `anchor` to a point moving on the harmonic path
+    /// p(t) = center + cos_amplitude cos(omega t) + sin_amplitude sin(omega t), plus `offset`:
+    /// the inverse kinematics of a parallel mechanism whose platform translates on an ellipse.
+    LegLength {
+        anchor: [f64; 3],
+        center: [f64; 3],
+        cos_amplitude: [f64; 3],
+        sin_amplitude: [f64; 3],
+        omega: f64,
+        #[serde(default)]
+        offset: f64,
+    },
+}
+
+/// A linear spring-damper between two points; force = stiffness (l - free_length) + damping l'.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpringSpec {
+    pub name: String,
+    pub body_a: String,
+    pub point_a: VecRef,
+    pub body_b: String,
+    pub point_b: VecRef,
+    /// N/m.
+    pub stiffness: f64,
+    /// N s/m.
+    #[serde(default)]
+    pub damping: f64,
+    /// m; default: the initial distance.
+    #[serde(default)]
+    pub free_length: Option<f64>,
+}
+
+/// Frame in which a load's vectors are given.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum LoadFrame {
+    #[default]
+    Global,
+    Body,
+}
+
+/// A constant applied force (at a point) and torque on a body.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct LoadSpec {
+    pub name: String,
+    pub body: String,
+    /// Point of application (default: centre of mass).
+    #[serde(default)]
+    pub point: Option<VecRef>,
+    /// N.
+    #[serde(default)]
+    pub force: [f64; 3],
+    /// N m.
+    #[serde(default)]
+    pub torque: [f64; 3],
+    #[serde(default)]
+    pub frame: LoadFrame,
+}
+
+/// Integration methods selectable in a scene.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum IntegratorKind {
+    #[default]
+    Rk4,
+    Dopri5,
+}
+
+/// Solver settings.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct SolverSpec {
+    #[serde(default)]
+    pub integrator: IntegratorKind,
+    /// Fixed step for rk4 (s).
+    #[serde(default = "default_step")]
+    pub step: f64,
+    /// Relative and absolute tolerances for dopri5.
+    #[serde(default = "default_rtol")]
+    pub rtol: f64,
+    #[serde(default = "default_atol")]
+    pub atol: f64,
+    /// Largest step of dopri5 (s); default unlimited.
+    #[serde(default)]
+    pub max_step: Option<f64>,
+    /// Baumgarte stabilisation Phi'' + 2 alpha Phi' + beta^2 Phi = 0 (1/s).
+    #[serde(default = "default_baumgarte")]
+    pub baumgarte_alpha: f64,
+    #[serde(default = "default_baumgarte")]
+    pub baumgarte_beta: f64,
+    /// Start time (s).
+    #[serde(default)]
+    pub start_time: f64,
+    /// End time (s); or give `periods` of the drive.
+    #[serde(default)]
+    pub end_time: Option<f64>,
+    /// Number of drive periods to simulate (needs a periodic drive).
+    #[serde(default)]
+    pub periods: Option<f64>,
+}
+
+fn default_step() -> f64 {
+    1e-4
+}
+fn default_rtol() -> f64 {
+    1e-8
+}
+fn default_atol() -> f64 {
+    1e-10
+}
+fn default_baumgarte() -> f64 {
+    5.0
+}
+
+impl Default for SolverSpec {
+    fn default() -> Self {
+        SolverSpec {
+            integrator: IntegratorKind::default(),
+            step: default_step(),
+            rtol: default_rtol(),
+            atol: default_atol(),
+            max_step: None,
+            baumgarte_alpha: default_baumgarte(),
+            baumgarte_beta: default_baumgarte(),
+            start_time: 0.0,
+            end_time: None,
+            periods: None,
+        }
+    }
+}
+
+/// What to record.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct OutputSpec {
+    /// Sampling interval (s); default: 1/1000 of the simulated span.
+    #[serde(default)]
+    pub interval: Option<f64>,
+    /// Bodies to record (default: all).
+    #[serde(default)]
+    pub bodies: Option<Vec<String>>,
+    /// Joints whose reactions are recorded (default: all).
+    #[serde(default)]
+    pub joints: Option<Vec<String>>,
+    /// Drives whose coordinate and actuator force are recorded (default: all).
+    #[serde(default)]
+    pub drives: Option<Vec<String>>,
+    /// Record accelerations (default true).
+    #[serde(default = "yes")]
+    pub accelerations: bool,
+    /// Record constraint drift, velocity drift and energy (default true).
+    #[serde(default = "yes")]
+    pub diagnostics: bool,
+}
+
+fn yes() -> bool {
+    true
+}
+
+impl Default for OutputSpec {
+    fn default() -> Self {
+        OutputSpec {
+            interval: None,
+            bodies: None,
+            joints: None,
+            drives: None,
+            accelerations: true,
+            diagnostics: true,
+        }
+    }
+}
+
+/// A scene as read from disk, with the file it came from and its text.
+#[derive(Debug, Clone)]
+pub struct SceneFile {
+    pub path: PathBuf,
+    pub text: String,
+    pub spec: SceneSpec,
+}
+
+impl SceneSpec {
+    /// Parses scene text; `file` names the source in errors.
+    pub fn parse(text: &str, file: &Path) -> Result<SceneSpec> {
+        toml::from_str(text).map_err(|e| Error::Parse {
+            file: file.to_path_buf(),
+            message: e.to_string().trim_end().to_string(),
+        })
+    }
+
+    /// Reads and parses a scene file.
+    pub fn load(path: &Path) -> Result<SceneFile> {
+        let text = std::fs::read_to_string(path).map_err(|source| Error::Io {
+            file: path.to_path_buf(),
+            source,
+        })?;
+        let spec = SceneSpec::parse(&text, path)?;
+        Ok(SceneFile {
+            path: path.to_path_buf(),
+            text,
+            spec,
+        })
+    }
+}
+
+impl SceneFile {
+    /// The scene's name: its `name` field, else the file stem.
+    pub fn name(&self) -> String {
+        self.spec.name.clone().unwrap_or_else(|| {
+            self.path
+                .file_stem()
+                .map(|s| s.to_string_lossy().into_owned())
+                .unwrap_or_else(|| "scene".into())
+        })
+    }
+}
