@@ -1,1 +1,416 @@
-fn main() {}
+//! `jointplay`: simulate mechanisms with ideal and clearance joints from TOML scene files.
+//!
+//! * `jointplay check SCENE`: validate and compile a scene and print what will be simulated.
+//! * `jointplay run SCENE --out DIR`: simulate it and write `DIR/<scene>.h5` plus figures.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::{Context, Result};
+use clap::{Parser, Subcommand};
+use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
+use jointplay_analysis::h5::{Meta, write_run};
+use jointplay_analysis::plot::{Format, Panel, Series, figure};
+use jointplay_analysis::run::{RunResult, simulate};
+use jointplay_solver::model::{GROUND, Model};
+use jointplay_solver::ode::Method;
+use jointplay_solver::profile::Profile;
+use jointplay_solver::scene::{DriveCoordinate, SceneSpec};
+
+#[derive(Parser)]
+#[command(
+    name = "jointplay",
+    version,
+    about = "Nonlinear dynamics of mechanisms with joint clearance"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Validate a scene and print its compiled summary: bodies, constraints, rank, degrees of
+    /// freedom, redundancy, drives and the effects that will be simulated.
+    Check {
+        /// Scene file (TOML).
+        scene: PathBuf,
+    },
+    /// Simulate a scene; write DIR/<scene-name>.h5 and figures (PNG and SVG).
+    Run {
+        /// Scene file (TOML).
+        scene: PathBuf,
+        /// Output directory (created if missing).
+        #[arg(long, default_value = "out")]
+        out: PathBuf,
+        /// Skip the figures.
+        #[arg(long)]
+        no_plots: bool,
+        /// No progress bar.
+        #[arg(long, short)]
+        quiet: bool,
+    },
+}
+
+fn main() {
+    let cli = Cli::parse();
+    let res = match cli.command {
+        Command::Check { scene } => check(&scene),
+        Command::Run {
+            scene,
+            out,
+            no_plots,
+            quiet,
+        } => run(&scene, &out, !no_plots, quiet),
+    };
+    if let Err(e) = res {
+        eprintln!("error: {e:#}");
+        std::process::exit(1);
+    }
+}
+
+fn method_text(m: &Method) -> String {
+    match m {
+        Method::Rk4 { step } => format!("rk4, fixed step {step:e} s"),
+        Method::Dopri5 {
+            rtol,
+            atol,
+            max_step,
+        } => {
+            let mut s = format!("dopri5, rtol {rtol:e}, atol {atol:e}");
+            if max_step.is_finite() {
+                s += &format!(", max step {max_step:e} s");
+            }
+            s
+        }
+        Method::Dopri5Fixed { step } => format!("dopri5 (fixed step {step:e} s)"),
+    }
+}
+
+fn body_name(m: &Model, b: usize) -> &str {
+    if b == GROUND {
+        "ground"
+    } else {
+        &m.bodies[b].name
+    }
+}
+
+fn profile_text(p: &Profile) -> String {
+    match p {
+        Profile::ConstantRate { initial, rate } => format!("constant rate {rate} from {initial}"),
+        Profile::Harmonic {
+            mean,
+            amplitude,
+            omega,
+            phase,
+        } => {
+            format!("harmonic {mean} + {amplitude} sin({omega} t + {phase})")
+        }
+        Profile::Spline(_) => "tabulated (natural cubic spline)".into(),
+        Profile::LegLength { omega, .. } => {
+            format!("leg length of a harmonic path, omega {omega} rad/s")
+        }
+    }
+}
+
+fn check(path: &Path) -> Result<()> {
+    let scene = SceneSpec::load(path)?;
+    let (model, mut state) = Model::compile(&scene)?;
+    let report = model.assemble(&mut state)?;
+    let st = model.structure(state.t, &state.y);
+    println!("scene        {} ({})", model.name, path.display());
+    if let Some(d) = &model.description {
+        println!("description  {d}");
+    }
+    println!("bodies       {}", model.nb());
+    for b in &model.bodies {
+        let d = b.inertia.diagonal();
+        println!(
+            "  {:<14} mass {:>9.4} kg   inertia diag [{:.4e}, {:.4e}, {:.4e}] kg m^2",
+            b.name, b.mass, d.x, d.y, d.z
+        );
+    }
+    println!(
+        "coordinates  {} (6 velocity coordinates per body; positions carry Euler parameters)",
+        st.n_coords
+    );
+    println!(
+        "joints       {} ({} constraint rows)",
+        model.joints.len(),
+        model.joint_rows
+    );
+    for j in &model.joints {
+        println!(
+            "  {:<14} {:<11} {} -> {}   {} rows",
+            j.name,
+            j.kind.name(),
+            body_name(&model, j.body_a),
+            body_name(&model, j.body_b),
+            j.rows.len()
+        );
+    }
+    println!("drives       {}", model.drives.len());
+    for d in &model.drives {
+        let period = d
+            .profile
+            .period()
+            .map(|p| format!(", period {p:.6} s"))
+            .unwrap_or_default();
+        println!(
+            "  {:<14} joint {} {}, {}{}",
+            d.name,
+            model.joints[d.joint].name,
+            match d.coordinate {
+                DriveCoordinate::Translation => "translation (m)",
+                DriveCoordinate::Rotation => "rotation (rad)",
+            },
+            profile_text(&d.profile),
+            period
+        );
+    }
+    println!(
+        "constraints  {} rows, numerical rank {} at the assembled initial state (joints: {} rows, rank {})",
+        model.n_rows, st.rank, st.joint_rows, st.joint_rank
+    );
+    println!(
+        "degrees of freedom  {} ({} coordinates - joint rank {})",
+        st.dof, st.n_coords, st.joint_rank
+    );
+    println!("redundant joint rows  {}", st.redundant_joint_rows);
+    println!(
+        "redundant drives  {}{}",
+        st.redundant_drives,
+        if st.redundant_drives > 0 {
+            format!(
+                " ({} drives for {} degrees of freedom: redundant actuation, minimum-norm actuator forces)",
+                st.drive_rows, st.dof
+            )
+        } else {
+            String::new()
+        }
+    );
+    println!("free degrees of freedom  {}", st.remaining_dof);
+    println!(
+        "assembly     {} Newton iterations, residual {:.2e} -> {:.2e} (m, rad); velocity residual {:.2e} -> {:.2e}",
+        report.iterations,
+        report.initial_residual,
+        report.final_residual,
+        report.initial_velocity_residual,
+        report.final_velocity_residual
+    );
+    println!("effects simulated");
+    for e in model.effects.describe(&model) {
+        println!("  - {e}");
+    }
+    let s = &model.settings;
+    let periods = s
+        .period
+        .map(|p| {
+            format!(
+                " ({:.4} drive periods of {p:.6} s)",
+                (s.end_time - s.start_time) / p
+            )
+        })
+        .unwrap_or_default();
+    println!(
+        "solver       {}, Baumgarte alpha {} 1/s, beta {} 1/s",
+        method_text(&s.method),
+        s.alpha,
+        s.beta
+    );
+    println!(
+        "span         {} s to {} s{}",
+        s.start_time, s.end_time, periods
+    );
+    let o = &model.outputs;
+    println!(
+        "output       every {:e} s: {} bodies, {} joints, {} drives{}{}",
+        o.interval,
+        o.bodies.len(),
+        o.joints.len(),
+        o.drives.len(),
+        if o.accelerations {
+            ", accelerations"
+        } else {
+            ""
+        },
+        if o.diagnostics { ", diagnostics" } else { "" }
+    );
+    Ok(())
+}
+
+fn run(path: &Path, out: &Path, plots: bool, quiet: bool) -> Result<()> {
+    let scene = SceneSpec::load(path)?;
+    let (model, state) = Model::compile(&scene)?;
+    let start = Instant::now();
+    let bar = ProgressBar::with_draw_target(Some(1000), ProgressDrawTarget::hidden());
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{spinner} [{elapsed_precise}] {bar:40} {percent:>3}% (eta {eta})",
+        )
+        .expect("static template"),
+    );
+    let mut shown = false;
+    let mut progress = |f: f64| {
+        if !quiet && !shown && start.elapsed().as_secs_f64() > 1.0 {
+            bar.set_draw_target(ProgressDrawTarget::stderr());
+            shown = true;
+        }
+        bar.set_position((f * 1000.0) as u64);
+    };
+    let result = simulate(&model, state, &mut progress)
+        .with_context(|| format!("simulating {}", path.display()))?;
+    bar.finish_and_clear();
+    let meta = Meta {
+        scene_name: &model.name,
+        scene_file: path,
+        scene_text: &scene.text,
+        program_version: env!("CARGO_PKG_VERSION"),
+        integrator: method_text(&model.settings.method),
+        baumgarte_alpha: model.settings.alpha,
+        baumgarte_beta: model.settings.beta,
+    };
+    let file = write_run(out, &meta, &result)?;
+    let st = &result.stats;
+    let wall = st.wall.as_secs_f64();
+    println!("scene        {} ({})", model.name, path.display());
+    println!(
+        "span         {} s to {} s, {} samples",
+        model.settings.start_time,
+        model.settings.end_time,
+        result.recording.time.len()
+    );
+    println!("integrator   {}", method_text(&model.settings.method));
+    println!(
+        "steps        {} accepted, {} rejected",
+        st.accepted, st.rejected
+    );
+    println!(
+        "RHS          {} evaluations, {:.0} per second",
+        st.rhs_evals,
+        st.rhs_evals as f64 / wall.max(1e-9)
+    );
+    println!("wall time    {wall:.3} s (integration and recording)");
+    if let Some(d) = &result.recording.diagnostics {
+        let max = |v: &[f64]| v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        println!(
+            "drift        max |Phi| {:.3e} (m, rad), max |Phi'| {:.3e} (m/s, rad/s)",
+            max(&d.constraint_drift),
+            max(&d.velocity_drift)
+        );
+    }
+    println!("wrote        {}", file.display());
+    if plots {
+        for f in figures(out, &model.name, &result)? {
+            println!("wrote        {}", f.display());
+        }
+    }
+    Ok(())
+}
+
+fn figures(out: &Path, name: &str, run: &RunResult) -> Result<Vec<PathBuf>> {
+    let rec = &run.recording;
+    let t = &rec.time;
+    let comp = |v: &[[f64; 3]], k: usize| v.iter().map(|p| p[k]).collect::<Vec<_>>();
+    let mut files = Vec::new();
+    let mut sets: Vec<(String, Vec<Panel>)> = Vec::new();
+    let body_panels: Vec<Panel> = rec
+        .bodies
+        .iter()
+        .take(12)
+        .map(|b| Panel {
+            title: format!("{}: centre of mass", b.name),
+            x_label: "time t (s)".into(),
+            y_label: "position (m)".into(),
+            series: ["x", "y", "z"]
+                .iter()
+                .enumerate()
+                .map(|(k, l)| Series {
+                    label: (*l).into(),
+                    x: t.clone(),
+                    y: comp(&b.position, k),
+                })
+                .collect(),
+            log_y: false,
+        })
+        .collect();
+    sets.push((format!("{name}-positions"), body_panels));
+    if !rec.drives.is_empty() {
+        sets.push((
+            format!("{name}-drives"),
+            vec![Panel {
+                title: "Actuator forces".into(),
+                x_label: "time t (s)".into(),
+                y_label: if rec.drives.iter().all(|d| d.rotational) {
+                    "torque (N m)"
+                } else {
+                    "force (N) or torque (N m)"
+                }
+                .into(),
+                series: rec
+                    .drives
+                    .iter()
+                    .map(|d| Series {
+                        label: d.name.clone(),
+                        x: t.clone(),
+                        y: d.force.clone(),
+                    })
+                    .collect(),
+                log_y: false,
+            }],
+        ));
+    }
+    if let Some(d) = &rec.diagnostics {
+        sets.push((
+            format!("{name}-diagnostics"),
+            vec![
+                Panel {
+                    title: "Constraint drift".into(),
+                    x_label: "time t (s)".into(),
+                    y_label: "residual (m, rad; m/s, rad/s)".into(),
+                    series: vec![
+                        Series {
+                            label: "position |Phi|".into(),
+                            x: t.clone(),
+                            y: d.constraint_drift.clone(),
+                        },
+                        Series {
+                            label: "velocity |Phi'|".into(),
+                            x: t.clone(),
+                            y: d.velocity_drift.clone(),
+                        },
+                    ],
+                    log_y: true,
+                },
+                Panel {
+                    title: format!(
+                        "Mechanical energy change (E(0) = {:.6e} J)",
+                        d.energy.first().copied().unwrap_or(0.0)
+                    ),
+                    x_label: "time t (s)".into(),
+                    y_label: "E - E(0) (J)".into(),
+                    series: vec![Series {
+                        label: "energy".into(),
+                        x: t.clone(),
+                        y: d.energy.iter().map(|e| e - d.energy[0]).collect(),
+                    }],
+                    log_y: false,
+                },
+            ],
+        ));
+    }
+    for (stem, panels) in sets {
+        if panels.is_empty() {
+            continue;
+        }
+        let cols = if panels.len() > 4 {
+            3
+        } else {
+            panels.len().min(2)
+        };
+        for fmt in [Format::Png, Format::Svg] {
+            files.push(figure(&out.join(&stem), fmt, &panels, cols)?);
+        }
+    }
+    Ok(files)
+}

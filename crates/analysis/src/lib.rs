@@ -1,0 +1,26 @@
+//! # jointplay-analysis
+//!
+//! Runs of a compiled model and what comes out of them: [`run`] integrates a model and records the
+//! requested outputs at exact sample times; [`h5`] writes a recording to HDF5 (layout in the
+//! README); [`plot`] draws figures as PNG and SVG with an embedded font (no system fonts needed).
+
+pub mod h5;
+pub mod plot;
+pub mod run;
+
+use std::path::PathBuf;
+
+/// Errors of the analysis crate.
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    #[error(transparent)]
+    Solver(#[from] jointplay_solver::Error),
+    #[error("{file}: HDF5: {message}")]
+    Hdf5 { file: PathBuf, message: String },
+    #[error("{file}: {message}")]
+    Io { file: PathBuf, message: String },
+    #[error("{file}: plot: {message}")]
+    Plot { file: PathBuf, message: String },
+}
+
+pub type Result<T, E = Error> = std::result::Result<T, E>;

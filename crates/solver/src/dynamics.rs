@@ -21,8 +21,8 @@ use nalgebra::{DMatrix, Matrix3, Quaternion, UnitQuaternion, Vector3};
 use crate::error::{Error, Result};
 use crate::linalg::PsdSolver;
 use crate::model::{GROUND, Model, Prim, State};
-use crate::scene::LoadFrame;
 use crate::ode::OdeSystem;
+use crate::scene::LoadFrame;
 
 /// Relative pivot tolerance of the reduced-matrix factorisation: pivots below it count as
 /// redundant constraint directions.
@@ -189,7 +189,12 @@ impl Model {
                         // product identity e . (w x s) = w . (s x e).
                         let ja = block(&(-e), &sag.cross(&e).scale(-1.0));
                         let jb = block(&e, &sbg.cross(&e));
-                        ws.rows[r0 + k] = Row { a: *a, b: *b, ja, jb };
+                        ws.rows[r0 + k] = Row {
+                            a: *a,
+                            b: *b,
+                            ja,
+                            jb,
+                        };
                         ws.phi[r0 + k] = phi[k];
                         ws.phi_dot[r0 + k] = phid[k];
                         ws.rhs[r0 + k] = gam[k];
@@ -239,9 +244,7 @@ impl Model {
                     ws.phi_dot[r0] = wu.dot(&d) + ug.dot(&dd) - sd;
                     ws.rhs[r0] = -(ka.w.cross(&wu).dot(&d)
                         + 2.0 * wu.dot(&dd)
-                        + ug.dot(
-                            &(kb.w.cross(&kb.w.cross(&sbg)) - ka.w.cross(&ka.w.cross(&sag))),
-                        ))
+                        + ug.dot(&(kb.w.cross(&kb.w.cross(&sbg)) - ka.w.cross(&ka.w.cross(&sag)))))
                         + sdd;
                 }
                 Prim::Angle {
@@ -267,7 +270,8 @@ impl Model {
                     };
                     // Wrapped into (-pi, pi] so that a drive turning without bound stays smooth.
                     let e = theta - s;
-                    ws.phi[r0] = e - (2.0 * std::f64::consts::PI) * (e / (2.0 * std::f64::consts::PI)).round();
+                    ws.phi[r0] = e
+                        - (2.0 * std::f64::consts::PI) * (e / (2.0 * std::f64::consts::PI)).round();
                     ws.phi_dot[r0] = ax.dot(&dw) - sd;
                     ws.rhs[r0] = -ka.w.cross(&ax).dot(&dw) + sdd;
                 }
@@ -536,7 +540,12 @@ impl Model {
     /// Which joint or drive owns constraint row `i`, for messages.
     pub fn row_owner(&self, i: usize) -> String {
         if let Some(j) = self.joints.iter().find(|j| j.rows.contains(&i)) {
-            format!("joint '{}' (row {} of its {})", j.name, i - j.rows.start, j.rows.len())
+            format!(
+                "joint '{}' (row {} of its {})",
+                j.name,
+                i - j.rows.start,
+                j.rows.len()
+            )
         } else if let Some(d) = self.drives.iter().find(|d| d.row == i) {
             format!("drive '{}'", d.name)
         } else {
@@ -637,9 +646,16 @@ impl Model {
                     g[c] -= ws.lambda[i] * jj[c];
                 }
             }
-            (Vector3::new(g[0], g[1], g[2]), Vector3::new(g[3], g[4], g[5]))
+            (
+                Vector3::new(g[0], g[1], g[2]),
+                Vector3::new(g[3], g[4], g[5]),
+            )
         };
-        let kb = &ws.kin[if joint.body_b == GROUND { nb } else { joint.body_b }];
+        let kb = &ws.kin[if joint.body_b == GROUND {
+            nb
+        } else {
+            joint.body_b
+        }];
         let p = kb.r + kb.rot * joint.point_b;
         if joint.body_b != GROUND {
             let (f, n) = on(true);

@@ -181,7 +181,10 @@ impl Effects {
             ));
         }
         if self.drives {
-            v.push(format!("prescribed joint motions: {} drives", m.drives.len()));
+            v.push(format!(
+                "prescribed joint motions: {} drives",
+                m.drives.len()
+            ));
         }
         if self.springs {
             v.push(format!("spring-dampers: {}", m.springs.len()));
@@ -486,11 +489,7 @@ fn profile(p: &ProfileSpec, field: &str, cx: &Ctx) -> Result<Profile> {
             if time.len() != value.len() {
                 return Err(cx.err(
                     format!("{field}.value"),
-                    format!(
-                        "has {} entries but time has {}",
-                        value.len(),
-                        time.len()
-                    ),
+                    format!("has {} entries but time has {}", value.len(), time.len()),
                 ));
             }
             if time.len() < 2 {
@@ -512,7 +511,12 @@ fn profile(p: &ProfileSpec, field: &str, cx: &Ctx) -> Result<Profile> {
             omega,
             offset,
         } => {
-            let (a, c, u, v) = (v3(*anchor), v3(*center), v3(*cos_amplitude), v3(*sin_amplitude));
+            let (a, c, u, v) = (
+                v3(*anchor),
+                v3(*center),
+                v3(*cos_amplitude),
+                v3(*sin_amplitude),
+            );
             // The leg must never pass through its anchor (the length would not be smooth).
             let min_len = (0..360)
                 .map(|k| {
@@ -559,13 +563,22 @@ impl Model {
                 return Err(cx.err(format!("{f}.name"), "empty name"));
             }
             if b.name == "ground" {
-                return Err(cx.err(format!("{f}.name"), "'ground' is reserved for the fixed frame"));
+                return Err(cx.err(
+                    format!("{f}.name"),
+                    "'ground' is reserved for the fixed frame",
+                ));
             }
             if body_index.insert(&b.name, i).is_some() {
-                return Err(cx.err(format!("{f}.name"), format!("duplicate body name '{}'", b.name)));
+                return Err(cx.err(
+                    format!("{f}.name"),
+                    format!("duplicate body name '{}'", b.name),
+                ));
             }
             if b.mass <= 0.0 {
-                return Err(cx.err(format!("{f}.mass"), format!("must be positive, got {} kg", b.mass)));
+                return Err(cx.err(
+                    format!("{f}.mass"),
+                    format!("must be positive, got {} kg", b.mass),
+                ));
             }
             let j = inertia(&b.inertia, &format!("{f}.inertia"), &cx)?;
             let rot = orientation(&b.orientation, &format!("{f}.orientation"), &cx)?;
@@ -586,9 +599,9 @@ impl Model {
                 name: b.name.clone(),
                 mass: b.mass,
                 inertia: j,
-                inv_inertia: j.try_inverse().ok_or_else(|| {
-                    cx.err(format!("{f}.inertia"), "inertia tensor is singular")
-                })?,
+                inv_inertia: j
+                    .try_inverse()
+                    .ok_or_else(|| cx.err(format!("{f}.inertia"), "inertia tensor is singular"))?,
                 com,
             });
             frames.push(Frames {
@@ -643,7 +656,10 @@ impl Model {
                 return Err(cx.err(format!("{f}.name"), "empty name"));
             }
             if joint_index.insert(&j.name, i).is_some() {
-                return Err(cx.err(format!("{f}.name"), format!("duplicate joint name '{}'", j.name)));
+                return Err(cx.err(
+                    format!("{f}.name"),
+                    format!("duplicate joint name '{}'", j.name),
+                ));
             }
             let a = body_ref(&j.body_a, format!("{f}.body_a"))?;
             let b = body_ref(&j.body_b, format!("{f}.body_b"))?;
@@ -658,10 +674,16 @@ impl Model {
             let sb = fb.point(&j.point_b, &format!("{f}.point_b"), &cx)?;
             let (axis_a, axis_b) = if j.kind.needs_axes() {
                 let ra = j.axis_a.as_ref().ok_or_else(|| {
-                    cx.err(format!("{f}.axis_a"), format!("a {} joint needs axis_a", j.kind.name()))
+                    cx.err(
+                        format!("{f}.axis_a"),
+                        format!("a {} joint needs axis_a", j.kind.name()),
+                    )
                 })?;
                 let rb = j.axis_b.as_ref().ok_or_else(|| {
-                    cx.err(format!("{f}.axis_b"), format!("a {} joint needs axis_b", j.kind.name()))
+                    cx.err(
+                        format!("{f}.axis_b"),
+                        format!("a {} joint needs axis_b", j.kind.name()),
+                    )
                 })?;
                 (
                     fa.axis(ra, &format!("{f}.axis_a"), &cx)?,
@@ -713,12 +735,36 @@ impl Model {
             };
             let coincident = Prim::Coincident { a, sa, b, sb };
             let parallel = [
-                Prim::Perpendicular { a, u: ua, b, v: axis_b },
-                Prim::Perpendicular { a, u: wa, b, v: axis_b },
+                Prim::Perpendicular {
+                    a,
+                    u: ua,
+                    b,
+                    v: axis_b,
+                },
+                Prim::Perpendicular {
+                    a,
+                    u: wa,
+                    b,
+                    v: axis_b,
+                },
             ];
             let collinear = [
-                Prim::Distance { a, u: ua, sa, b, sb, drive: None },
-                Prim::Distance { a, u: wa, sa, b, sb, drive: None },
+                Prim::Distance {
+                    a,
+                    u: ua,
+                    sa,
+                    b,
+                    sb,
+                    drive: None,
+                },
+                Prim::Distance {
+                    a,
+                    u: wa,
+                    sa,
+                    b,
+                    sb,
+                    drive: None,
+                },
             ];
             let lock = Prim::Perpendicular { a, u: wa, b, v: ub };
             match j.kind {
@@ -729,7 +775,12 @@ impl Model {
                 }
                 JointKind::Universal => {
                     push(coincident);
-                    push(Prim::Perpendicular { a, u: axis_a, b, v: axis_b });
+                    push(Prim::Perpendicular {
+                        a,
+                        u: axis_a,
+                        b,
+                        v: axis_b,
+                    });
                 }
                 JointKind::Cylindrical => {
                     parallel.into_iter().for_each(&mut push);
@@ -742,7 +793,14 @@ impl Model {
                 }
                 JointKind::Planar => {
                     parallel.into_iter().for_each(&mut push);
-                    push(Prim::Distance { a, u: axis_a, sa, b, sb, drive: None });
+                    push(Prim::Distance {
+                        a,
+                        u: axis_a,
+                        sa,
+                        b,
+                        sb,
+                        drive: None,
+                    });
                 }
                 JointKind::Fixed => {
                     push(coincident);
@@ -770,7 +828,10 @@ impl Model {
         for (i, d) in spec.drives.iter().enumerate() {
             let f = format!("drives[{i}]");
             if !names.insert(d.name.as_str()) {
-                return Err(cx.err(format!("{f}.name"), format!("duplicate drive name '{}'", d.name)));
+                return Err(cx.err(
+                    format!("{f}.name"),
+                    format!("duplicate drive name '{}'", d.name),
+                ));
             }
             let ji = *joint_index.get(d.joint.as_str()).ok_or_else(|| {
                 cx.err(
@@ -859,7 +920,10 @@ impl Model {
         for (i, s) in spec.springs.iter().enumerate() {
             let f = format!("springs[{i}]");
             if !names.insert(s.name.as_str()) {
-                return Err(cx.err(format!("{f}.name"), format!("duplicate spring name '{}'", s.name)));
+                return Err(cx.err(
+                    format!("{f}.name"),
+                    format!("duplicate spring name '{}'", s.name),
+                ));
             }
             let a = body_ref(&s.body_a, format!("{f}.body_a"))?;
             let b = body_ref(&s.body_b, format!("{f}.body_b"))?;
@@ -895,7 +959,10 @@ impl Model {
         for (i, l) in spec.loads.iter().enumerate() {
             let f = format!("loads[{i}]");
             if !names.insert(l.name.as_str()) {
-                return Err(cx.err(format!("{f}.name"), format!("duplicate load name '{}'", l.name)));
+                return Err(cx.err(
+                    format!("{f}.name"),
+                    format!("duplicate load name '{}'", l.name),
+                ));
             }
             let body = body_ref(&l.body, format!("{f}.body"))?;
             if body == GROUND {
@@ -920,7 +987,10 @@ impl Model {
         let method = match sv.integrator {
             IntegratorKind::Rk4 => {
                 if sv.step <= 0.0 {
-                    return Err(cx.err("solver.step", format!("must be positive, got {} s", sv.step)));
+                    return Err(cx.err(
+                        "solver.step",
+                        format!("must be positive, got {} s", sv.step),
+                    ));
                 }
                 Method::Rk4 { step: sv.step }
             }
@@ -1006,10 +1076,7 @@ impl Model {
         if interval <= 0.0 {
             return Err(cx.err("output.interval", "must be positive"));
         }
-        let pick = |sel: &Option<Vec<String>>,
-                    field: &str,
-                    all: &[&str]|
-         -> Result<Vec<usize>> {
+        let pick = |sel: &Option<Vec<String>>, field: &str, all: &[&str]| -> Result<Vec<usize>> {
             match sel {
                 None => Ok((0..all.len()).collect()),
                 Some(v) => v
@@ -1017,7 +1084,10 @@ impl Model {
                     .enumerate()
                     .map(|(k, n)| {
                         all.iter().position(|x| x == n).ok_or_else(|| {
-                            cx.err(format!("output.{field}[{k}]"), format!("unknown name '{n}'"))
+                            cx.err(
+                                format!("output.{field}[{k}]"),
+                                format!("unknown name '{n}'"),
+                            )
                         })
                     })
                     .collect(),

@@ -173,7 +173,12 @@ fn dopri5_step<S: OdeSystem>(sys: &mut S, t: f64, y: &[f64], h: f64, w: &mut Wor
     sys.rhs(t + C3 * h, &w.tmp, k3);
     axpy_stage(&mut w.tmp, y, h, &[(A41, k1), (A42, k2), (A43, k3)]);
     sys.rhs(t + C4 * h, &w.tmp, k4);
-    axpy_stage(&mut w.tmp, y, h, &[(A51, k1), (A52, k2), (A53, k3), (A54, k4)]);
+    axpy_stage(
+        &mut w.tmp,
+        y,
+        h,
+        &[(A51, k1), (A52, k2), (A53, k3), (A54, k4)],
+    );
     sys.rhs(t + C5 * h, &w.tmp, k5);
     axpy_stage(
         &mut w.tmp,
@@ -190,8 +195,8 @@ fn dopri5_step<S: OdeSystem>(sys: &mut S, t: f64, y: &[f64], h: f64, w: &mut Wor
     );
     sys.rhs(t + h, &w.y_new, k7);
     for i in 0..y.len() {
-        w.tmp[i] = h
-            * (E1 * k1[i] + E3 * k3[i] + E4 * k4[i] + E5 * k5[i] + E6 * k6[i] + E7 * k7[i]);
+        w.tmp[i] =
+            h * (E1 * k1[i] + E3 * k3[i] + E4 * k4[i] + E5 * k5[i] + E6 * k6[i] + E7 * k7[i]);
     }
 }
 
@@ -206,8 +211,7 @@ fn dopri5_dense(y: &[f64], h: f64, w: &mut Work) {
         c1[i] = ydiff;
         c2[i] = bspl;
         c3[i] = ydiff - h * k7[i] - bspl;
-        c4[i] = h
-            * (D1 * k1[i] + D3 * k3[i] + D4 * k4[i] + D5 * k5[i] + D6 * k6[i] + D7 * k7[i]);
+        c4[i] = h * (D1 * k1[i] + D3 * k3[i] + D4 * k4[i] + D5 * k5[i] + D6 * k6[i] + D7 * k7[i]);
     }
 }
 
@@ -298,7 +302,11 @@ pub fn integrate<S: OdeSystem>(
 ) -> Result<Stats> {
     let start = Instant::now();
     let n = sys.dim();
-    assert_eq!(y.len(), n, "state length does not match the system dimension");
+    assert_eq!(
+        y.len(),
+        n,
+        "state length does not match the system dimension"
+    );
     let mut stats = Stats::default();
     let mut w = Work::new(n);
     let mut ys = vec![0.0; n];
@@ -451,9 +459,14 @@ mod tests {
 
     fn final_error(method: Method) -> (f64, Stats) {
         let mut y = [1.0, 0.0];
-        let stats = integrate(&mut Harmonic, method, 0.0, &mut y, 10.0, &[], |_, _| Flow::Continue)
-            .unwrap();
-        (((y[0] - 10f64.cos()).powi(2) + (y[1] + 10f64.sin()).powi(2)).sqrt(), stats)
+        let stats = integrate(&mut Harmonic, method, 0.0, &mut y, 10.0, &[], |_, _| {
+            Flow::Continue
+        })
+        .unwrap();
+        (
+            ((y[0] - 10f64.cos()).powi(2) + (y[1] + 10f64.sin()).powi(2)).sqrt(),
+            stats,
+        )
     }
 
     fn observed_order(make: impl Fn(f64) -> Method, h: f64) -> f64 {
@@ -502,11 +515,19 @@ mod tests {
             let mut worst: f64 = 0.0;
             let mut count = 0;
             let mut y = [1.0, 0.0];
-            integrate(&mut Harmonic, method, 0.0, &mut y, 10.0, &samples, |t, y| {
-                worst = worst.max((y[0] - t.cos()).abs());
-                count += 1;
-                Flow::Continue
-            })
+            integrate(
+                &mut Harmonic,
+                method,
+                0.0,
+                &mut y,
+                10.0,
+                &samples,
+                |t, y| {
+                    worst = worst.max((y[0] - t.cos()).abs());
+                    count += 1;
+                    Flow::Continue
+                },
+            )
             .unwrap();
             assert_eq!(count, samples.len());
             // Both interpolants are accurate to the order of the method's own error:
@@ -548,9 +569,15 @@ mod tests {
             }
         }
         let mut y = [1.0];
-        let err = integrate(&mut Blowup, Method::Rk4 { step: 0.1 }, 0.0, &mut y, 5.0, &[], |_, _| {
-            Flow::Continue
-        })
+        let err = integrate(
+            &mut Blowup,
+            Method::Rk4 { step: 0.1 },
+            0.0,
+            &mut y,
+            5.0,
+            &[],
+            |_, _| Flow::Continue,
+        )
         .unwrap_err();
         assert!(matches!(err, Error::Diverged { time, .. } if time > 0.5 && time < 5.0));
     }

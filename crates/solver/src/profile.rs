@@ -142,7 +142,8 @@ impl Spline {
         let (m0, m1) = (self.m[i], self.m[i + 1]);
         let (y0, y1) = (self.y[i], self.y[i + 1]);
         let s = a * y0 + b * y1 + ((a * a * a - a) * m0 + (b * b * b - b) * m1) * h * h / 6.0;
-        let sd = (y1 - y0) / h - (3.0 * a * a - 1.0) / 6.0 * h * m0 + (3.0 * b * b - 1.0) / 6.0 * h * m1;
+        let sd =
+            (y1 - y0) / h - (3.0 * a * a - 1.0) / 6.0 * h * m0 + (3.0 * b * b - 1.0) / 6.0 * h * m1;
         let sdd = a * m0 + b * m1;
         (s, sd, sdd)
     }
@@ -158,8 +159,14 @@ mod tests {
         let fd = (p.eval(t + h).0 - p.eval(t - h).0) / (2.0 * h);
         let fdd = (p.eval(t + h).1 - p.eval(t - h).1) / (2.0 * h);
         // Central differences at h = 1e-5 are accurate to ~1e-9 for these smooth functions.
-        assert!((d - fd).abs() < 1e-7 * (1.0 + d.abs()), "{p:?} s' {d} vs {fd}");
-        assert!((dd - fdd).abs() < 1e-6 * (1.0 + dd.abs()), "{p:?} s'' {dd} vs {fdd}");
+        assert!(
+            (d - fd).abs() < 1e-7 * (1.0 + d.abs()),
+            "{p:?} s' {d} vs {fd}"
+        );
+        assert!(
+            (dd - fdd).abs() < 1e-6 * (1.0 + dd.abs()),
+            "{p:?} s'' {dd} vs {fdd}"
+        );
     }
 
     #[test]

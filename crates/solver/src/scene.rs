@@ -129,7 +129,10 @@ pub struct OrientationSpec {
 
 /// A point or an axis: the name of one declared on the body, or coordinates in the body frame.
 #[derive(Debug, Clone, Deserialize, Serialize)]
-#[serde(untagged)]
+#[serde(
+    untagged,
+    expecting = "the name of a declared point or axis, or coordinates [x, y, z]"
+)]
 pub enum VecRef {
     Name(String),
     Coords([f64; 3]),

@@ -57,22 +57,40 @@ fn crossings(t: &[f64], f: &[f64], df: &[f64]) -> Vec<f64> {
 }
 
 /// Integrates a scene, sampling (t, y) every `dt`.
-fn run(model: &Model, state: &mut State, method: Method, t_end: f64, dt: f64) -> Vec<(f64, Vec<f64>)> {
+fn run(
+    model: &Model,
+    state: &mut State,
+    method: Method,
+    t_end: f64,
+    dt: f64,
+) -> Vec<(f64, Vec<f64>)> {
     let n = ((t_end - state.t) / dt).round() as usize;
     let samples: Vec<f64> = (0..=n).map(|k| state.t + k as f64 * dt).collect();
     let mut out = Vec::new();
     let mut sys = Mechanism::new(model);
-    integrate(&mut sys, method, state.t, &mut state.y, t_end, &samples, |t, y| {
-        out.push((t, y.to_vec()));
-        Flow::Continue
-    })
+    integrate(
+        &mut sys,
+        method,
+        state.t,
+        &mut state.y,
+        t_end,
+        &samples,
+        |t, y| {
+            out.push((t, y.to_vec()));
+            Flow::Continue
+        },
+    )
     .unwrap();
     state.t = t_end;
     out
 }
 
 fn tight() -> Method {
-    Method::Dopri5 { rtol: 1e-11, atol: 1e-12, max_step: f64::INFINITY }
+    Method::Dopri5 {
+        rtol: 1e-11,
+        atol: 1e-12,
+        max_step: f64::INFINITY,
+    }
 }
 
 fn pendulum_period(theta0: f64) -> (f64, f64) {
@@ -102,23 +120,43 @@ fn pendulum_large_amplitude_period_matches_the_elliptic_integral() {
     let (measured, exact) = pendulum_period(std::f64::consts::FRAC_PI_3);
     // Tolerance 1e-6 relative: the integration error at rtol 1e-11 and the O(dt^4) crossing
     // interpolation are both below 1e-9 s; the margin covers the Baumgarte-corrected drift.
-    assert!(((measured - exact) / exact).abs() < 1e-6, "measured {measured}, exact {exact}");
+    assert!(
+        ((measured - exact) / exact).abs() < 1e-6,
+        "measured {measured}, exact {exact}"
+    );
 }
 
 #[test]
 fn pendulum_small_amplitude_period_is_two_pi_sqrt_l_over_g() {
     let (measured, exact) = pendulum_period(0.01);
     let b = scene("pendulum.toml").0.bodies[0].clone();
-    let small = 2.0 * std::f64::consts::PI * ((b.inertia[(2, 2)] + b.mass) / (b.mass * 9.81)).sqrt();
+    let small =
+        2.0 * std::f64::consts::PI * ((b.inertia[(2, 2)] + b.mass) / (b.mass * 9.81)).sqrt();
     // At 0.01 rad the finite-amplitude correction is theta0^2/16 = 6.25e-6 relative.
-    assert!(((measured - small) / small).abs() < 1e-5, "measured {measured}, 2 pi sqrt(L/g) {small}");
-    assert!(((measured - exact) / exact).abs() < 1e-7, "measured {measured}, exact {exact}");
+    assert!(
+        ((measured - small) / small).abs() < 1e-5,
+        "measured {measured}, 2 pi sqrt(L/g) {small}"
+    );
+    assert!(
+        ((measured - exact) / exact).abs() < 1e-7,
+        "measured {measured}, exact {exact}"
+    );
 }
 
 #[test]
 fn torque_free_body_conserves_energy_and_momentum_and_flips() {
     let (model, mut state) = scene("free-body.toml");
-    let samples = run(&model, &mut state, Method::Dopri5 { rtol: 1e-10, atol: 1e-12, max_step: f64::INFINITY }, 30.0, 0.01);
+    let samples = run(
+        &model,
+        &mut state,
+        Method::Dopri5 {
+            rtol: 1e-10,
+            atol: 1e-12,
+            max_step: f64::INFINITY,
+        },
+        30.0,
+        0.01,
+    );
     let mut ws = Workspace::new(&model);
     let jb = model.bodies[0].inertia;
     let ang_mom = |y: &[f64]| {
@@ -147,7 +185,10 @@ fn torque_free_body_conserves_energy_and_momentum_and_flips() {
     // bound allows for a different step sequence on another machine.
     assert!(worst_e < 1e-9, "relative energy error {worst_e}");
     assert!(worst_l < 1e-9, "relative angular momentum error {worst_l}");
-    assert!(flips >= 4, "the intermediate-axis flip did not appear ({flips} sign changes)");
+    assert!(
+        flips >= 4,
+        "the intermediate-axis flip did not appear ({flips} sign changes)"
+    );
 }
 
 #[test]
@@ -156,7 +197,17 @@ fn slider_crank_follows_closed_form_kinematics() {
     let w = 523.5987755982989;
     let (r, l) = (0.05, 0.12);
     let period = 2.0 * std::f64::consts::PI / w;
-    let samples = run(&model, &mut state, Method::Dopri5 { rtol: 1e-10, atol: 1e-12, max_step: f64::INFINITY }, 2.0 * period, period / 200.0);
+    let samples = run(
+        &model,
+        &mut state,
+        Method::Dopri5 {
+            rtol: 1e-10,
+            atol: 1e-12,
+            max_step: f64::INFINITY,
+        },
+        2.0 * period,
+        period / 200.0,
+    );
     let slider = 2;
     let mut ws = Workspace::new(&model);
     let (mut ep, mut ev, mut ea) = (0.0f64, 0.0f64, 0.0f64);
@@ -188,5 +239,18 @@ fn slider_crank_has_three_redundant_rows_and_one_dof() {
     assert_eq!(s.dof, 1);
     assert_eq!(s.redundant_joint_rows, 3);
     assert_eq!(s.redundant_drives, 0);
+    assert_eq!(s.remaining_dof, 0);
+}
+
+#[test]
+fn ideal_4ups_rpu_has_four_dof_and_one_redundant_drive() {
+    let (model, state) = scene("4ups-rpu.toml");
+    let s = model.structure(state.t, &state.y);
+    assert_eq!(s.n_coords, 66);
+    assert_eq!(s.joint_rows, 62);
+    assert_eq!(s.dof, 4);
+    assert_eq!(s.redundant_joint_rows, 0);
+    assert_eq!(s.drive_rows, 5);
+    assert_eq!(s.redundant_drives, 1);
     assert_eq!(s.remaining_dof, 0);
 }

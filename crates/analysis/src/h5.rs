@@ -1,0 +1,231 @@
+//! HDF5 export of a run (layout documented in the README, "HDF5 layout").
+//!
+//! The file is written under a temporary name (`<name>.h5.partial`) and renamed only once it is
+//! complete and closed, so a crash or an error never leaves a file that looks finished.
+//! Every dataset carries a `unit` attribute (SI) and a `description`.
+
+use std::path::{Path, PathBuf};
+
+use hdf5::types::VarLenUnicode;
+use ndarray::{Array1, Array2};
+
+use crate::run::RunResult;
+use crate::{Error, Result};
+
+/// Run metadata written as root attributes.
+#[derive(Debug, Clone)]
+pub struct Meta<'a> {
+    pub scene_name: &'a str,
+    pub scene_file: &'a Path,
+    pub scene_text: &'a str,
+    pub program_version: &'a str,
+    /// Human-readable integrator settings, e.g. "rk4, step 1e-4 s".
+    pub integrator: String,
+    pub baumgarte_alpha: f64,
+    pub baumgarte_beta: f64,
+}
+
+fn h5err(file: &Path) -> impl Fn(hdf5::Error) -> Error + '_ {
+    move |e| Error::Hdf5 {
+        file: file.to_path_buf(),
+        message: e.to_string(),
+    }
+}
+
+fn str_attr(loc: &hdf5::Location, name: &str, value: &str) -> hdf5::Result<()> {
+    // Strings with interior NUL bytes cannot be stored; replace them (never expected in practice).
+    let v: VarLenUnicode = value
+        .replace('\0', " ")
+        .parse()
+        .map_err(|e| hdf5::Error::from(format!("{e:?}")))?;
+    loc.new_attr::<VarLenUnicode>()
+        .create(name)?
+        .write_scalar(&v)
+}
+
+fn f64_attr(loc: &hdf5::Location, name: &str, value: f64) -> hdf5::Result<()> {
+    loc.new_attr::<f64>().create(name)?.write_scalar(&value)
+}
+
+fn u64_attr(loc: &hdf5::Location, name: &str, value: u64) -> hdf5::Result<()> {
+    loc.new_attr::<u64>().create(name)?.write_scalar(&value)
+}
+
+fn write1(g: &hdf5::Group, name: &str, data: &[f64], unit: &str, desc: &str) -> hdf5::Result<()> {
+    let ds = g
+        .new_dataset_builder()
+        .with_data(&Array1::from(data.to_vec()))
+        .create(name)?;
+    str_attr(&ds, "unit", unit)?;
+    str_attr(&ds, "description", desc)
+}
+
+fn write_n<const N: usize>(
+    g: &hdf5::Group,
+    name: &str,
+    data: &[[f64; N]],
+    unit: &str,
+    desc: &str,
+) -> hdf5::Result<()> {
+    let flat: Vec<f64> = data.iter().flatten().copied().collect();
+    let arr = Array2::from_shape_vec((data.len(), N), flat)
+        .map_err(|e| hdf5::Error::from(e.to_string()))?;
+    let ds = g.new_dataset_builder().with_data(&arr).create(name)?;
+    str_attr(&ds, "unit", unit)?;
+    str_attr(&ds, "description", desc)
+}
+
+/// Writes `run` to `dir/<scene_name>.h5` and returns the path.
+pub fn write_run(dir: &Path, meta: &Meta, run: &RunResult) -> Result<PathBuf> {
+    std::fs::create_dir_all(dir).map_err(|e| Error::Io {
+        file: dir.to_path_buf(),
+        message: format!("cannot create output directory: {e}"),
+    })?;
+    let path = dir.join(format!("{}.h5", meta.scene_name));
+    let partial = dir.join(format!("{}.h5.partial", meta.scene_name));
+    let res = write_file(&partial, meta, run);
+    if let Err(e) = res {
+        let _ = std::fs::remove_file(&partial);
+        return Err(e);
+    }
+    std::fs::rename(&partial, &path).map_err(|e| Error::Io {
+        file: path.clone(),
+        message: format!("cannot move the finished file into place: {e}"),
+    })?;
+    Ok(path)
+}
+
+fn write_file(path: &Path, meta: &Meta, run: &RunResult) -> Result<()> {
+    let e = h5err(path);
+    let file = hdf5::File::create(path).map_err(&e)?;
+    let rec = &run.recording;
+    (|| -> hdf5::Result<()> {
+        str_attr(&file, "program", "jointplay")?;
+        str_attr(&file, "program_version", meta.program_version)?;
+        str_attr(&file, "scene_name", meta.scene_name)?;
+        str_attr(&file, "scene_file", &meta.scene_file.display().to_string())?;
+        str_attr(&file, "scene", meta.scene_text)?;
+        str_attr(&file, "integrator", &meta.integrator)?;
+        str_attr(&file, "units", "SI: m, kg, s, rad, N, N m, J")?;
+        f64_attr(&file, "baumgarte_alpha", meta.baumgarte_alpha)?;
+        f64_attr(&file, "baumgarte_beta", meta.baumgarte_beta)?;
+        u64_attr(&file, "steps_accepted", run.stats.accepted)?;
+        u64_attr(&file, "steps_rejected", run.stats.rejected)?;
+        u64_attr(&file, "rhs_evaluations", run.stats.rhs_evals)?;
+        f64_attr(&file, "wall_time_s", run.stats.wall.as_secs_f64())?;
+        f64_attr(&file, "assembly_residual", run.assembly.final_residual)?;
+
+        write1(&file, "time", &rec.time, "s", "sample times")?;
+        let bodies = file.create_group("bodies")?;
+        for b in &rec.bodies {
+            let g = bodies.create_group(&b.name)?;
+            write_n(
+                &g,
+                "position",
+                &b.position,
+                "m",
+                "centre of mass, global axes",
+            )?;
+            write_n(
+                &g,
+                "orientation",
+                &b.orientation,
+                "1",
+                "Euler parameters (w, x, y, z) of the rotation body -> global",
+            )?;
+            write_n(
+                &g,
+                "velocity",
+                &b.velocity,
+                "m/s",
+                "centre-of-mass velocity, global axes",
+            )?;
+            write_n(
+                &g,
+                "angular_velocity",
+                &b.angular_velocity,
+                "rad/s",
+                "global axes",
+            )?;
+            if !b.acceleration.is_empty() {
+                write_n(
+                    &g,
+                    "acceleration",
+                    &b.acceleration,
+                    "m/s^2",
+                    "centre-of-mass acceleration, global axes",
+                )?;
+                write_n(
+                    &g,
+                    "angular_acceleration",
+                    &b.angular_acceleration,
+                    "rad/s^2",
+                    "global axes",
+                )?;
+            }
+        }
+        let joints = file.create_group("joints")?;
+        for j in &rec.joints {
+            let g = joints.create_group(&j.name)?;
+            write_n(
+                &g,
+                "reaction_force",
+                &j.force,
+                "N",
+                "force of the joint on its body_b, global axes",
+            )?;
+            write_n(
+                &g,
+                "reaction_torque",
+                &j.torque,
+                "N m",
+                "torque of the joint on its body_b about the joint point on body_b, global axes",
+            )?;
+        }
+        let drives = file.create_group("drives")?;
+        for d in &rec.drives {
+            let g = drives.create_group(&d.name)?;
+            let (cu, fu) = if d.rotational {
+                ("rad", "N m")
+            } else {
+                ("m", "N")
+            };
+            write1(&g, "coordinate", &d.coordinate, cu, "joint coordinate")?;
+            write1(
+                &g,
+                "force",
+                &d.force,
+                fu,
+                "actuator force (torque) on body_b in the direction of increasing coordinate",
+            )?;
+        }
+        if let Some(diag) = &rec.diagnostics {
+            let g = file.create_group("diagnostics")?;
+            write1(
+                &g,
+                "constraint_drift",
+                &diag.constraint_drift,
+                "m, rad",
+                "2-norm of the position constraint residuals",
+            )?;
+            write1(
+                &g,
+                "velocity_drift",
+                &diag.velocity_drift,
+                "m/s, rad/s",
+                "2-norm of the velocity constraint residuals",
+            )?;
+            write1(
+                &g,
+                "energy",
+                &diag.energy,
+                "J",
+                "kinetic + gravitational + spring energy",
+            )?;
+        }
+        Ok(())
+    })()
+    .map_err(&e)?;
+    file.close().map_err(&e)?;
+    Ok(())
+}

@@ -1,0 +1,236 @@
+//! Figures as PNG and SVG (plotters), drawn with an embedded DejaVu Sans so that no system font or
+//! fontconfig is needed (font licence: `crates/analysis/fonts/LICENSE-DejaVu.txt`).
+
+use std::path::Path;
+use std::sync::Once;
+
+use plotters::coord::Shift;
+use plotters::prelude::*;
+
+use crate::{Error, Result};
+
+static FONT: &[u8] = include_bytes!("../fonts/DejaVuSans.ttf");
+static REGISTER: Once = Once::new();
+
+fn register_font() {
+    REGISTER.call_once(|| {
+        // The embedded font is a valid TrueType file; failure would be a build defect.
+        let _ = plotters::style::register_font("sans-serif", FontStyle::Normal, FONT);
+    });
+}
+
+/// One line of a panel.
+#[derive(Debug, Clone)]
+pub struct Series {
+    pub label: String,
+    pub x: Vec<f64>,
+    pub y: Vec<f64>,
+}
+
+/// One chart: title, axis labels (with units) and lines.
+#[derive(Debug, Clone)]
+pub struct Panel {
+    pub title: String,
+    pub x_label: String,
+    pub y_label: String,
+    pub series: Vec<Series>,
+    /// Logarithmic y axis (non-positive values are left out).
+    pub log_y: bool,
+}
+
+/// Output formats of a figure.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Format {
+    Png,
+    Svg,
+}
+
+const COLORS: [RGBColor; 6] = [
+    RGBColor(31, 119, 180),
+    RGBColor(214, 39, 40),
+    RGBColor(44, 160, 44),
+    RGBColor(255, 127, 14),
+    RGBColor(148, 103, 189),
+    RGBColor(23, 190, 207),
+];
+
+fn range(vals: impl Iterator<Item = f64>) -> (f64, f64) {
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for v in vals.filter(|v| v.is_finite()) {
+        lo = lo.min(v);
+        hi = hi.max(v);
+    }
+    if !lo.is_finite() {
+        return (0.0, 1.0);
+    }
+    let pad = if hi > lo {
+        0.05 * (hi - lo)
+    } else {
+        0.5 * lo.abs().max(1e-12)
+    };
+    (lo - pad, hi + pad)
+}
+
+/// Tick label with as many digits as the axis span needs; scientific notation for very small or
+/// large magnitudes.
+fn tick(v: f64, span: f64) -> String {
+    let mag = v.abs().max(span.abs());
+    if v == 0.0 || v.abs() < 1e-9 * span.abs() {
+        "0".into()
+    } else if !(1e-3..1e5).contains(&mag) {
+        format!("{v:.2e}")
+    } else {
+        let digits = (-(span.abs().max(1e-300)).log10().floor() + 1.0).clamp(0.0, 8.0) as usize;
+        format!("{v:.digits$}")
+    }
+}
+
+fn draw<DB: DrawingBackend>(
+    root: DrawingArea<DB, Shift>,
+    panels: &[Panel],
+    cols: usize,
+) -> Result<(), String>
+where
+    DB::ErrorType: 'static,
+{
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let rows = panels.len().div_ceil(cols);
+    let areas = root.split_evenly((rows, cols));
+    for (panel, area) in panels.iter().zip(areas) {
+        let (x0, x1) = range(panel.series.iter().flat_map(|s| s.x.iter().copied()));
+        let ys = || {
+            panel
+                .series
+                .iter()
+                .flat_map(|s| s.y.iter().copied())
+                .filter(|v| !panel.log_y || *v > 0.0)
+        };
+        let (y0, y1) = range(ys());
+        fn builder<'a, 'b, DB: DrawingBackend>(
+            area: &'a DrawingArea<DB, Shift>,
+            title: &str,
+        ) -> ChartBuilder<'a, 'b, DB> {
+            let mut b = ChartBuilder::on(area);
+            b.caption(title, ("sans-serif", 20))
+                .margin(10)
+                .x_label_area_size(40)
+                .y_label_area_size(80);
+            b
+        }
+        let (xs, yspan) = (x1 - x0, y1 - y0);
+        if panel.log_y {
+            let lo = ys().fold(f64::INFINITY, f64::min).max(1e-300);
+            let hi = ys().fold(0.0, f64::max).max(lo * 10.0);
+            let mut chart = builder(&area, &panel.title)
+                .build_cartesian_2d(x0..x1, (lo / 2.0..hi * 2.0).log_scale())
+                .map_err(|e| e.to_string())?;
+            chart
+                .configure_mesh()
+                .x_desc(&panel.x_label)
+                .y_desc(&panel.y_label)
+                .x_label_formatter(&|v| tick(*v, xs))
+                .y_label_formatter(&|v| format!("{v:.0e}"))
+                .label_style(("sans-serif", 13))
+                .axis_desc_style(("sans-serif", 15))
+                .draw()
+                .map_err(|e| e.to_string())?;
+            for (i, s) in panel.series.iter().enumerate() {
+                let c = COLORS[i % COLORS.len()];
+                chart
+                    .draw_series(LineSeries::new(
+                        s.x.iter()
+                            .zip(&s.y)
+                            .filter(|(_, y)| **y > 0.0)
+                            .map(|(x, y)| (*x, *y)),
+                        c.stroke_width(1),
+                    ))
+                    .map_err(|e| e.to_string())?
+                    .label(&s.label)
+                    .legend(move |(x, y)| {
+                        PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2))
+                    });
+            }
+            if panel.series.len() > 1 {
+                chart
+                    .configure_series_labels()
+                    .background_style(WHITE.mix(0.8))
+                    .border_style(BLACK)
+                    .label_font(("sans-serif", 13))
+                    .draw()
+                    .map_err(|e| e.to_string())?;
+            }
+            continue;
+        }
+        let mut chart = builder(&area, &panel.title)
+            .build_cartesian_2d(x0..x1, y0..y1)
+            .map_err(|e| e.to_string())?;
+        chart
+            .configure_mesh()
+            .x_desc(&panel.x_label)
+            .y_desc(&panel.y_label)
+            .x_label_formatter(&|v| tick(*v, xs))
+            .y_label_formatter(&|v| tick(*v, yspan))
+            .label_style(("sans-serif", 13))
+            .axis_desc_style(("sans-serif", 15))
+            .draw()
+            .map_err(|e| e.to_string())?;
+        for (i, s) in panel.series.iter().enumerate() {
+            let c = COLORS[i % COLORS.len()];
+            chart
+                .draw_series(LineSeries::new(
+                    s.x.iter().zip(&s.y).map(|(x, y)| (*x, *y)),
+                    c.stroke_width(2),
+                ))
+                .map_err(|e| e.to_string())?
+                .label(&s.label)
+                .legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2))
+                });
+        }
+        if panel.series.len() > 1 {
+            chart
+                .configure_series_labels()
+                .background_style(WHITE.mix(0.8))
+                .border_style(BLACK)
+                .label_font(("sans-serif", 13))
+                .draw()
+                .map_err(|e| e.to_string())?;
+        }
+    }
+    root.present().map_err(|e| e.to_string())?;
+    Ok(())
+}
+
+/// Draws `panels` in a grid of `cols` columns to `path` (extension added from `format`).
+pub fn figure(
+    path_stem: &Path,
+    format: Format,
+    panels: &[Panel],
+    cols: usize,
+) -> Result<std::path::PathBuf> {
+    register_font();
+    let cols = cols.max(1).min(panels.len().max(1));
+    let rows = panels.len().div_ceil(cols).max(1);
+    let size = (560 * cols as u32, 380 * rows as u32);
+    let path = path_stem.with_extension(match format {
+        Format::Png => "png",
+        Format::Svg => "svg",
+    });
+    let res = match format {
+        Format::Png => draw(
+            BitMapBackend::new(&path, size).into_drawing_area(),
+            panels,
+            cols,
+        ),
+        Format::Svg => draw(
+            SVGBackend::new(&path, size).into_drawing_area(),
+            panels,
+            cols,
+        ),
+    };
+    res.map_err(|message| Error::Plot {
+        file: path.clone(),
+        message,
+    })?;
+    Ok(path)
+}

@@ -1,0 +1,219 @@
+//! Simulation runs with recording.
+//!
+//! [`simulate`] assembles the initial state, integrates from the scene's start to its end time and,
+//! at every sample time (evaluated on the integrator's dense output, so exactly at
+//! `t0 + k * interval`), evaluates the model once more to record accelerations, joint reactions,
+//! actuator forces and the diagnostics. A non-finite recorded value stops the run with an error
+//! naming the time and the quantity: nothing non-finite is ever recorded.
+
+use jointplay_solver::dynamics::{AssemblyReport, Mechanism, Workspace};
+use jointplay_solver::model::{Model, State};
+use jointplay_solver::ode::{Flow, Stats, integrate};
+use jointplay_solver::scene::DriveCoordinate;
+
+use crate::Result;
+
+/// Time histories of one body (global axes; per sample).
+#[derive(Debug, Clone, Default)]
+pub struct BodyTrack {
+    pub name: String,
+    /// Centre-of-mass position (m).
+    pub position: Vec<[f64; 3]>,
+    /// Euler parameters (w, x, y, z), body to global, unit norm.
+    pub orientation: Vec<[f64; 4]>,
+    /// m/s.
+    pub velocity: Vec<[f64; 3]>,
+    /// rad/s.
+    pub angular_velocity: Vec<[f64; 3]>,
+    /// m/s^2 (empty when accelerations are not recorded).
+    pub acceleration: Vec<[f64; 3]>,
+    /// rad/s^2.
+    pub angular_acceleration: Vec<[f64; 3]>,
+}
+
+/// Reaction of one ideal joint on its body b, torque about the joint point on b.
+#[derive(Debug, Clone, Default)]
+pub struct JointTrack {
+    pub name: String,
+    /// N.
+    pub force: Vec<[f64; 3]>,
+    /// N m.
+    pub torque: Vec<[f64; 3]>,
+}
+
+/// One drive: its coordinate and actuator effort.
+#[derive(Debug, Clone, Default)]
+pub struct DriveTrack {
+    pub name: String,
+    pub rotational: bool,
+    /// m or rad.
+    pub coordinate: Vec<f64>,
+    /// N or N m.
+    pub force: Vec<f64>,
+}
+
+/// Constraint and energy diagnostics per sample.
+#[derive(Debug, Clone, Default)]
+pub struct Diagnostics {
+    /// 2-norm of the position constraint residuals (m and rad mixed).
+    pub constraint_drift: Vec<f64>,
+    /// 2-norm of the velocity constraint residuals (m/s and rad/s mixed).
+    pub velocity_drift: Vec<f64>,
+    /// Kinetic + gravitational + spring energy (J).
+    pub energy: Vec<f64>,
+}
+
+/// Everything one run recorded.
+#[derive(Debug, Clone, Default)]
+pub struct Recording {
+    /// s.
+    pub time: Vec<f64>,
+    pub bodies: Vec<BodyTrack>,
+    pub joints: Vec<JointTrack>,
+    pub drives: Vec<DriveTrack>,
+    pub diagnostics: Option<Diagnostics>,
+}
+
+/// A finished run.
+#[derive(Debug, Clone)]
+pub struct RunResult {
+    pub recording: Recording,
+    pub stats: Stats,
+    pub assembly: AssemblyReport,
+    pub final_state: State,
+}
+
+fn finite3(v: &[f64; 3], what: &str, t: f64) -> Result<()> {
+    if v.iter().all(|x| x.is_finite()) {
+        Ok(())
+    } else {
+        Err(jointplay_solver::Error::Diverged {
+            time: t,
+            message: format!("{what} became non-finite"),
+        }
+        .into())
+    }
+}
+
+/// Simulates `model` from `state` (assembled first) and records its outputs.
+/// `progress` receives the fraction of the span done after every sample.
+pub fn simulate(
+    model: &Model,
+    mut state: State,
+    progress: &mut dyn FnMut(f64),
+) -> Result<RunResult> {
+    let assembly = model.assemble(&mut state)?;
+    let samples = model.sample_times();
+    let out = &model.outputs;
+    let mut rec = Recording {
+        time: Vec::with_capacity(samples.len()),
+        bodies: out
+            .bodies
+            .iter()
+            .map(|&b| BodyTrack {
+                name: model.bodies[b].name.clone(),
+                ..Default::default()
+            })
+            .collect(),
+        joints: out
+            .joints
+            .iter()
+            .map(|&j| JointTrack {
+                name: model.joints[j].name.clone(),
+                ..Default::default()
+            })
+            .collect(),
+        drives: out
+            .drives
+            .iter()
+            .map(|&d| DriveTrack {
+                name: model.drives[d].name.clone(),
+                rotational: model.drives[d].coordinate == DriveCoordinate::Rotation,
+                ..Default::default()
+            })
+            .collect(),
+        diagnostics: out.diagnostics.then(Diagnostics::default),
+    };
+    let mut ws = Workspace::new(model);
+    let np = model.n_pos();
+    let (t0, t1) = (model.settings.start_time, model.settings.end_time);
+    let mut failure = None;
+    let mut observe = |t: f64, y: &[f64]| -> Result<()> {
+        model.accelerations(t, y, &mut ws);
+        rec.time.push(t);
+        for (tr, &b) in rec.bodies.iter_mut().zip(&out.bodies) {
+            let p = &y[7 * b..7 * b + 7];
+            let n = (p[3] * p[3] + p[4] * p[4] + p[5] * p[5] + p[6] * p[6]).sqrt();
+            let v = &y[np + 6 * b..np + 6 * b + 6];
+            tr.position.push([p[0], p[1], p[2]]);
+            tr.orientation
+                .push([p[3] / n, p[4] / n, p[5] / n, p[6] / n]);
+            tr.velocity.push([v[0], v[1], v[2]]);
+            tr.angular_velocity.push([v[3], v[4], v[5]]);
+            if out.accelerations {
+                let a = &ws.acc[b];
+                let lin = [a[0], a[1], a[2]];
+                let ang = [a[3], a[4], a[5]];
+                finite3(&lin, &format!("acceleration of body '{}'", tr.name), t)?;
+                finite3(
+                    &ang,
+                    &format!("angular acceleration of body '{}'", tr.name),
+                    t,
+                )?;
+                tr.acceleration.push(lin);
+                tr.angular_acceleration.push(ang);
+            }
+        }
+        for (tr, &j) in rec.joints.iter_mut().zip(&out.joints) {
+            let (f, n) = model.reaction(j, &ws);
+            let (f, n) = ([f.x, f.y, f.z], [n.x, n.y, n.z]);
+            finite3(&f, &format!("reaction force of joint '{}'", tr.name), t)?;
+            finite3(&n, &format!("reaction torque of joint '{}'", tr.name), t)?;
+            tr.force.push(f);
+            tr.torque.push(n);
+        }
+        for (tr, &d) in rec.drives.iter_mut().zip(&out.drives) {
+            let f = model.actuator_force(d, &ws);
+            let c = model.drive_coordinate(d, t, &ws);
+            finite3(&[f, c, 0.0], &format!("force of drive '{}'", tr.name), t)?;
+            tr.force.push(f);
+            tr.coordinate.push(c);
+        }
+        if let Some(diag) = rec.diagnostics.as_mut() {
+            let (p, v) = model.drift(t, y, &mut ws);
+            let e = model.energy(y, &mut ws);
+            finite3(&[p, v, e], "constraint drift or energy", t)?;
+            diag.constraint_drift.push(p);
+            diag.velocity_drift.push(v);
+            diag.energy.push(e);
+        }
+        progress((t - t0) / (t1 - t0));
+        Ok(())
+    };
+    let mut sys = Mechanism::new(model);
+    let stats = integrate(
+        &mut sys,
+        model.settings.method,
+        t0,
+        &mut state.y,
+        t1,
+        &samples,
+        |t, y| match observe(t, y) {
+            Ok(()) => Flow::Continue,
+            Err(e) => {
+                failure = Some(e);
+                Flow::Stop
+            }
+        },
+    )?;
+    if let Some(e) = failure {
+        return Err(e);
+    }
+    state.t = t1;
+    Ok(RunResult {
+        recording: rec,
+        stats,
+        assembly,
+        final_state: state,
+    })
+}

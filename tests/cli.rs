@@ -1,0 +1,259 @@
+//! End-to-end tests of the `jointplay` program: what a user runs, checked on what it writes.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_jointplay"))
+}
+
+fn scenes() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("data/scenes")
+}
+
+fn text(o: &Output) -> (String, String) {
+    (
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+/// Complete elliptic integral of the first kind K(k) by the arithmetic-geometric mean.
+fn ellip_k(k: f64) -> f64 {
+    let (mut a, mut b) = (1.0f64, (1.0 - k * k).sqrt());
+    for _ in 0..40 {
+        (a, b) = (0.5 * (a + b), (a * b).sqrt());
+    }
+    std::f64::consts::PI / (2.0 * a)
+}
+
+fn read2(file: &hdf5::File, name: &str) -> Vec<[f64; 3]> {
+    let a = file.dataset(name).unwrap().read_2d::<f64>().unwrap();
+    a.outer_iter().map(|r| [r[0], r[1], r[2]]).collect()
+}
+
+#[test]
+fn pendulum_period_from_the_hdf5_file_matches_the_elliptic_integral() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = bin()
+        .args(["run", "--no-plots", "-q"])
+        .arg(scenes().join("pendulum.toml"))
+        .arg("--out")
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{:?}", text(&out));
+    let file = hdf5::File::open(dir.path().join("pendulum.h5")).unwrap();
+    let t = file
+        .dataset("time")
+        .unwrap()
+        .read_1d::<f64>()
+        .unwrap()
+        .to_vec();
+    let pos = read2(&file, "bodies/bob/position");
+    let vel = read2(&file, "bodies/bob/velocity");
+    // Upward zero crossings of x (theta = 0), located on the cubic Hermite interpolant of the
+    // recorded positions and velocities (interpolation error O(dt^4) ~ 1e-12 at dt = 1 ms).
+    let mut crossings = Vec::new();
+    for i in 0..t.len() - 1 {
+        let (x0, x1) = (pos[i][0], pos[i + 1][0]);
+        if x0 < 0.0 && x1 >= 0.0 {
+            let h = t[i + 1] - t[i];
+            let (v0, v1) = (vel[i][0], vel[i + 1][0]);
+            let p = |s: f64| {
+                (2.0 * s * s * s - 3.0 * s * s + 1.0) * x0
+                    + (s * s * s - 2.0 * s * s + s) * h * v0
+                    + (-2.0 * s * s * s + 3.0 * s * s) * x1
+                    + (s * s * s - s * s) * h * v1
+            };
+            let (mut lo, mut hi) = (0.0, 1.0);
+            for _ in 0..60 {
+                let m = 0.5 * (lo + hi);
+                if p(m) < 0.0 { lo = m } else { hi = m }
+            }
+            crossings.push(t[i] + 0.5 * (lo + hi) * h);
+        }
+    }
+    assert!(crossings.len() >= 4, "only {} crossings", crossings.len());
+    let measured = (crossings[crossings.len() - 1] - crossings[0]) / (crossings.len() - 1) as f64;
+    // The scene: L = 1 m, m = 1 kg, I_c = 1e-3 kg m^2, g = 9.81 m/s^2, released from 60 degrees.
+    let theta0 = std::f64::consts::FRAC_PI_3;
+    let i_o = 1.0e-3 + 1.0;
+    let exact = 4.0 * (i_o / 9.81f64).sqrt() * ellip_k((theta0 / 2.0).sin());
+    let rel = ((measured - exact) / exact).abs();
+    // Required: 1e-6 relative at the scene's tight tolerance (rtol 1e-11).
+    assert!(
+        rel < 1e-6,
+        "period {measured} s vs {exact} s: relative error {rel:e}"
+    );
+
+    // Layout and units.
+    let unit = |path: &str| -> String {
+        let ds = file.dataset(path).unwrap();
+        ds.attr("unit")
+            .unwrap()
+            .read_scalar::<hdf5::types::VarLenUnicode>()
+            .unwrap()
+            .to_string()
+    };
+    assert_eq!(unit("time"), "s");
+    assert_eq!(unit("bodies/bob/position"), "m");
+    assert_eq!(unit("bodies/bob/acceleration"), "m/s^2");
+    assert_eq!(unit("joints/pivot/reaction_force"), "N");
+    assert_eq!(unit("diagnostics/energy"), "J");
+    let scene_text = file
+        .attr("scene")
+        .unwrap()
+        .read_scalar::<hdf5::types::VarLenUnicode>()
+        .unwrap();
+    assert!(scene_text.as_str().contains("name = \"pendulum\""));
+    assert!(file.attr("program_version").is_ok());
+    // The bob hangs from the pivot: at rest at the bottom the reaction would be m g; over the swing
+    // the reaction magnitude stays between m g cos(theta0) and m g (3 - 2 cos(theta0)).
+    let f = read2(&file, "joints/pivot/reaction_force");
+    for r in &f {
+        let n = (r[0] * r[0] + r[1] * r[1] + r[2] * r[2]).sqrt();
+        assert!(
+            n > 9.81 * 0.5 * 0.99 && n < 9.81 * 2.0 * 1.01,
+            "reaction {n} N"
+        );
+    }
+    assert!(!dir.path().join("pendulum.h5.partial").exists());
+}
+
+#[test]
+fn check_reports_four_dof_and_one_redundant_drive_for_the_4ups_rpu() {
+    let out = bin()
+        .arg("check")
+        .arg(scenes().join("4ups-rpu.toml"))
+        .output()
+        .unwrap();
+    let (so, se) = text(&out);
+    assert!(out.status.success(), "{se}");
+    assert!(so.contains("degrees of freedom  4 "), "{so}");
+    assert!(so.contains("redundant drives  1 "), "{so}");
+    assert!(so.contains("redundant joint rows  0"), "{so}");
+    assert!(so.contains("67 rows, numerical rank 66"), "{so}");
+    assert!(so.contains("gravity"), "{so}");
+}
+
+#[test]
+fn check_reports_the_redundant_rows_of_a_planar_mechanism() {
+    let out = bin()
+        .arg("check")
+        .arg(scenes().join("slider-crank.toml"))
+        .output()
+        .unwrap();
+    let (so, se) = text(&out);
+    assert!(out.status.success(), "{se}");
+    assert!(so.contains("degrees of freedom  1 "), "{so}");
+    assert!(so.contains("redundant joint rows  3"), "{so}");
+}
+
+fn write_scene(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let p = dir.join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+const PENDULUM: &str = include_str!("../data/scenes/pendulum.toml");
+
+/// Runs `check` on a modified pendulum scene and returns the error message.
+fn check_error(name: &str, from: &str, to: &str) -> String {
+    let dir = tempfile::tempdir().unwrap();
+    assert!(
+        PENDULUM.contains(from),
+        "test setup: '{from}' not in the scene"
+    );
+    let p = write_scene(dir.path(), name, &PENDULUM.replacen(from, to, 1));
+    let out = bin().arg("check").arg(&p).output().unwrap();
+    let (_, se) = text(&out);
+    assert_eq!(
+        out.status.code(),
+        Some(1),
+        "expected a clean error exit: {se}"
+    );
+    assert!(!se.contains("panicked"), "{se}");
+    assert!(se.contains(name), "the message must name the file: {se}");
+    se
+}
+
+#[test]
+fn bad_input_gets_an_error_naming_file_and_field() {
+    let cases = [
+        ("mass = 1.0", "mass = -1.0", "bodies[0].mass"),
+        ("mass = 1.0", "mass = nan", "bodies[0].mass"),
+        (
+            "ixx = 1.0e-3, iyy = 1.0e-3, izz = 1.0e-3",
+            "ixx = 1.0e-3, iyy = 1.0e-3, izz = 3.0e-3",
+            "bodies[0].inertia",
+        ),
+        (
+            "ixx = 1.0e-3, iyy = 1.0e-3, izz = 1.0e-3",
+            "ixx = -1.0e-3, iyy = 1.0e-3, izz = 1.0e-3",
+            "bodies[0].inertia",
+        ),
+        (
+            "axes = { z = [0.0, 0.0, 1.0] }\n\n[[joints]]",
+            "axes = { z = [0.0, 0.0, 0.0] }\n\n[[joints]]",
+            "bodies[0].axes.z",
+        ),
+        (
+            "body_a = \"ground\"",
+            "body_a = \"bob\"",
+            "joints[0].body_b",
+        ),
+        (
+            "body_a = \"ground\"",
+            "body_a = \"grund\"",
+            "joints[0].body_a",
+        ),
+        (
+            "point_b = \"pivot\"",
+            "point_b = \"pivt\"",
+            "joints[0].point_b",
+        ),
+        ("end_time = 10.0", "end_time = inf", "solver.end_time"),
+        ("end_time = 10.0", "end_time = -1.0", "solver.end_time"),
+        ("end_time = 10.0", "periods = 2", "solver.periods"),
+    ];
+    for (from, to, field) in cases {
+        let msg = check_error("bad.toml", from, to);
+        assert!(msg.contains(field), "'{to}' should name {field}: {msg}");
+    }
+}
+
+#[test]
+fn malformed_toml_and_unknown_fields_are_reported_with_their_location() {
+    let msg = check_error("syntax.toml", "mass = 1.0", "mass = = 1.0");
+    assert!(msg.contains("line"), "{msg}");
+    let msg = check_error("unknown.toml", "mass = 1.0", "mass = 1.0\nmas = 2.0");
+    assert!(msg.contains("mas"), "{msg}");
+    let msg = check_error("kind.toml", "kind = \"revolute\"", "kind = \"hinge\"");
+    assert!(msg.contains("hinge"), "{msg}");
+}
+
+#[test]
+fn an_unknown_joint_in_a_drive_is_named() {
+    let dir = tempfile::tempdir().unwrap();
+    // [[drives]] is an array of tables, so it may follow the [output] table at the end.
+    let scene = format!(
+        "{PENDULUM}\n[[drives]]\nname = \"m\"\njoint = \"pivott\"\nprofile = {{ kind = \"constant_rate\", initial = 0.0, rate = 1.0 }}\n"
+    );
+    let p = write_scene(dir.path(), "drive.toml", &scene);
+    let out = bin().arg("check").arg(&p).output().unwrap();
+    let (_, se) = text(&out);
+    assert_eq!(out.status.code(), Some(1), "{se}");
+    assert!(
+        se.contains("drives[0].joint") && se.contains("pivott"),
+        "{se}"
+    );
+}
+
+#[test]
+fn a_missing_file_is_an_error_not_a_panic() {
+    let out = bin().args(["run", "no/such/scene.toml"]).output().unwrap();
+    let (_, se) = text(&out);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(se.contains("no/such/scene.toml"), "{se}");
+}
