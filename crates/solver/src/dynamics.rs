@@ -494,7 +494,7 @@ impl Model {
         }
         let res = max_abs(&ws.phi);
         report.final_residual = res;
-        if !(res < 1e-9) {
+        if res.is_nan() || res >= 1e-9 {
             let worst = ws
                 .phi
                 .iter()

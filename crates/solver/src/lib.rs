@@ -9,6 +9,10 @@
 //! state on the constraints; [`dynamics::Mechanism`] exposes the model as an [`ode::OdeSystem`] that
 //! [`ode::integrate`] advances. All quantities are SI: m, kg, s, rad, N, N m.
 
+// Index loops over small fixed-size blocks mirror the formulas they implement (rows, columns,
+// vector components); iterator chains would hide the math.
+#![allow(clippy::needless_range_loop)]
+
 pub mod dynamics;
 pub mod error;
 pub mod linalg;

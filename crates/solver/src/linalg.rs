@@ -55,7 +55,7 @@ impl PsdSolver {
                     p = i;
                 }
             }
-            if !(best > thresh) {
+            if best.is_nan() || best <= thresh {
                 break;
             }
             if p != k {

@@ -254,9 +254,7 @@ fn initial_step<S: OdeSystem>(
     t: f64,
     y: &[f64],
     f0: &[f64],
-    rtol: f64,
-    atol: f64,
-    max_step: f64,
+    (rtol, atol, max_step): (f64, f64, f64),
     stats: &mut Stats,
 ) -> f64 {
     let n = y.len();
@@ -334,7 +332,7 @@ pub fn integrate<S: OdeSystem>(
             atol,
             max_step,
         } => {
-            let h = initial_step(sys, t, y, &w.k[0], rtol, atol, max_step, &mut stats);
+            let h = initial_step(sys, t, y, &w.k[0], (rtol, atol, max_step), &mut stats);
             (h, true, rtol, atol, max_step)
         }
     };
