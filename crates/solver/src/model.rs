@@ -1076,6 +1076,15 @@ impl Model {
         if interval <= 0.0 {
             return Err(cx.err("output.interval", "must be positive"));
         }
+        // Each sample holds O(100) numbers per body; beyond 1e8 samples the recording cannot fit
+        // in memory, so refuse early instead of failing an allocation mid-run.
+        let n_samples = span / interval;
+        if n_samples > 1e8 {
+            return Err(cx.err(
+                "output.interval",
+                format!("{interval} s over a span of {span} s gives {n_samples:.3e} samples; at most 1e8 are recorded"),
+            ));
+        }
         let pick = |sel: &Option<Vec<String>>, field: &str, all: &[&str]| -> Result<Vec<usize>> {
             match sel {
                 None => Ok((0..all.len()).collect()),
