@@ -176,7 +176,7 @@ mod tests {
             center: Vector3::new(1.21, 0.143, 0.143),
             cos_amp: Vector3::new(-0.03, 0.0, 0.0),
             sin_amp: Vector3::new(0.0, 0.03, 0.0),
-            omega: 3.14,
+            omega: 2.5,
             offset: 0.0,
         };
         let harm = Profile::Harmonic {
