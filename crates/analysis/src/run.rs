@@ -6,7 +6,7 @@
 //! actuator forces and the diagnostics. A non-finite recorded value stops the run with an error
 //! naming the time and the quantity: nothing non-finite is ever recorded.
 
-use jointplay_solver::dynamics::{AssemblyReport, Mechanism, Workspace};
+use jointplay_solver::dynamics::{AssemblyReport, Mechanism};
 use jointplay_solver::model::{Model, State};
 use jointplay_solver::ode::{Flow, Stats, integrate};
 use jointplay_solver::scene::DriveCoordinate;
@@ -134,12 +134,13 @@ pub fn simulate(
             .collect(),
         diagnostics: out.diagnostics.then(Diagnostics::default),
     };
-    let mut ws = Workspace::new(model);
     let np = model.n_pos();
     let (t0, t1) = (model.settings.start_time, model.settings.end_time);
     let mut failure = None;
-    let mut observe = |t: f64, y: &[f64]| -> Result<()> {
-        model.accelerations(t, y, &mut ws);
+    // Outputs are evaluated with the system's own workspace, so that they see its contact history.
+    let mut observe = |sys: &mut Mechanism, t: f64, y: &[f64]| -> Result<()> {
+        let ws = &mut sys.ws;
+        model.accelerations(t, y, ws);
         rec.time.push(t);
         for (tr, &b) in rec.bodies.iter_mut().zip(&out.bodies) {
             let p = &y[7 * b..7 * b + 7];
@@ -165,7 +166,7 @@ pub fn simulate(
             }
         }
         for (tr, &j) in rec.joints.iter_mut().zip(&out.joints) {
-            let (f, n) = model.reaction(j, &ws);
+            let (f, n) = model.reaction(j, ws);
             let (f, n) = ([f.x, f.y, f.z], [n.x, n.y, n.z]);
             finite3(&f, &format!("reaction force of joint '{}'", tr.name), t)?;
             finite3(&n, &format!("reaction torque of joint '{}'", tr.name), t)?;
@@ -173,15 +174,15 @@ pub fn simulate(
             tr.torque.push(n);
         }
         for (tr, &d) in rec.drives.iter_mut().zip(&out.drives) {
-            let f = model.actuator_force(d, &ws);
-            let c = model.drive_coordinate(d, t, &ws);
+            let f = model.actuator_force(d, ws);
+            let c = model.drive_coordinate(d, t, ws);
             finite3(&[f, c, 0.0], &format!("force of drive '{}'", tr.name), t)?;
             tr.force.push(f);
             tr.coordinate.push(c);
         }
         if let Some(diag) = rec.diagnostics.as_mut() {
-            let (p, v) = model.drift(t, y, &mut ws);
-            let e = model.energy(y, &mut ws);
+            let (p, v) = model.drift(t, y, ws);
+            let e = model.energy(y, ws);
             finite3(&[p, v, e], "constraint drift or energy", t)?;
             diag.constraint_drift.push(p);
             diag.velocity_drift.push(v);
@@ -198,7 +199,7 @@ pub fn simulate(
         &mut state.y,
         t1,
         &samples,
-        |t, y| match observe(t, y) {
+        |sys, t, y| match observe(sys, t, y) {
             Ok(()) => Flow::Continue,
             Err(e) => {
                 failure = Some(e);

@@ -25,6 +25,15 @@ pub trait OdeSystem {
     fn dim(&self) -> usize;
     /// Writes `f(t, y)` into `dydt` (both of length [`OdeSystem::dim`]).
     fn rhs(&mut self, t: f64, y: &[f64], dydt: &mut [f64]);
+
+    /// Called after every accepted step from `(t0, y0)` to `(t1, y1)`, before the samples inside
+    /// the step are emitted, for bookkeeping of discrete history (such as the approach velocity
+    /// at contact onset, located inside the step). Returns true when that history changed the
+    /// right-hand side, so that the integrator evaluates `f(t1, y1)` again instead of reusing the
+    /// last stage. The default keeps no history.
+    fn step_accepted(&mut self, _t0: f64, _y0: &[f64], _t1: f64, _y1: &[f64]) -> bool {
+        false
+    }
 }
 
 /// Integration method and its accuracy settings.
@@ -285,8 +294,9 @@ fn initial_step<S: OdeSystem>(
 
 /// Integrates `sys` from `(t0, y)` to `t_end`, leaving the final state in `y`.
 ///
-/// `samples` are the times (non-decreasing, within `[t0, t_end]`) at which `observer(t, y_t)` is
-/// called with the state evaluated on the dense output (or the step end point when it coincides).
+/// `samples` are the times (non-decreasing, within `[t0, t_end]`) at which `observer(sys, t, y_t)`
+/// is called with the state evaluated on the dense output (or the step end point when it
+/// coincides); the observer may evaluate the system there (its scratch memory is its own).
 /// The observer may stop the run early by returning [`Flow::Stop`]; the state then stays at the
 /// end of the step that contained the sample.
 pub fn integrate<S: OdeSystem>(
@@ -296,7 +306,7 @@ pub fn integrate<S: OdeSystem>(
     y: &mut [f64],
     t_end: f64,
     samples: &[f64],
-    mut observer: impl FnMut(f64, &[f64]) -> Flow,
+    mut observer: impl FnMut(&mut S, f64, &[f64]) -> Flow,
 ) -> Result<Stats> {
     let start = Instant::now();
     let n = sys.dim();
@@ -312,7 +322,7 @@ pub fn integrate<S: OdeSystem>(
     let mut next_sample = 0usize;
     // Samples at t0 itself.
     while next_sample < samples.len() && samples[next_sample] <= t0 {
-        if observer(t0, y) == Flow::Stop {
+        if observer(sys, t0, y) == Flow::Stop {
             stats.wall = start.elapsed();
             return Ok(stats);
         }
@@ -404,6 +414,7 @@ pub fn integrate<S: OdeSystem>(
         }
         stats.accepted += 1;
         k_step += 1;
+        let history_changed = sys.step_accepted(t, y, t_new, &w.y_new);
         let has_dense_sample = next_sample < samples.len() && samples[next_sample] < t_new;
         if has_dense_sample && !is_rk4 {
             dopri5_dense(y, h_try, &mut w);
@@ -413,14 +424,14 @@ pub fn integrate<S: OdeSystem>(
             let ts = samples[next_sample];
             let theta = ((ts - t) / h_try).clamp(0.0, 1.0);
             let flow = if ts == t_new {
-                observer(ts, &w.y_new)
+                observer(sys, ts, &w.y_new)
             } else {
                 if is_rk4 {
                     hermite_eval(y, &w, 4, h_try, theta, &mut ys);
                 } else {
                     dopri5_eval(&w, theta, &mut ys);
                 }
-                observer(ts, &ys)
+                observer(sys, ts, &ys)
             };
             next_sample += 1;
             if flow == Flow::Stop {
@@ -431,9 +442,14 @@ pub fn integrate<S: OdeSystem>(
         }
         y.copy_from_slice(&w.y_new);
         t = t_new;
-        // The last stage is f(t_new, y_new): first stage of the next step (FSAL).
+        // The last stage is f(t_new, y_new): first stage of the next step (FSAL), unless the
+        // system's history changed at the step end.
         let last = if is_rk4 { 4 } else { 6 };
         w.k.swap(0, last);
+        if history_changed {
+            sys.rhs(t, y, &mut w.k[0]);
+            stats.rhs_evals += 1;
+        }
     }
     stats.wall = start.elapsed();
     Ok(stats)
@@ -457,7 +473,7 @@ mod tests {
 
     fn final_error(method: Method) -> (f64, Stats) {
         let mut y = [1.0, 0.0];
-        let stats = integrate(&mut Harmonic, method, 0.0, &mut y, 10.0, &[], |_, _| {
+        let stats = integrate(&mut Harmonic, method, 0.0, &mut y, 10.0, &[], |_, _, _| {
             Flow::Continue
         })
         .unwrap();
@@ -520,7 +536,7 @@ mod tests {
                 &mut y,
                 10.0,
                 &samples,
-                |t, y| {
+                |_, t, y| {
                     worst = worst.max((y[0] - t.cos()).abs());
                     count += 1;
                     Flow::Continue
@@ -545,7 +561,7 @@ mod tests {
             &mut y,
             1.0,
             &[1.0],
-            |t, _| {
+            |_, t, _| {
                 last = t;
                 Flow::Continue
             },
@@ -574,7 +590,7 @@ mod tests {
             &mut y,
             5.0,
             &[],
-            |_, _| Flow::Continue,
+            |_, _, _| Flow::Continue,
         )
         .unwrap_err();
         assert!(matches!(err, Error::Diverged { time, .. } if time > 0.5 && time < 5.0));

@@ -75,7 +75,7 @@ fn run(
         &mut state.y,
         t_end,
         &samples,
-        |t, y| {
+        |_, t, y| {
             out.push((t, y.to_vec()));
             Flow::Continue
         },
