@@ -18,6 +18,7 @@
 
 use nalgebra::{DMatrix, Matrix3, Quaternion, UnitQuaternion, Vector3};
 
+use crate::clearance::{ContactEval, Resultant};
 use crate::error::{Error, Result};
 use crate::linalg::PsdSolver;
 use crate::model::{GROUND, Model, Prim, State};
@@ -84,6 +85,15 @@ pub struct Workspace {
     pub acc: Vec<[f64; 6]>,
     /// Numerical rank of the reduced matrix at the last evaluation.
     pub rank: usize,
+    /// Contact points of the clearance joints at the last evaluation.
+    pub contacts: Vec<ContactEval>,
+    /// Resultant contact wrench per clearance joint at the last evaluation.
+    pub resultants: Vec<Resultant>,
+    /// Approach velocity at the onset of each contact (m/s); NaN while out of contact. This is
+    /// history, updated only on accepted steps ([`Model::update_onsets`]).
+    pub onset: Vec<f64>,
+    /// Contact geometry at the start of the last accepted step (scratch for onset location).
+    contacts0: Vec<ContactEval>,
 }
 
 impl Workspace {
@@ -111,6 +121,10 @@ impl Workspace {
             lambda: vec![0.0; nr],
             acc: vec![[0.0; 6]; nb],
             rank: 0,
+            contacts: vec![ContactEval::default(); m.n_contacts],
+            resultants: vec![Resultant::default(); m.clearances.len()],
+            onset: vec![f64::NAN; m.n_contacts],
+            contacts0: vec![ContactEval::default(); m.n_contacts],
         }
     }
 }
@@ -317,6 +331,9 @@ impl Model {
                 add_force(ws, s.b, &(-e * fmag), &pb);
             }
         }
+        if self.effects.clearance {
+            self.contact_forces(ws);
+        }
         if self.effects.loads {
             for l in &self.loads {
                 let rot = ws.kin[l.body].rot;
@@ -332,6 +349,96 @@ impl Model {
                 q[5] += n.z;
             }
         }
+    }
+
+    /// Contact forces of the clearance joints into `ws.q` (kinematics must be current).
+    fn contact_forces(&self, ws: &mut Workspace) {
+        let nb = self.nb();
+        let idx = |b: usize| if b == GROUND { nb } else { b };
+        for (ci, c) in self.clearances.iter().enumerate() {
+            let (kh, kj) = (ws.kin[idx(c.housing)], ws.kin[idx(c.journal)]);
+            let slots = c.first..c.first + c.geometry.n_contacts();
+            let out = &mut ws.contacts[slots.clone()];
+            c.geometry(&kh, &kj, out);
+            let r = c.forces(&kh, &kj, &ws.onset[slots], out);
+            ws.resultants[ci] = r;
+            for (b, f, m) in [
+                (c.journal, r.force_j, r.moment_j),
+                (c.housing, r.force_h, r.moment_h),
+            ] {
+                if b != GROUND {
+                    let q = &mut ws.q[b];
+                    for k in 0..3 {
+                        q[k] += f[k];
+                        q[3 + k] += m[k];
+                    }
+                }
+            }
+        }
+    }
+
+    /// Updates the contact-onset history after an accepted step from (t0, y0) to (t1, y1).
+    ///
+    /// A contact whose penetration crosses zero inside the step gets the approach velocity at
+    /// the crossing, located on the cubic Hermite interpolant of delta built from delta and
+    /// delta_dot at both ends (not the value at the step end). A contact that is already
+    /// penetrating at the start of the run takes its current rate. A contact that has separated
+    /// forgets its onset. Returns true when a new onset was stored (the right-hand side at y1
+    /// then changes, since it used the provisional value delta_dot(t1)).
+    pub fn update_onsets(
+        &self,
+        t0: f64,
+        y0: &[f64],
+        t1: f64,
+        y1: &[f64],
+        ws: &mut Workspace,
+    ) -> bool {
+        if !self.effects.clearance {
+            return false;
+        }
+        let nb = self.nb();
+        let idx = |b: usize| if b == GROUND { nb } else { b };
+        let mut changed = false;
+        self.kinematics(y0, ws);
+        for c in &self.clearances {
+            let slots = c.first..c.first + c.geometry.n_contacts();
+            c.geometry(
+                &ws.kin[idx(c.housing)],
+                &ws.kin[idx(c.journal)],
+                &mut ws.contacts0[slots],
+            );
+        }
+        self.kinematics(y1, ws);
+        let h = t1 - t0;
+        for c in &self.clearances {
+            let n = c.geometry.n_contacts();
+            let slots = c.first..c.first + n;
+            c.geometry(
+                &ws.kin[idx(c.housing)],
+                &ws.kin[idx(c.journal)],
+                &mut ws.contacts[slots],
+            );
+            if !c.law.needs_onset() {
+                continue;
+            }
+            for s in c.first..c.first + n {
+                let (a, b) = (ws.contacts0[s], ws.contacts[s]);
+                if b.delta <= 0.0 {
+                    ws.onset[s] = f64::NAN;
+                    continue;
+                }
+                if !ws.onset[s].is_nan() {
+                    continue;
+                }
+                ws.onset[s] = if a.delta > 0.0 {
+                    a.delta_dot
+                } else {
+                    onset_rate(a.delta, a.delta_dot, b.delta, b.delta_dot, h)
+                };
+                changed = true;
+            }
+        }
+        changed
     }
 
     /// Accelerations and multipliers at (t, y) into the workspace.
@@ -610,8 +717,9 @@ impl Model {
         (n(&ws.phi), n(&ws.phi_dot))
     }
 
-    /// Mechanical energy (J): kinetic + gravitational + spring potential. Drives and loads do
-    /// work on the system, so it is conserved only when neither is present.
+    /// Mechanical energy (J): kinetic + gravitational + spring potential + elastic energy of the
+    /// contacts. Drives and loads do work on the system and damping and friction dissipate, so
+    /// it is conserved only when none of them is present.
     pub fn energy(&self, y: &[f64], ws: &mut Workspace) -> f64 {
         self.kinematics(y, ws);
         let mut e = 0.0;
@@ -628,6 +736,20 @@ impl Model {
             let (pb, _) = point_state(ws, s.b, &s.sb);
             let dl = (pb - pa).norm() - s.free_length;
             e += 0.5 * s.stiffness * dl * dl;
+        }
+        // Elastic energy stored in the contacts: the integral of K delta^n, K delta^(n+1)/(n+1).
+        let nb = self.nb();
+        for c in &self.clearances {
+            let idx = |b: usize| if b == GROUND { nb } else { b };
+            let slots = c.first..c.first + c.geometry.n_contacts();
+            let (kh, kj) = (ws.kin[idx(c.housing)], ws.kin[idx(c.journal)]);
+            c.geometry(&kh, &kj, &mut ws.contacts[slots.clone()]);
+            let (k, n) = c.law.stiffness();
+            for ce in &ws.contacts[slots] {
+                if ce.delta > 0.0 {
+                    e += k * ce.delta.powf(n + 1.0) / (n + 1.0);
+                }
+            }
         }
         e
     }
@@ -782,4 +904,30 @@ impl OdeSystem for Mechanism<'_> {
     fn rhs(&mut self, t: f64, y: &[f64], dydt: &mut [f64]) {
         self.model.rhs(t, y, &mut self.ws, dydt);
     }
+    fn step_accepted(&mut self, t0: f64, y0: &[f64], t1: f64, y1: &[f64]) -> bool {
+        self.model.update_onsets(t0, y0, t1, y1, &mut self.ws)
+    }
+}
+
+/// Approach velocity where delta crosses zero inside a step of length h, from delta and its rate
+/// at both ends, on the cubic Hermite interpolant (bisection on the sign change).
+fn onset_rate(d0: f64, r0: f64, d1: f64, r1: f64, h: f64) -> f64 {
+    let p = |s: f64| {
+        (2.0 * s * s * s - 3.0 * s * s + 1.0) * d0
+            + (s * s * s - 2.0 * s * s + s) * h * r0
+            + (-2.0 * s * s * s + 3.0 * s * s) * d1
+            + (s * s * s - s * s) * h * r1
+    };
+    let dp = |s: f64| {
+        (6.0 * s * s - 6.0 * s) * d0
+            + (3.0 * s * s - 4.0 * s + 1.0) * h * r0
+            + (-6.0 * s * s + 6.0 * s) * d1
+            + (3.0 * s * s - 2.0 * s) * h * r1
+    };
+    let (mut lo, mut hi) = (0.0, 1.0);
+    for _ in 0..50 {
+        let mid = 0.5 * (lo + hi);
+        if p(mid) > 0.0 { hi = mid } else { lo = mid }
+    }
+    dp(0.5 * (lo + hi)) / h
 }

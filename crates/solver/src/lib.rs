@@ -13,6 +13,8 @@
 // vector components); iterator chains would hide the math.
 #![allow(clippy::needless_range_loop)]
 
+pub mod clearance;
+pub mod contact;
 pub mod dynamics;
 pub mod error;
 pub mod linalg;

@@ -31,6 +31,8 @@ use std::path::{Path, PathBuf};
 
 use nalgebra::{Matrix3, SymmetricEigen, UnitQuaternion, Vector3};
 
+use crate::clearance::{Clearance, Geometry};
+use crate::contact::{Damping, FrictionLaw, NormalLaw, point_contact_stiffness};
 use crate::error::{Error, Result};
 use crate::ode::Method;
 use crate::profile::{Profile, Spline};
@@ -110,8 +112,10 @@ pub struct Joint {
     pub point_b: Vector3<f64>,
     /// Joint point on a (COM-relative, body axes).
     pub point_a: Vector3<f64>,
-    /// First constraint row and number of rows.
+    /// First constraint row and number of rows (fewer, or none, for a joint with clearance).
     pub rows: std::ops::Range<usize>,
+    /// Index into [`Model::clearances`] when the joint has clearance.
+    pub clearance: Option<usize>,
 }
 
 /// A compiled drive.
@@ -158,6 +162,10 @@ pub struct Effects {
     pub loads: bool,
     pub constraints: bool,
     pub drives: bool,
+    /// Clearance contact, friction in any clearance joint, axial contact in any revolute one.
+    pub clearance: bool,
+    pub friction: bool,
+    pub axial_contact: bool,
 }
 
 impl Effects {
@@ -191,6 +199,28 @@ impl Effects {
         }
         if self.loads {
             v.push(format!("applied loads: {}", m.loads.len()));
+        }
+        if self.clearance {
+            v.push(format!(
+                "clearance contact: {} joints, {} contact points{}{}",
+                m.clearances.len(),
+                m.n_contacts,
+                if self.axial_contact {
+                    ", axial contact"
+                } else {
+                    ""
+                },
+                if self.friction {
+                    ", friction"
+                } else {
+                    ", frictionless"
+                }
+            ));
+            for c in &m.clearances {
+                v.push(format!("    {}: {}", c.name, c.geometry.describe()));
+                v.push(format!("    {}: normal law {}", c.name, c.law.describe()));
+                v.push(format!("    {}: {}", c.name, c.friction.describe()));
+            }
         }
         v
     }
@@ -236,6 +266,9 @@ pub struct Model {
     /// m/s^2.
     pub gravity: Option<Vector3<f64>>,
     pub prims: Vec<(Prim, usize)>,
+    /// Joints with clearance, and the total number of their contact points.
+    pub clearances: Vec<Clearance>,
+    pub n_contacts: usize,
     /// Rows of the joints (the first `joint_rows` rows) and in total (joints then drives).
     pub joint_rows: usize,
     pub n_rows: usize,
@@ -539,6 +572,348 @@ fn profile(p: &ProfileSpec, field: &str, cx: &Ctx) -> Result<Profile> {
     })
 }
 
+fn positive(v: Option<f64>, field: String, what: &str, cx: &Ctx) -> Result<f64> {
+    match v {
+        None => Err(cx.err(field, format!("missing: {what}"))),
+        Some(x) if x > 0.0 => Ok(x),
+        Some(x) => Err(cx.err(field, format!("must be positive, got {x}"))),
+    }
+}
+
+/// Geometry and laws of a clearance block; `f` is the block's field path.
+fn compile_clearance(
+    c: &ClearanceSpec,
+    kind: JointKind,
+    f: &str,
+    cx: &Ctx,
+) -> Result<(Geometry, NormalLaw, FrictionLaw)> {
+    let geometry = match kind {
+        JointKind::Spherical => {
+            if c.model.is_some() {
+                return Err(cx.err(format!("{f}.model"), "only revolute joints have a model"));
+            }
+            for (v, n) in [
+                (c.journal_radius, "journal_radius"),
+                (c.bushing_radius, "bushing_radius"),
+                (c.bushing_length, "bushing_length"),
+                (c.face_radius, "face_radius"),
+                (c.axial_clearance, "axial_clearance"),
+            ] {
+                if v.is_some() {
+                    return Err(cx.err(format!("{f}.{n}"), "not a field of a spherical clearance (give ball_radius and radial_clearance)"));
+                }
+            }
+            Geometry::Spherical {
+                ball_radius: positive(
+                    c.ball_radius,
+                    format!("{f}.ball_radius"),
+                    "the ball radius (m)",
+                    cx,
+                )?,
+                clearance: positive(
+                    c.radial_clearance,
+                    format!("{f}.radial_clearance"),
+                    "the radial clearance (m)",
+                    cx,
+                )?,
+            }
+        }
+        JointKind::Revolute => {
+            if c.ball_radius.is_some() {
+                return Err(cx.err(
+                    format!("{f}.ball_radius"),
+                    "a revolute clearance has a journal_radius",
+                ));
+            }
+            let rj = positive(
+                c.journal_radius,
+                format!("{f}.journal_radius"),
+                "the journal radius (m)",
+                cx,
+            )?;
+            let rb = match (c.bushing_radius, c.radial_clearance) {
+                (Some(rb), None) => rb,
+                (None, Some(cr)) => {
+                    positive(Some(cr), format!("{f}.radial_clearance"), "", cx)?;
+                    rj + cr
+                }
+                (Some(rb), Some(cr)) => {
+                    if ((rb - rj) - cr).abs() > 1e-9 * rb {
+                        return Err(cx.err(
+                            format!("{f}.radial_clearance"),
+                            format!(
+                                "{cr} m disagrees with bushing_radius - journal_radius = {} m",
+                                rb - rj
+                            ),
+                        ));
+                    }
+                    rb
+                }
+                (None, None) => {
+                    return Err(cx.err(
+                        format!("{f}.radial_clearance"),
+                        "missing: give radial_clearance or bushing_radius (m)",
+                    ));
+                }
+            };
+            if rb <= rj {
+                return Err(cx.err(
+                    format!("{f}.bushing_radius"),
+                    format!("the radial clearance must be positive: bushing radius {rb} m <= journal radius {rj} m"),
+                ));
+            }
+            match c.model.unwrap_or_default() {
+                RevoluteModel::Planar => {
+                    for (v, n) in [
+                        (c.bushing_length, "bushing_length"),
+                        (c.face_radius, "face_radius"),
+                        (c.axial_clearance, "axial_clearance"),
+                    ] {
+                        if v.is_some() {
+                            return Err(
+                                cx.err(format!("{f}.{n}"), "not a field of a planar clearance")
+                            );
+                        }
+                    }
+                    Geometry::Planar {
+                        journal_radius: rj,
+                        bearing_radius: rb,
+                    }
+                }
+                RevoluteModel::Spatial => {
+                    let lb = positive(
+                        c.bushing_length,
+                        format!("{f}.bushing_length"),
+                        "the bushing length (m)",
+                        cx,
+                    )?;
+                    let journal_length = match c.axial_clearance {
+                        Some(ca) => Some(
+                            lb + 2.0 * positive(Some(ca), format!("{f}.axial_clearance"), "", cx)?,
+                        ),
+                        None => None,
+                    };
+                    let face_radius = match (c.face_radius, journal_length) {
+                        (Some(r), _) => {
+                            if r <= rb {
+                                return Err(cx.err(
+                                    format!("{f}.face_radius"),
+                                    format!("must exceed the bushing radius {rb} m, got {r} m"),
+                                ));
+                            }
+                            r
+                        }
+                        (None, Some(_)) => {
+                            return Err(cx.err(format!("{f}.face_radius"), "missing: axial contact needs the bushing end-face outer radius (m)"));
+                        }
+                        (None, None) => rb,
+                    };
+                    Geometry::Revolute {
+                        journal_radius: rj,
+                        bushing_radius: rb,
+                        bushing_length: lb,
+                        face_radius,
+                        journal_length,
+                    }
+                }
+            }
+        }
+        k => {
+            return Err(cx.err(
+                f,
+                format!(
+                    "clearance is available for spherical and revolute joints, not {}",
+                    k.name()
+                ),
+            ));
+        }
+    };
+
+    // Normal law.
+    let n = &c.normal;
+    let nf = format!("{f}.normal");
+    let exponent = match n.exponent {
+        None => 1.5,
+        Some(e) => positive(Some(e), format!("{nf}.exponent"), "", cx)?,
+    };
+    let k = match (n.stiffness, n.youngs_modulus, n.poisson_ratio) {
+        (Some(k), None, None) => positive(Some(k), format!("{nf}.stiffness"), "", cx)?,
+        (None, Some(e), Some(nu)) => {
+            positive(Some(e), format!("{nf}.youngs_modulus"), "", cx)?;
+            if !(0.0..0.5).contains(&nu) {
+                return Err(cx.err(
+                    format!("{nf}.poisson_ratio"),
+                    format!("must be in [0, 0.5), got {nu}"),
+                ));
+            }
+            let (ri, rj) = match geometry {
+                Geometry::Spherical {
+                    ball_radius,
+                    clearance,
+                } => (ball_radius, ball_radius + clearance),
+                Geometry::Planar {
+                    journal_radius,
+                    bearing_radius,
+                } => (journal_radius, bearing_radius),
+                Geometry::Revolute {
+                    journal_radius,
+                    bushing_radius,
+                    ..
+                } => (journal_radius, bushing_radius),
+            };
+            point_contact_stiffness(ri, rj, e, nu, e, nu)
+        }
+        (Some(_), _, _) => {
+            return Err(cx.err(
+                format!("{nf}.stiffness"),
+                "give stiffness or youngs_modulus + poisson_ratio, not both",
+            ));
+        }
+        _ => {
+            return Err(cx.err(
+                format!("{nf}.stiffness"),
+                "missing: give stiffness (N/m^n) or youngs_modulus (Pa) and poisson_ratio",
+            ));
+        }
+    };
+    let restitution = |cx: &Ctx| -> Result<f64> {
+        match n.restitution {
+            Some(e) if e > 0.0 && e <= 1.0 => Ok(e),
+            Some(e) => Err(cx.err(
+                format!("{nf}.restitution"),
+                format!("must be in (0, 1], got {e}"),
+            )),
+            None => Err(cx.err(
+                format!("{nf}.restitution"),
+                "missing: this law needs the coefficient of restitution",
+            )),
+        }
+    };
+    let unused = |v: Option<f64>, name: &str, cx: &Ctx| -> Result<()> {
+        if v.is_some() {
+            Err(cx.err(
+                format!("{nf}.{name}"),
+                format!("not used by the {:?} law", n.law).to_lowercase(),
+            ))
+        } else {
+            Ok(())
+        }
+    };
+    let damped = |kind: Damping, cx: &Ctx| -> Result<NormalLaw> {
+        unused(n.max_damping, "max_damping", cx)?;
+        unused(n.full_damping_penetration, "full_damping_penetration", cx)?;
+        let ce = restitution(cx)?;
+        let v_floor = match n.onset_velocity_floor {
+            None => 1e-3,
+            Some(v) => positive(Some(v), format!("{nf}.onset_velocity_floor"), "", cx)?,
+        };
+        Ok(NormalLaw::Hysteresis {
+            k,
+            n: exponent,
+            kind,
+            restitution: ce,
+            d: kind.factor(ce),
+            v_floor,
+        })
+    };
+    let law = match n.law {
+        NormalLawKind::Hertz => {
+            unused(n.restitution, "restitution", cx)?;
+            unused(n.max_damping, "max_damping", cx)?;
+            unused(n.full_damping_penetration, "full_damping_penetration", cx)?;
+            unused(n.onset_velocity_floor, "onset_velocity_floor", cx)?;
+            NormalLaw::Hertz { k, n: exponent }
+        }
+        NormalLawKind::LankaraniNikravesh => damped(Damping::LankaraniNikravesh, cx)?,
+        NormalLawKind::HuntCrossley => damped(Damping::HuntCrossley, cx)?,
+        NormalLawKind::Flores => damped(Damping::Flores, cx)?,
+        NormalLawKind::Gonthier => damped(Damping::Gonthier, cx)?,
+        NormalLawKind::CarvalhoMartins => damped(Damping::CarvalhoMartins, cx)?,
+        NormalLawKind::Impact => {
+            unused(n.restitution, "restitution", cx)?;
+            unused(n.onset_velocity_floor, "onset_velocity_floor", cx)?;
+            let c_max = match n.max_damping {
+                Some(c) if c >= 0.0 => c,
+                Some(c) => {
+                    return Err(cx.err(
+                        format!("{nf}.max_damping"),
+                        format!("must not be negative, got {c}"),
+                    ));
+                }
+                None => {
+                    return Err(cx.err(
+                        format!("{nf}.max_damping"),
+                        "missing: IMPACT needs max_damping (N s/m)",
+                    ));
+                }
+            };
+            let d_max = positive(
+                n.full_damping_penetration,
+                format!("{nf}.full_damping_penetration"),
+                "IMPACT needs the penetration at full damping (m)",
+                cx,
+            )?;
+            NormalLaw::Impact {
+                k,
+                n: exponent,
+                c_max,
+                d_max,
+            }
+        }
+    };
+
+    // Friction law.
+    let ff = format!("{f}.friction");
+    let mu = |m: f64, cx: &Ctx| -> Result<f64> {
+        if m >= 0.0 {
+            Ok(m)
+        } else {
+            Err(cx.err(
+                format!("{ff}.coefficient"),
+                format!("must not be negative, got {m}"),
+            ))
+        }
+    };
+    let friction = match &c.friction {
+        FrictionSpec::None => FrictionLaw::None,
+        FrictionSpec::Coulomb {
+            coefficient,
+            regularisation_velocity,
+        } => FrictionLaw::Coulomb {
+            mu: mu(*coefficient, cx)?,
+            v_reg: positive(
+                Some(*regularisation_velocity),
+                format!("{ff}.regularisation_velocity"),
+                "",
+                cx,
+            )?,
+        },
+        FrictionSpec::Ambrosio {
+            coefficient,
+            v0,
+            v1,
+        } => {
+            let v0 = positive(Some(*v0), format!("{ff}.v0"), "", cx)?;
+            if *v1 <= v0 {
+                return Err(cx.err(
+                    format!("{ff}.v1"),
+                    format!("must exceed v0 = {v0} m/s, got {v1}"),
+                ));
+            }
+            FrictionLaw::Ambrosio {
+                mu: mu(*coefficient, cx)?,
+                v0,
+                v1: *v1,
+            }
+        }
+        FrictionSpec::Threlfall { coefficient, v0 } => FrictionLaw::Threlfall {
+            mu: mu(*coefficient, cx)?,
+            v0: positive(Some(*v0), format!("{ff}.v0"), "", cx)?,
+        },
+    };
+    Ok((geometry, law, friction))
+}
+
 impl Model {
     /// Validates and compiles a scene; returns the model and the initial state as declared
     /// (not yet assembled onto the constraints: see [`Model::assemble`]).
@@ -650,6 +1025,8 @@ impl Model {
         let mut row = 0usize;
         // Per joint: (axis_a, u_a, w_a, u_b) for drives.
         let mut joint_frames = Vec::new();
+        let mut clearances: Vec<Clearance> = Vec::new();
+        let mut n_contacts = 0usize;
         for (i, j) in spec.joints.iter().enumerate() {
             let f = format!("joints[{i}]");
             if j.name.is_empty() {
@@ -767,45 +1144,97 @@ impl Model {
                 },
             ];
             let lock = Prim::Perpendicular { a, u: wa, b, v: ub };
-            match j.kind {
-                JointKind::Spherical => push(coincident),
-                JointKind::Revolute => {
-                    push(coincident);
-                    parallel.into_iter().for_each(&mut push);
+            let mut clearance = None;
+            if let Some(cs) = &j.clearance {
+                let (geometry, law, friction) =
+                    compile_clearance(cs, j.kind, &format!("{f}.clearance"), &cx)?;
+                // The contact element replaces the joint's rows; what it leaves unconstrained
+                // stays a constraint: the out-of-plane rows of a planar bearing, the axial
+                // position of a spatial one without axial contact.
+                match geometry {
+                    Geometry::Planar { .. } => {
+                        parallel.into_iter().for_each(&mut push);
+                        push(Prim::Distance {
+                            a,
+                            u: axis_a,
+                            sa,
+                            b,
+                            sb,
+                            drive: None,
+                        });
+                    }
+                    Geometry::Revolute {
+                        journal_length: None,
+                        ..
+                    } => {
+                        push(Prim::Distance {
+                            a,
+                            u: axis_a,
+                            sa,
+                            b,
+                            sb,
+                            drive: None,
+                        });
+                    }
+                    _ => {}
                 }
-                JointKind::Universal => {
-                    push(coincident);
-                    push(Prim::Perpendicular {
-                        a,
-                        u: axis_a,
-                        b,
-                        v: axis_b,
-                    });
-                }
-                JointKind::Cylindrical => {
-                    parallel.into_iter().for_each(&mut push);
-                    collinear.into_iter().for_each(&mut push);
-                }
-                JointKind::Prismatic => {
-                    parallel.into_iter().for_each(&mut push);
-                    collinear.into_iter().for_each(&mut push);
-                    push(lock);
-                }
-                JointKind::Planar => {
-                    parallel.into_iter().for_each(&mut push);
-                    push(Prim::Distance {
-                        a,
-                        u: axis_a,
-                        sa,
-                        b,
-                        sb,
-                        drive: None,
-                    });
-                }
-                JointKind::Fixed => {
-                    push(coincident);
-                    parallel.into_iter().for_each(&mut push);
-                    push(lock);
+                clearance = Some(clearances.len());
+                clearances.push(Clearance {
+                    name: j.name.clone(),
+                    joint: i,
+                    housing: a,
+                    journal: b,
+                    sh: sa,
+                    sj: sb,
+                    axis_h: axis_a,
+                    axis_j: axis_b,
+                    geometry,
+                    law,
+                    friction,
+                    first: n_contacts,
+                });
+                n_contacts += geometry.n_contacts();
+            } else {
+                match j.kind {
+                    JointKind::Spherical => push(coincident),
+                    JointKind::Revolute => {
+                        push(coincident);
+                        parallel.into_iter().for_each(&mut push);
+                    }
+                    JointKind::Universal => {
+                        push(coincident);
+                        push(Prim::Perpendicular {
+                            a,
+                            u: axis_a,
+                            b,
+                            v: axis_b,
+                        });
+                    }
+                    JointKind::Cylindrical => {
+                        parallel.into_iter().for_each(&mut push);
+                        collinear.into_iter().for_each(&mut push);
+                    }
+                    JointKind::Prismatic => {
+                        parallel.into_iter().for_each(&mut push);
+                        collinear.into_iter().for_each(&mut push);
+                        push(lock);
+                    }
+                    JointKind::Planar => {
+                        parallel.into_iter().for_each(&mut push);
+                        push(Prim::Distance {
+                            a,
+                            u: axis_a,
+                            sa,
+                            b,
+                            sb,
+                            drive: None,
+                        });
+                    }
+                    JointKind::Fixed => {
+                        push(coincident);
+                        parallel.into_iter().for_each(&mut push);
+                        push(lock);
+                    }
                 }
             }
             joint_frames.push((axis_a, ua, wa, ub, sa, sb));
@@ -817,6 +1246,7 @@ impl Model {
                 point_a: sa,
                 point_b: sb,
                 rows: start..row,
+                clearance,
             });
         }
         let joint_rows = row;
@@ -844,6 +1274,12 @@ impl Model {
                 )
             })?;
             let kind = joints[ji].kind;
+            if joints[ji].clearance.is_some() {
+                return Err(cx.err(
+                    format!("{f}.joint"),
+                    format!("joint '{}' has clearance: its coordinate is not prescribed by a constraint and cannot be driven", d.joint),
+                ));
+            }
             let coordinate = match (kind, d.coordinate) {
                 (JointKind::Prismatic, None | Some(DriveCoordinate::Translation)) => {
                     DriveCoordinate::Translation
@@ -1121,6 +1557,17 @@ impl Model {
             loads: !loads.is_empty(),
             constraints: n_rows > 0,
             drives: !drives.is_empty(),
+            clearance: !clearances.is_empty(),
+            friction: clearances.iter().any(|c| !c.friction.is_none()),
+            axial_contact: clearances.iter().any(|c| {
+                matches!(
+                    c.geometry,
+                    Geometry::Revolute {
+                        journal_length: Some(_),
+                        ..
+                    }
+                )
+            }),
         };
         let model = Model {
             name: scene.name(),
@@ -1133,6 +1580,8 @@ impl Model {
             loads,
             gravity,
             prims,
+            clearances,
+            n_contacts,
             joint_rows,
             n_rows,
             effects,

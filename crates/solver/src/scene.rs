@@ -202,6 +202,118 @@ pub struct JointSpec {
     /// (default: reference_a as seen from body b in the initial pose).
     #[serde(default)]
     pub reference_b: Option<VecRef>,
+    /// Turns a spherical or revolute joint into a joint with clearance: the housing (socket,
+    /// bushing) is on body_a at point_a, the journal (ball, pin) on body_b at point_b.
+    #[serde(default)]
+    pub clearance: Option<ClearanceSpec>,
+}
+
+/// How a revolute joint with clearance is modelled.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum RevoluteModel {
+    /// Journal free to translate and tilt in the bushing: radial contact at both rims, axial
+    /// contact at both faces when `axial_clearance` is given.
+    #[default]
+    Spatial,
+    /// Journal in bearing in the plane normal to axis_a (planar mechanisms): the joint keeps its
+    /// three out-of-plane rows and one radial contact replaces the in-plane ones.
+    Planar,
+}
+
+/// Clearance block of a joint (lengths in m).
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ClearanceSpec {
+    /// Revolute joints only: spatial (default) or planar.
+    #[serde(default)]
+    pub model: Option<RevoluteModel>,
+    /// Spherical: ball radius.
+    #[serde(default)]
+    pub ball_radius: Option<f64>,
+    /// Revolute: journal radius.
+    #[serde(default)]
+    pub journal_radius: Option<f64>,
+    /// Revolute: bushing (bearing) inner radius; default journal_radius + radial_clearance.
+    #[serde(default)]
+    pub bushing_radius: Option<f64>,
+    /// Radial clearance (socket radius - ball radius, or bushing - journal radius).
+    #[serde(default)]
+    pub radial_clearance: Option<f64>,
+    /// Spatial revolute: bushing length L_B.
+    #[serde(default)]
+    pub bushing_length: Option<f64>,
+    /// Spatial revolute: outer radius of the bushing end faces R_B2.
+    #[serde(default)]
+    pub face_radius: Option<f64>,
+    /// Spatial revolute: axial clearance per side, (L_J - L_B)/2. Absent: no axial contact, the
+    /// axial position is held by a constraint row.
+    #[serde(default)]
+    pub axial_clearance: Option<f64>,
+    pub normal: NormalSpec,
+    #[serde(default)]
+    pub friction: FrictionSpec,
+}
+
+/// Normal-contact laws.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum NormalLawKind {
+    Hertz,
+    LankaraniNikravesh,
+    HuntCrossley,
+    Flores,
+    Gonthier,
+    CarvalhoMartins,
+    Impact,
+}
+
+/// Normal-contact law of a clearance joint.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct NormalSpec {
+    pub law: NormalLawKind,
+    /// Generalised stiffness K (N/m^exponent); or give youngs_modulus and poisson_ratio.
+    #[serde(default)]
+    pub stiffness: Option<f64>,
+    /// Young's modulus of both bodies (Pa), for K from the point-contact formula.
+    #[serde(default)]
+    pub youngs_modulus: Option<f64>,
+    /// Poisson's ratio of both bodies.
+    #[serde(default)]
+    pub poisson_ratio: Option<f64>,
+    /// Exponent n (default 1.5, Hertz point contact).
+    #[serde(default)]
+    pub exponent: Option<f64>,
+    /// Coefficient of restitution (damped laws).
+    #[serde(default)]
+    pub restitution: Option<f64>,
+    /// IMPACT: maximum damping coefficient (N s/m).
+    #[serde(default)]
+    pub max_damping: Option<f64>,
+    /// IMPACT: penetration at which the damping reaches max_damping (m).
+    #[serde(default)]
+    pub full_damping_penetration: Option<f64>,
+    /// Damped laws: floor of the onset approach velocity (m/s); default 1e-3.
+    #[serde(default)]
+    pub onset_velocity_floor: Option<f64>,
+}
+
+/// Friction law of a clearance joint.
+#[derive(Debug, Clone, Default, Deserialize, Serialize)]
+#[serde(tag = "law", rename_all = "snake_case", deny_unknown_fields)]
+pub enum FrictionSpec {
+    #[default]
+    None,
+    /// Coulomb, regularised linearly below `regularisation_velocity` (m/s).
+    Coulomb {
+        coefficient: f64,
+        regularisation_velocity: f64,
+    },
+    /// Ambrosio's modified Coulomb: no friction below v0, full above v1 (m/s).
+    Ambrosio { coefficient: f64, v0: f64, v1: f64 },
+    /// Threlfall: mu (1 - exp(-3 |v| / v0)).
+    Threlfall { coefficient: f64, v0: f64 },
 }
 
 /// Which joint coordinate a drive prescribes.

@@ -1,0 +1,506 @@
+//! Joints with clearance: contact geometry and the force element that replaces a joint's
+//! constraint rows (the 4-UPS/RPU paper, eqs. 1-47 and 59-62; geometry restated in the project's
+//! docs, "Clearance joints").
+//!
+//! The housing (socket, bushing, bearing) is on the joint's `body_a` at `point_a` with axis
+//! `axis_a`; the journal (ball, pin) is on `body_b` at `point_b` with axis `axis_b`. Every contact
+//! gives a penetration `delta` (m, > 0 in contact), the unit direction `n` in which the journal
+//! penetrates the housing, a contact point on each body and the penetration rate
+//! `delta_dot = (v_journal - v_housing) . n` at the contact points (approach positive). The normal
+//! force on the journal is `-F_N n`, on the housing `+F_N n`; friction opposes the tangential
+//! relative velocity at the contact.
+//!
+//! * Spherical: e = r_ball - r_socket, delta = |e| - c, n = e/|e|; contact points r_ball + R_b n
+//!   and r_socket + (R_b + c) n. With |e| <= c there is no contact and e is never normalised.
+//! * Planar revolute: the same with e projected on the plane normal to the bearing axis; the
+//!   joint keeps its three out-of-plane constraint rows (axes parallel, point in plane).
+//! * Spatial revolute, radial contact at the bushing rims (P at s = +L_B/2, Q at s = -L_B/2):
+//!   r_k = B_c + s_k e_B; the journal axis meets the rim plane at J_k = J_c + t e_J,
+//!   t = ((r_k - J_c).e_B)/(e_J.e_B); the rim point towards which the journal leans is
+//!   P_B = r_k + R_B1 unit(J_k - r_k); n = unit(perp(P_B - J_c, e_J)),
+//!   delta = R_J - |perp(P_B - J_c, e_J)|. With parallel axes both rims see the same penetration:
+//!   the line contact along the bushing is then carried by its two end points, as in the paper.
+//!   When J_k = r_k (journal axis through the rim centre) that rim is not in contact.
+//! * Spatial revolute, axial contact between shoulder and bushing end face (M on the +e_B face,
+//!   N on the -e_B face): with sigma = +1 (M) or -1 (N), shoulder centre J_a = J_c +
+//!   sigma (L_J/2) e_J, tilt direction u = perp(e_J, e_B), face point
+//!   M_B = B_c + sigma (L_B/2) e_B + sigma R_B2 unit(u) (the face centre when the axes are
+//!   parallel: face contact, no tilt moment), delta = sigma (M_B - J_a).e_J, n = -sigma e_J.
+//!   Axial contact is simulated only when the scene gives an axial clearance; otherwise the joint
+//!   keeps its axial constraint row.
+
+use nalgebra::Vector3;
+
+use crate::contact::{FrictionLaw, NormalLaw};
+use crate::dynamics::Kin;
+
+/// Clearance geometry of one joint (lengths in m).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Geometry {
+    Spherical {
+        ball_radius: f64,
+        clearance: f64,
+    },
+    Planar {
+        journal_radius: f64,
+        bearing_radius: f64,
+    },
+    Revolute {
+        journal_radius: f64,
+        bushing_radius: f64,
+        bushing_length: f64,
+        face_radius: f64,
+        /// L_J = L_B + 2 C_a when axial contact is simulated.
+        journal_length: Option<f64>,
+    },
+}
+
+impl Geometry {
+    /// Number of contact points evaluated.
+    pub fn n_contacts(&self) -> usize {
+        match self {
+            Geometry::Spherical { .. } | Geometry::Planar { .. } => 1,
+            Geometry::Revolute { journal_length, .. } => {
+                if journal_length.is_some() {
+                    4
+                } else {
+                    2
+                }
+            }
+        }
+    }
+
+    /// Names of the contacts, in output order.
+    pub fn contact_names(&self) -> &'static [&'static str] {
+        match self {
+            Geometry::Spherical { .. } | Geometry::Planar { .. } => &["radial"],
+            Geometry::Revolute { journal_length, .. } => {
+                if journal_length.is_some() {
+                    &["P", "Q", "M", "N"]
+                } else {
+                    &["P", "Q"]
+                }
+            }
+        }
+    }
+
+    pub fn describe(&self) -> String {
+        match *self {
+            Geometry::Spherical {
+                ball_radius,
+                clearance,
+            } => format!("spherical, ball radius {ball_radius} m, clearance {clearance:e} m"),
+            Geometry::Planar {
+                journal_radius,
+                bearing_radius,
+            } => format!(
+                "planar revolute, journal radius {journal_radius} m, bearing radius {bearing_radius} m (clearance {:e} m); contact: radial",
+                bearing_radius - journal_radius
+            ),
+            Geometry::Revolute {
+                journal_radius,
+                bushing_radius,
+                bushing_length,
+                face_radius,
+                journal_length,
+            } => {
+                let mut s = format!(
+                    "spatial revolute, journal radius {journal_radius} m, bushing {bushing_radius} m x {bushing_length} m (radial clearance {:e} m); contacts: radial at rims P, Q",
+                    bushing_radius - journal_radius
+                );
+                match journal_length {
+                    Some(lj) => {
+                        s += &format!(
+                            ", axial at faces M, N (face radius {face_radius} m, axial clearance {:e} m)",
+                            0.5 * (lj - bushing_length)
+                        )
+                    }
+                    None => s += "; axial position held by a constraint row",
+                }
+                s
+            }
+        }
+    }
+}
+
+/// A compiled clearance joint.
+#[derive(Debug, Clone)]
+pub struct Clearance {
+    pub name: String,
+    /// Index of the joint in the model's joint list.
+    pub joint: usize,
+    pub housing: usize,
+    pub journal: usize,
+    /// Housing and journal centres, COM-relative body axes (m).
+    pub sh: Vector3<f64>,
+    pub sj: Vector3<f64>,
+    /// Unit axes in body axes (unused for spherical).
+    pub axis_h: Vector3<f64>,
+    pub axis_j: Vector3<f64>,
+    pub geometry: Geometry,
+    pub law: NormalLaw,
+    pub friction: FrictionLaw,
+    /// First slot of this joint's contacts in the workspace contact arrays.
+    pub first: usize,
+}
+
+/// The state of one contact at one evaluation.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct ContactEval {
+    /// Penetration (m); negative: gap.
+    pub delta: f64,
+    /// Penetration rate (m/s), approach positive.
+    pub delta_dot: f64,
+    /// Direction in which the journal penetrates (unit, global; zero when undefined).
+    pub n: Vector3<f64>,
+    /// Contact points on journal and housing (global, m).
+    pub pj: Vector3<f64>,
+    pub ph: Vector3<f64>,
+    /// Normal force magnitude (N) and friction force on the journal (N, global).
+    pub fn_: f64,
+    pub ft: Vector3<f64>,
+}
+
+impl ContactEval {
+    pub fn active(&self) -> bool {
+        self.delta > 0.0 && self.fn_ > 0.0
+    }
+}
+
+/// Resultant of a clearance joint's contacts, about each body's centre of mass.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Resultant {
+    pub force_j: Vector3<f64>,
+    pub moment_j: Vector3<f64>,
+    pub force_h: Vector3<f64>,
+    pub moment_h: Vector3<f64>,
+}
+
+#[inline]
+fn perp(v: &Vector3<f64>, a: &Vector3<f64>) -> Vector3<f64> {
+    v - a * v.dot(a)
+}
+
+#[inline]
+fn vel(k: &Kin, p: &Vector3<f64>) -> Vector3<f64> {
+    k.v + k.w.cross(&(p - k.r))
+}
+
+impl Clearance {
+    /// Eccentricity of the journal centre from the housing centre, global (m).
+    pub fn eccentricity(&self, kh: &Kin, kj: &Kin) -> Vector3<f64> {
+        (kj.r + kj.rot * self.sj) - (kh.r + kh.rot * self.sh)
+    }
+
+    /// Contact geometry (delta, delta_dot, n, points) of every contact into `out`.
+    pub fn geometry(&self, kh: &Kin, kj: &Kin, out: &mut [ContactEval]) {
+        let rh = kh.r + kh.rot * self.sh;
+        let rj = kj.r + kj.rot * self.sj;
+        match self.geometry {
+            Geometry::Spherical {
+                ball_radius,
+                clearance,
+            } => {
+                let e = rj - rh;
+                out[0] = radial(e, clearance, ball_radius, rh, rj, kh, kj);
+            }
+            Geometry::Planar {
+                journal_radius,
+                bearing_radius,
+            } => {
+                let a = kh.rot * self.axis_h;
+                let e = perp(&(rj - rh), &a);
+                out[0] = radial(
+                    e,
+                    bearing_radius - journal_radius,
+                    journal_radius,
+                    rh,
+                    rj,
+                    kh,
+                    kj,
+                );
+            }
+            Geometry::Revolute {
+                journal_radius: rj_rad,
+                bushing_radius: rb1,
+                bushing_length: lb,
+                face_radius: rb2,
+                journal_length,
+            } => {
+                let eb = kh.rot * self.axis_h;
+                let ej = kj.rot * self.axis_j;
+                let denom = ej.dot(&eb);
+                for (k, s) in [0.5 * lb, -0.5 * lb].into_iter().enumerate() {
+                    let rk = rh + eb * s;
+                    let mut c = ContactEval {
+                        delta: rj_rad - rb1,
+                        ..Default::default()
+                    };
+                    if denom.abs() > 1e-9 {
+                        let t = (rk - rj).dot(&eb) / denom;
+                        let dk = rj + ej * t - rk;
+                        let dn = dk.norm();
+                        if dn > 1e-14 * rb1 {
+                            let pb = rk + dk * (rb1 / dn);
+                            let q = pb - rj;
+                            let qp = perp(&q, &ej);
+                            let qn = qp.norm();
+                            let n = qp / qn;
+                            let pj = rj + ej * q.dot(&ej) + n * rj_rad;
+                            c = ContactEval {
+                                delta: rj_rad - qn,
+                                delta_dot: (vel(kj, &pj) - vel(kh, &pb)).dot(&n),
+                                n,
+                                pj,
+                                ph: pb,
+                                ..Default::default()
+                            };
+                        }
+                    }
+                    out[k] = c;
+                }
+                if let Some(lj) = journal_length {
+                    let u = perp(&ej, &eb);
+                    let un = u.norm();
+                    let uhat = if un > 1e-12 { u / un } else { Vector3::zeros() };
+                    for (k, sigma) in [1.0, -1.0].into_iter().enumerate() {
+                        let ja = rj + ej * (0.5 * lj * sigma);
+                        let mb = rh + eb * (0.5 * lb * sigma) + uhat * (rb2 * sigma);
+                        let n = -ej * sigma;
+                        out[2 + k] = ContactEval {
+                            delta: sigma * (mb - ja).dot(&ej),
+                            delta_dot: (vel(kj, &mb) - vel(kh, &mb)).dot(&n),
+                            n,
+                            pj: mb,
+                            ph: mb,
+                            ..Default::default()
+                        };
+                    }
+                }
+            }
+        }
+    }
+
+    /// Normal and friction forces of the contacts (geometry already in `out`), with the onset
+    /// velocities `onset` (NaN: the contact began inside the current step, use delta_dot), and
+    /// their resultant on both bodies.
+    pub fn forces(&self, kh: &Kin, kj: &Kin, onset: &[f64], out: &mut [ContactEval]) -> Resultant {
+        let mut r = Resultant::default();
+        for (c, &v_on) in out.iter_mut().zip(onset) {
+            c.fn_ = 0.0;
+            c.ft = Vector3::zeros();
+            if c.delta <= 0.0 {
+                continue;
+            }
+            let v_on = if v_on.is_nan() { c.delta_dot } else { v_on };
+            let fn_ = self.law.force(c.delta, c.delta_dot, v_on);
+            if fn_ <= 0.0 {
+                continue;
+            }
+            c.fn_ = fn_;
+            let mut f = -c.n * fn_;
+            if !self.friction.is_none() {
+                let vrel = vel(kj, &c.pj) - vel(kh, &c.ph);
+                let vt = perp(&vrel, &c.n);
+                let v = vt.norm();
+                if v > 0.0 {
+                    c.ft = -vt * (self.friction.coefficient(v) * fn_ / v);
+                    f += c.ft;
+                }
+            }
+            r.force_j += f;
+            r.moment_j += (c.pj - kj.r).cross(&f);
+            r.force_h -= f;
+            r.moment_h -= (c.ph - kh.r).cross(&f);
+        }
+        r
+    }
+}
+
+/// A radial (sphere-in-socket or circle-in-circle) contact from the eccentricity `e`.
+fn radial(
+    e: Vector3<f64>,
+    clearance: f64,
+    inner_radius: f64,
+    rh: Vector3<f64>,
+    rj: Vector3<f64>,
+    kh: &Kin,
+    kj: &Kin,
+) -> ContactEval {
+    let d = e.norm();
+    // The clearance is positive, so contact needs |e| > c > 0 and n is always defined there;
+    // below, n is only used for the rate, and only when |e| is not tiny.
+    if d <= 1e-14 * inner_radius.max(clearance) {
+        return ContactEval {
+            delta: d - clearance,
+            ..Default::default()
+        };
+    }
+    let n = e / d;
+    let pj = rj + n * inner_radius;
+    let ph = rh + n * (inner_radius + clearance);
+    ContactEval {
+        delta: d - clearance,
+        delta_dot: (vel(kj, &rj) - vel(kh, &rh)).dot(&n),
+        n,
+        pj,
+        ph,
+        ..Default::default()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::contact::NormalLaw;
+    use nalgebra::{Matrix3, Rotation3};
+
+    fn kin(r: Vector3<f64>, rot: Matrix3<f64>) -> Kin {
+        Kin {
+            r,
+            rot,
+            v: Vector3::zeros(),
+            w: Vector3::zeros(),
+        }
+    }
+
+    // The paper's R1: R_J = 9.7 mm, R_B1 = 10 mm, L_B = 180 mm, R_B2 = 14 mm, C_a = 0.3 mm.
+    const RJ: f64 = 0.0097;
+    const RB1: f64 = 0.010;
+    const LB: f64 = 0.180;
+    const RB2: f64 = 0.014;
+    const CA: f64 = 0.0003;
+
+    fn revolute() -> Clearance {
+        Clearance {
+            name: "R1".into(),
+            joint: 0,
+            housing: 0,
+            journal: 1,
+            sh: Vector3::zeros(),
+            sj: Vector3::zeros(),
+            axis_h: Vector3::z(),
+            axis_j: Vector3::z(),
+            geometry: Geometry::Revolute {
+                journal_radius: RJ,
+                bushing_radius: RB1,
+                bushing_length: LB,
+                face_radius: RB2,
+                journal_length: Some(LB + 2.0 * CA),
+            },
+            law: NormalLaw::Hertz { k: 8.62e10, n: 1.5 },
+            friction: FrictionLaw::None,
+            first: 0,
+        }
+    }
+
+    fn eval(c: &Clearance, kj: Kin) -> [ContactEval; 4] {
+        let mut out = [ContactEval::default(); 4];
+        c.geometry(&kin(Vector3::zeros(), Matrix3::identity()), &kj, &mut out);
+        out
+    }
+
+    #[test]
+    fn parallel_shift_gives_u_minus_cr_at_both_rims() {
+        let u = 0.0005;
+        let out = eval(
+            &revolute(),
+            kin(Vector3::new(u, 0.0, 0.0), Matrix3::identity()),
+        );
+        for c in &out[..2] {
+            // Exact up to rounding of lengths of order 1e-2 m.
+            assert!((c.delta - (u - (RB1 - RJ))).abs() < 1e-15, "{}", c.delta);
+            assert!((c.n - Vector3::x()).norm() < 1e-12);
+        }
+        // No axial penetration without an axial shift.
+        assert!((out[2].delta + CA).abs() < 1e-15 && (out[3].delta + CA).abs() < 1e-15);
+    }
+
+    #[test]
+    fn tilt_gives_the_rim_formula_on_opposite_sides() {
+        let phi = 0.004;
+        let rot = *Rotation3::from_axis_angle(&Vector3::y_axis(), phi).matrix();
+        let out = eval(&revolute(), kin(Vector3::zeros(), rot));
+        let exact = RJ - (RB1 * phi.cos() - 0.5 * LB * phi.sin());
+        for c in &out[..2] {
+            // The notes' formula holds to O(phi^2 R) ~ 1e-7 relative corrections; the geometry
+            // here is exact, so compare at 1e-9 m (penetrations are ~4e-5 m).
+            assert!((c.delta - exact).abs() < 1e-9, "{} vs {exact}", c.delta);
+        }
+        assert!(
+            out[0].n.dot(&out[1].n) < -0.99,
+            "rim contacts on opposite sides"
+        );
+        assert!((exact - (0.5 * LB * phi - (RB1 - RJ))).abs() < 2e-7);
+    }
+
+    #[test]
+    fn axial_shift_and_tilt_give_the_face_formulas() {
+        let w = 0.0005;
+        let out = eval(
+            &revolute(),
+            kin(Vector3::new(0.0, 0.0, -w), Matrix3::identity()),
+        );
+        assert!((out[2].delta - (w - CA)).abs() < 1e-15, "{}", out[2].delta);
+        assert!((out[3].delta - (-w - CA)).abs() < 1e-15);
+        let phi = 0.03;
+        let rot = *Rotation3::from_axis_angle(&Vector3::y_axis(), phi).matrix();
+        let out = eval(&revolute(), kin(Vector3::zeros(), rot));
+        let exact = RB2 * phi.sin() + 0.5 * LB * phi.cos() - 0.5 * (LB + 2.0 * CA);
+        assert!((out[2].delta - exact).abs() < 1e-15 && (out[3].delta - exact).abs() < 1e-15);
+    }
+
+    #[test]
+    fn degenerate_configurations_give_finite_forces() {
+        let mut c = revolute();
+        c.law = NormalLaw::Hertz { k: 8.62e10, n: 1.5 };
+        c.friction = FrictionLaw::Coulomb {
+            mu: 0.1,
+            v_reg: 1e-3,
+        };
+        let onset = [f64::NAN; 4];
+        let cases = [
+            // concentric, coincident axes
+            kin(Vector3::zeros(), Matrix3::identity()),
+            // axes parallel, in radial and axial contact at once
+            kin(Vector3::new(0.001, 0.0, 0.001), Matrix3::identity()),
+            // journal perpendicular to the bushing
+            kin(
+                Vector3::zeros(),
+                *Rotation3::from_axis_angle(&Vector3::x_axis(), std::f64::consts::FRAC_PI_2)
+                    .matrix(),
+            ),
+            // journal axis through a rim centre
+            kin(
+                Vector3::new(0.0, 0.0, 0.0),
+                *Rotation3::from_axis_angle(&Vector3::x_axis(), 1e-3).matrix(),
+            ),
+        ];
+        for kj in cases {
+            let mut out = [ContactEval::default(); 4];
+            let kh = kin(Vector3::zeros(), Matrix3::identity());
+            c.geometry(&kh, &kj, &mut out);
+            let r = c.forces(&kh, &kj, &onset, &mut out);
+            for v in [r.force_j, r.moment_j, r.force_h, r.moment_h] {
+                assert!(v.iter().all(|x| x.is_finite()), "{kj:?}: {r:?}");
+            }
+            for o in &out {
+                assert!(o.delta.is_finite() && o.delta_dot.is_finite() && o.fn_.is_finite());
+            }
+        }
+        // Spherical, exactly concentric: no contact, no NaN.
+        let s = Clearance {
+            geometry: Geometry::Spherical {
+                ball_radius: 0.015,
+                clearance: 3e-4,
+            },
+            ..revolute()
+        };
+        let mut out = [ContactEval::default(); 1];
+        let k0 = kin(Vector3::zeros(), Matrix3::identity());
+        s.geometry(&k0, &k0, &mut out);
+        let r = s.forces(&k0, &k0, &onset[..1], &mut out);
+        assert_eq!(out[0].delta, -3e-4);
+        assert_eq!(r.force_j, Vector3::zeros());
+    }
+}

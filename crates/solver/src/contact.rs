@@ -1,0 +1,344 @@
+//! Normal-contact and friction laws: pure functions of the penetration `delta` (m, > 0 in
+//! contact), its rate `delta_dot` (m/s, > 0 while approaching), the approach velocity at contact
+//! onset `v_on` (m/s) and the tangential sliding speed. No law sees the time step.
+//!
+//! # Normal laws
+//! All return `F_N >= 0` (N); a law that would pull the bodies together returns zero.
+//!
+//! * Hertz (Hertz 1882; Johnson, *Contact Mechanics*, 1985, ch. 4): `F = K delta^n`.
+//! * Hysteresis-damped laws of the Hunt-Crossley family, `F = K delta^n (1 + D delta_dot / v_on)`,
+//!   with the damping factor D set by the restitution coefficient c_e:
+//!   - Hunt & Crossley, J. Appl. Mech. 42:440-445 (1975): D = 3 (1 - c_e) / 2;
+//!   - Lankarani & Nikravesh, J. Mech. Des. 112:369-376 (1990): D = 3 (1 - c_e^2) / 4
+//!     (the law of the 4-UPS/RPU paper, its eq. 48);
+//!   - Flores, Machado, Silva & Martins, Multibody Syst. Dyn. 25:357-375 (2011):
+//!     D = 8 (1 - c_e) / (5 c_e);
+//!   - Gonthier, McPhee, Lange & Piedboeuf, Multibody Syst. Dyn. 11:209-233 (2004):
+//!     D = (1 - c_e^2) / c_e;
+//!   - Carvalho & Martins, Mech. Mach. Theory 139:174-194 (2019), "Exact restitution and
+//!     generalizations for the Hunt-Crossley contact model": D = 3 (1 - c_e)(11 - c_e) /
+//!     (2 (1 + 9 c_e)) for c_e > 1/3 (their approximation of the exact inverse; below 1/3 they
+//!     fall back to Gonthier's factor, as here).
+//!
+//!   For an isolated two-body impact every law of this family restores the restitution `e` that
+//!   solves `(1 + D) = (1 - e D) exp(D (1 + e))`, whatever K, n and the masses
+//!   ([`hunt_crossley_restitution`]): separate m v dv/(1 + D v / v0) = -K delta^n d delta and
+//!   integrate over approach and rebound. At c_e = 0.9 this gives 0.913 for Lankarani-Nikravesh,
+//!   0.909 for Hunt-Crossley, 0.894 for Flores, 0.876 for Gonthier and 0.900 for Carvalho-Martins.
+//! * IMPACT (MSC ADAMS function reference, IMPACT and STEP): ADAMS writes
+//!   `max(0, k (x1 - x)^e - STEP(x, x1 - d, c_max, x1, 0) x')` for a distance x; with
+//!   delta = x1 - x and the approach rate delta_dot = -x' that is `F = max(0, K delta^n +
+//!   STEP(delta, 0, 0, d_max, c_max) delta_dot)`, the cubic STEP rising from 0 at first touch
+//!   to the maximum damping c_max (N s/m) at the penetration d_max (m), so the damping force never
+//!   jumps at contact onset. Use it to compare with ADAMS models.
+//!
+//! The onset velocity v_on that the damped laws divide by is floored at `v_floor` (m/s): a grazing
+//! contact starting at a tiny approach speed would otherwise produce an unbounded damping term.
+//!
+//! # Stiffness from materials
+//! Point contact of two spheres (or, as the paper does for its revolute joint, of a journal in a
+//! bushing treated as spheres), paper eqs. 49-50 after Goldsmith (*Impact*, 1960):
+//! `K = 4 / (3 (eta_i + eta_j)) sqrt(R_i R_j / |R_i - R_j|)`, `eta = (1 - nu^2) / E` (N/m^1.5).
+//!
+//! # Friction laws
+//! Friction opposes the sliding velocity: `F_T = -c(|v_t|) F_N v_t / |v_t|`, with
+//! * none: c = 0;
+//! * Coulomb regularised linearly below `v_reg` (as in Exudyn's contact elements): c = mu
+//!   min(|v_t| / v_reg, 1);
+//! * Ambrosio's modified Coulomb (Ambrosio, "Impact of rigid and flexible multibody systems:
+//!   deformation description and contact models", NATO Sci. Ser. II 103, 2003; the paper's eqs.
+//!   51-52): c = mu c_d, c_d = 0 below v0, (|v_t| - v0)/(v1 - v0) between v0 and v1, 1 above v1;
+//! * Threlfall (Mech. Mach. Theory 13:475-483, 1978), as quoted in the friction survey of
+//!   Marques, Flores, Claro & Lankarani, Nonlinear Dyn. 86:1407-1443 (2016):
+//!   c = mu (1 - exp(-3 |v_t| / v0)).
+//!
+//! Every law keeps |F_T| <= mu F_N.
+
+/// Kinds of hysteresis damping factor D(c_e).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Damping {
+    HuntCrossley,
+    LankaraniNikravesh,
+    Flores,
+    Gonthier,
+    CarvalhoMartins,
+}
+
+impl Damping {
+    /// The dimensionless damping factor D for restitution `ce` in (0, 1].
+    pub fn factor(self, ce: f64) -> f64 {
+        match self {
+            Damping::HuntCrossley => 1.5 * (1.0 - ce),
+            Damping::LankaraniNikravesh => 0.75 * (1.0 - ce * ce),
+            Damping::Flores => 8.0 * (1.0 - ce) / (5.0 * ce),
+            Damping::Gonthier => (1.0 - ce * ce) / ce,
+            Damping::CarvalhoMartins => {
+                if ce > 1.0 / 3.0 {
+                    1.5 * (1.0 - ce) * (11.0 - ce) / (1.0 + 9.0 * ce)
+                } else {
+                    (1.0 - ce * ce) / ce
+                }
+            }
+        }
+    }
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Damping::HuntCrossley => "Hunt-Crossley",
+            Damping::LankaraniNikravesh => "Lankarani-Nikravesh",
+            Damping::Flores => "Flores et al.",
+            Damping::Gonthier => "Gonthier et al.",
+            Damping::CarvalhoMartins => "Carvalho-Martins",
+        }
+    }
+}
+
+/// A compiled normal-contact law.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum NormalLaw {
+    /// F = K delta^n.
+    Hertz { k: f64, n: f64 },
+    /// F = K delta^n (1 + D delta_dot / max(v_on, v_floor)).
+    Hysteresis {
+        k: f64,
+        n: f64,
+        kind: Damping,
+        restitution: f64,
+        /// D, precomputed from the restitution.
+        d: f64,
+        /// m/s.
+        v_floor: f64,
+    },
+    /// ADAMS IMPACT: F = K delta^n + STEP(delta, 0, 0, d_max, c_max) delta_dot.
+    Impact {
+        k: f64,
+        n: f64,
+        c_max: f64,
+        d_max: f64,
+    },
+}
+
+/// ADAMS' cubic STEP(x, x0, h0, x1, h1).
+pub fn step(x: f64, x0: f64, h0: f64, x1: f64, h1: f64) -> f64 {
+    if x <= x0 {
+        h0
+    } else if x >= x1 {
+        h1
+    } else {
+        let d = (x - x0) / (x1 - x0);
+        h0 + (h1 - h0) * d * d * (3.0 - 2.0 * d)
+    }
+}
+
+impl NormalLaw {
+    /// Whether the law needs the onset velocity.
+    pub fn needs_onset(&self) -> bool {
+        matches!(self, NormalLaw::Hysteresis { .. })
+    }
+
+    /// Normal force (N) at penetration `delta`, rate `delta_dot` and onset velocity `v_on`.
+    #[inline]
+    pub fn force(&self, delta: f64, delta_dot: f64, v_on: f64) -> f64 {
+        if delta <= 0.0 {
+            return 0.0;
+        }
+        let f = match *self {
+            NormalLaw::Hertz { k, n } => k * delta.powf(n),
+            NormalLaw::Hysteresis {
+                k, n, d, v_floor, ..
+            } => k * delta.powf(n) * (1.0 + d * delta_dot / v_on.abs().max(v_floor)),
+            NormalLaw::Impact { k, n, c_max, d_max } => {
+                k * delta.powf(n) + step(delta, 0.0, 0.0, d_max, c_max) * delta_dot
+            }
+        };
+        f.max(0.0)
+    }
+
+    /// Stiffness K (N/m^n) and exponent n.
+    pub fn stiffness(&self) -> (f64, f64) {
+        match *self {
+            NormalLaw::Hertz { k, n }
+            | NormalLaw::Hysteresis { k, n, .. }
+            | NormalLaw::Impact { k, n, .. } => (k, n),
+        }
+    }
+
+    /// One-line description for `jointplay check`.
+    pub fn describe(&self) -> String {
+        match *self {
+            NormalLaw::Hertz { k, n } => format!("Hertz, K = {k:.4e} N/m^{n}"),
+            NormalLaw::Hysteresis {
+                k,
+                n,
+                kind,
+                restitution,
+                d,
+                v_floor,
+            } => format!(
+                "{}, K = {k:.4e} N/m^{n}, c_e = {restitution}, D = {d:.5}, onset-velocity floor {v_floor:e} m/s",
+                kind.name()
+            ),
+            NormalLaw::Impact { k, n, c_max, d_max } => format!(
+                "IMPACT (ADAMS), K = {k:.4e} N/m^{n}, c_max = {c_max} N s/m, d_max = {d_max:e} m"
+            ),
+        }
+    }
+}
+
+/// Point-contact stiffness (paper eq. 49): radii in m, moduli in Pa.
+pub fn point_contact_stiffness(
+    r_i: f64,
+    r_j: f64,
+    e_i: f64,
+    nu_i: f64,
+    e_j: f64,
+    nu_j: f64,
+) -> f64 {
+    let eta = |e: f64, nu: f64| (1.0 - nu * nu) / e;
+    4.0 / (3.0 * (eta(e_i, nu_i) + eta(e_j, nu_j))) * (r_i * r_j / (r_i - r_j).abs()).sqrt()
+}
+
+/// The restitution an isolated impact obtains from a Hunt-Crossley-type law with damping factor
+/// D: the root e in (0, 1) of (1 + D) = (1 - e D) exp(D (1 + e)) (bisection; exact to 1e-14).
+pub fn hunt_crossley_restitution(d: f64) -> f64 {
+    if d <= 0.0 {
+        return 1.0;
+    }
+    let g = |e: f64| (1.0 - e * d) * (d * (1.0 + e)).exp() - (1.0 + d);
+    // g(0) = e^D - 1 - D > 0 and g(min(1, 1/D)) < 0 for D > 0.
+    let (mut lo, mut hi) = (0.0, (1.0f64).min(1.0 / d));
+    for _ in 0..200 {
+        let mid = 0.5 * (lo + hi);
+        if g(mid) > 0.0 { lo = mid } else { hi = mid }
+    }
+    0.5 * (lo + hi)
+}
+
+/// A compiled friction law.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum FrictionLaw {
+    None,
+    Coulomb { mu: f64, v_reg: f64 },
+    Ambrosio { mu: f64, v0: f64, v1: f64 },
+    Threlfall { mu: f64, v0: f64 },
+}
+
+impl FrictionLaw {
+    /// The friction coefficient in effect at sliding speed `v` (m/s, >= 0).
+    #[inline]
+    pub fn coefficient(&self, v: f64) -> f64 {
+        match *self {
+            FrictionLaw::None => 0.0,
+            FrictionLaw::Coulomb { mu, v_reg } => mu * (v / v_reg).min(1.0),
+            FrictionLaw::Ambrosio { mu, v0, v1 } => {
+                if v <= v0 {
+                    0.0
+                } else if v >= v1 {
+                    mu
+                } else {
+                    mu * (v - v0) / (v1 - v0)
+                }
+            }
+            FrictionLaw::Threlfall { mu, v0 } => mu * (1.0 - (-3.0 * v / v0).exp()),
+        }
+    }
+
+    pub fn is_none(&self) -> bool {
+        matches!(self, FrictionLaw::None)
+    }
+
+    pub fn describe(&self) -> String {
+        match *self {
+            FrictionLaw::None => "no friction".into(),
+            FrictionLaw::Coulomb { mu, v_reg } => {
+                format!("Coulomb, mu = {mu}, regularised below {v_reg:e} m/s")
+            }
+            FrictionLaw::Ambrosio { mu, v0, v1 } => {
+                format!("modified Coulomb (Ambrosio), mu = {mu}, v0 = {v0:e} m/s, v1 = {v1:e} m/s")
+            }
+            FrictionLaw::Threlfall { mu, v0 } => format!("Threlfall, mu = {mu}, v0 = {v0:e} m/s"),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn paper_stiffness_values() {
+        // clearance-geometry notes: K = 1.326e11 (sphere, Rb = 15 mm, c = 0.3 mm) and 8.62e10
+        // N/m^1.5 (revolute, R_B1 = 10 mm, C_r = 0.3 mm), E = 207 GPa, nu = 0.3; 4 digits quoted.
+        let k = point_contact_stiffness(0.015, 0.0153, 207e9, 0.3, 207e9, 0.3);
+        assert!((k / 1.326e11 - 1.0).abs() < 5e-4, "{k:e}");
+        let k = point_contact_stiffness(0.0097, 0.010, 207e9, 0.3, 207e9, 0.3);
+        assert!((k / 8.62e10 - 1.0).abs() < 1e-3, "{k:e}");
+    }
+
+    #[test]
+    fn restitution_relation_matches_known_values() {
+        // ce = 0.9 with Lankarani-Nikravesh: the issue's reference value 0.913.
+        let e = hunt_crossley_restitution(Damping::LankaraniNikravesh.factor(0.9));
+        assert!((e - 0.913).abs() < 5e-4, "{e}");
+        // Small damping: e = 1 - 2D/3 + O(D^2), which is Hunt & Crossley's own derivation.
+        let e = hunt_crossley_restitution(1e-4);
+        assert!((e - (1.0 - 2e-4 / 3.0)).abs() < 1e-8);
+        // Carvalho-Martins' approximation reproduces c_e to 2e-4 for c_e >= 0.5.
+        for ce in [0.5, 0.7, 0.9, 0.95] {
+            let e = hunt_crossley_restitution(Damping::CarvalhoMartins.factor(ce));
+            assert!((e - ce).abs() < 2e-4, "ce {ce}: {e}");
+        }
+    }
+
+    #[test]
+    fn normal_force_is_never_negative() {
+        let law = NormalLaw::Hysteresis {
+            k: 1e10,
+            n: 1.5,
+            kind: Damping::LankaraniNikravesh,
+            restitution: 0.5,
+            d: Damping::LankaraniNikravesh.factor(0.5),
+            v_floor: 1e-4,
+        };
+        // Fast separation at small penetration would make the damped law pull.
+        assert_eq!(law.force(1e-7, -10.0, 0.01), 0.0);
+        assert!(law.force(1e-7, 0.01, 0.01) > 0.0);
+        let imp = NormalLaw::Impact {
+            k: 1e10,
+            n: 1.5,
+            c_max: 1e5,
+            d_max: 1e-6,
+        };
+        assert_eq!(imp.force(2e-6, -10.0, 0.0), 0.0);
+        assert_eq!(imp.force(-1e-6, 1.0, 0.0), 0.0);
+        // No damping at first touch: STEP(0) = 0.
+        assert_eq!(step(0.0, 0.0, 0.0, 1e-6, 1e5), 0.0);
+        assert_eq!(step(1e-6, 0.0, 0.0, 1e-6, 1e5), 1e5);
+    }
+
+    #[test]
+    fn friction_is_bounded_and_vanishes_below_v0() {
+        let laws = [
+            FrictionLaw::Coulomb {
+                mu: 0.05,
+                v_reg: 1e-3,
+            },
+            FrictionLaw::Ambrosio {
+                mu: 0.05,
+                v0: 1e-4,
+                v1: 1e-2,
+            },
+            FrictionLaw::Threlfall { mu: 0.05, v0: 1e-3 },
+        ];
+        for law in laws {
+            for k in 0..200 {
+                let v = 1e-7 * 1.1f64.powi(k);
+                let c = law.coefficient(v);
+                assert!((0.0..=0.05).contains(&c), "{law:?} at {v}: {c}");
+            }
+        }
+        assert_eq!(laws[1].coefficient(0.9e-4), 0.0);
+        assert_eq!(laws[1].coefficient(0.02), 0.05);
+        assert!((laws[1].coefficient(5.05e-3) - 0.025).abs() < 1e-12);
+    }
+}
