@@ -9,7 +9,7 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use jointplay_analysis::h5::{Meta, write_run};
+use jointplay_analysis::h5::{Meta, read_series, write_run};
 use jointplay_analysis::plot::{Format, Panel, Series, figure};
 use jointplay_analysis::run::{RunResult, simulate};
 use jointplay_solver::model::{GROUND, Model};
@@ -50,6 +50,24 @@ enum Command {
         #[arg(long, short)]
         quiet: bool,
     },
+    /// Overlay one recorded quantity from several run files in one figure (PNG and SVG).
+    Compare {
+        /// Run files written by `jointplay run`.
+        #[arg(required = true)]
+        files: Vec<PathBuf>,
+        /// Dataset path inside the files, e.g. bodies/slider/acceleration.
+        #[arg(long)]
+        dataset: String,
+        /// Column of a two-dimensional dataset (0 = x).
+        #[arg(long, default_value_t = 0)]
+        component: usize,
+        /// Output path without extension.
+        #[arg(long)]
+        out: PathBuf,
+        /// Figure title (default: the dataset path).
+        #[arg(long)]
+        title: Option<String>,
+    },
 }
 
 fn main() {
@@ -62,6 +80,13 @@ fn main() {
             no_plots,
             quiet,
         } => run(&scene, &out, !no_plots, quiet),
+        Command::Compare {
+            files,
+            dataset,
+            component,
+            out,
+            title,
+        } => compare(&files, &dataset, component, &out, title),
     };
     if let Err(e) = res {
         eprintln!("error: {e:#}");
@@ -200,7 +225,11 @@ fn check(path: &Path) -> Result<()> {
     );
     println!("effects simulated");
     for e in model.effects.describe(&model) {
-        println!("  - {e}");
+        if let Some(sub) = e.strip_prefix("    ") {
+            println!("      {sub}");
+        } else {
+            println!("  - {e}");
+        }
     }
     let s = &model.settings;
     let periods = s
@@ -308,6 +337,55 @@ fn run(path: &Path, out: &Path, plots: bool, quiet: bool) -> Result<()> {
     Ok(())
 }
 
+fn compare(
+    files: &[PathBuf],
+    dataset: &str,
+    component: usize,
+    out: &Path,
+    title: Option<String>,
+) -> Result<()> {
+    let mut series = Vec::new();
+    let mut unit = String::new();
+    for f in files {
+        let d = read_series(f, dataset, component)?;
+        unit = d.unit.clone();
+        let label = if d.scene_name.is_empty() {
+            f.display().to_string()
+        } else {
+            d.scene_name
+        };
+        series.push(Series {
+            label,
+            x: d.time,
+            y: d.values,
+        });
+    }
+    let comp = ["x", "y", "z", "w"].get(component).copied().unwrap_or("?");
+    let panel = Panel::new(
+        title.unwrap_or_else(|| format!("{dataset} [{comp}]")),
+        "time t (s)",
+        format!(
+            "{} ({unit})",
+            dataset
+                .rsplit('/')
+                .next()
+                .unwrap_or(dataset)
+                .replace('_', " ")
+        ),
+        series,
+    );
+    if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
+    }
+    for fmt in [Format::Png, Format::Svg] {
+        println!(
+            "wrote        {}",
+            figure(out, fmt, std::slice::from_ref(&panel), 1)?.display()
+        );
+    }
+    Ok(())
+}
+
 fn figures(out: &Path, name: &str, run: &RunResult) -> Result<Vec<PathBuf>> {
     let rec = &run.recording;
     let t = &rec.time;
@@ -332,6 +410,8 @@ fn figures(out: &Path, name: &str, run: &RunResult) -> Result<Vec<PathBuf>> {
                 })
                 .collect(),
             log_y: false,
+            x_range: None,
+            y_range: None,
         })
         .collect();
     sets.push((format!("{name}-positions"), body_panels));
@@ -357,6 +437,8 @@ fn figures(out: &Path, name: &str, run: &RunResult) -> Result<Vec<PathBuf>> {
                     })
                     .collect(),
                 log_y: false,
+                x_range: None,
+                y_range: None,
             }],
         ));
     }
@@ -381,6 +463,8 @@ fn figures(out: &Path, name: &str, run: &RunResult) -> Result<Vec<PathBuf>> {
                         },
                     ],
                     log_y: true,
+                    x_range: None,
+                    y_range: None,
                 },
                 Panel {
                     title: format!(
@@ -395,9 +479,60 @@ fn figures(out: &Path, name: &str, run: &RunResult) -> Result<Vec<PathBuf>> {
                         y: d.energy.iter().map(|e| e - d.energy[0]).collect(),
                     }],
                     log_y: false,
+                    x_range: None,
+                    y_range: None,
                 },
             ],
         ));
+    }
+    for c in &rec.clearances {
+        let nc = c.contacts.len();
+        let circle: Vec<(f64, f64)> = (0..=360)
+            .map(|k| {
+                let a = (k as f64).to_radians();
+                (
+                    c.radial_clearance * a.cos() * 1e3,
+                    c.radial_clearance * a.sin() * 1e3,
+                )
+            })
+            .collect();
+        let lim = 1.25 * c.radial_clearance * 1e3;
+        let orbit = Panel {
+            x_range: Some((-lim, lim)),
+            y_range: Some((-lim, lim)),
+            ..Panel::new(
+                format!("{}: journal-centre orbit", c.name),
+                "eccentricity along u (mm)",
+                "eccentricity along w (mm)",
+                vec![
+                    Series {
+                        label: "journal centre".into(),
+                        x: c.radial_eccentricity.iter().map(|e| e[0] * 1e3).collect(),
+                        y: c.radial_eccentricity.iter().map(|e| e[1] * 1e3).collect(),
+                    },
+                    Series {
+                        label: "clearance circle".into(),
+                        x: circle.iter().map(|p| p.0).collect(),
+                        y: circle.iter().map(|p| p.1).collect(),
+                    },
+                ],
+            )
+        };
+        let force = Panel::new(
+            format!("{}: normal contact force", c.name),
+            "time t (s)",
+            "normal force (N)",
+            c.contacts
+                .iter()
+                .enumerate()
+                .map(|(k, n)| Series {
+                    label: n.clone(),
+                    x: t.clone(),
+                    y: c.normal_force.iter().skip(k).step_by(nc).copied().collect(),
+                })
+                .collect(),
+        );
+        sets.push((format!("{name}-{}-clearance", c.name), vec![orbit, force]));
     }
     for (stem, panels) in sets {
         if panels.is_empty() {

@@ -216,6 +216,21 @@ fn bad_input_gets_an_error_naming_file_and_field() {
         ("end_time = 10.0", "end_time = inf", "solver.end_time"),
         ("end_time = 10.0", "end_time = -1.0", "solver.end_time"),
         ("end_time = 10.0", "periods = 2", "solver.periods"),
+        (
+            "axis_b = \"z\"\n",
+            "axis_b = \"z\"\nclearance = { journal_radius = 0.01, radial_clearance = -1e-4, bushing_length = 0.02, normal = { law = \"hertz\", stiffness = 1e10 } }\n",
+            "joints[0].clearance.radial_clearance",
+        ),
+        (
+            "axis_b = \"z\"\n",
+            "axis_b = \"z\"\nclearance = { journal_radius = 0.01, radial_clearance = 1e-4, bushing_length = 0.02, normal = { law = \"lankarani_nikravesh\", stiffness = 1e10 } }\n",
+            "joints[0].clearance.normal.restitution",
+        ),
+        (
+            "kind = \"revolute\"",
+            "kind = \"prismatic\"\nclearance = { journal_radius = 0.01, radial_clearance = 1e-4, normal = { law = \"hertz\", stiffness = 1e10 } }",
+            "joints[0].clearance",
+        ),
     ];
     for (from, to, field) in cases {
         let msg = check_error("bad.toml", from, to);
@@ -256,4 +271,92 @@ fn a_missing_file_is_an_error_not_a_panic() {
     let (_, se) = text(&out);
     assert_eq!(out.status.code(), Some(1));
     assert!(se.contains("no/such/scene.toml"), "{se}");
+}
+
+#[test]
+fn slider_crank_with_clearance_writes_contact_outputs_and_check_lists_the_joint() {
+    let scene = scenes().join("slider-crank-clearance.toml");
+    let out = bin().arg("check").arg(&scene).output().unwrap();
+    let (so, se) = text(&out);
+    assert!(out.status.success(), "{se}");
+    assert!(so.contains("clearance contact: 1 joints"), "{so}");
+    assert!(
+        so.contains("piston_pin: planar revolute") && so.contains("contact: radial"),
+        "{so}"
+    );
+    assert!(
+        so.contains("piston_pin: normal law Lankarani-Nikravesh") && so.contains("c_e = 0.9"),
+        "{so}"
+    );
+    assert!(so.contains("piston_pin: no friction"), "{so}");
+
+    let dir = tempfile::tempdir().unwrap();
+    let out = bin()
+        .args(["run", "-q"])
+        .arg(&scene)
+        .arg("--out")
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{:?}", text(&out));
+    assert!(
+        dir.path()
+            .join("slider-crank-clearance-piston_pin-clearance.png")
+            .exists()
+    );
+    let file = hdf5::File::open(dir.path().join("slider-crank-clearance.h5")).unwrap();
+    let g = file.group("joints/piston_pin").unwrap();
+    let unit = |name: &str| {
+        g.dataset(name)
+            .unwrap()
+            .attr("unit")
+            .unwrap()
+            .read_scalar::<hdf5::types::VarLenUnicode>()
+            .unwrap()
+            .to_string()
+    };
+    assert_eq!(unit("eccentricity"), "m");
+    assert_eq!(unit("penetration_rate"), "m/s");
+    assert_eq!(unit("normal_force"), "N");
+    assert_eq!(unit("moment_on_journal"), "N m");
+    // The planar model keeps three out-of-plane rows: their reaction is recorded too.
+    assert!(g.dataset("reaction_force").is_ok());
+    let ecc = read2(&file, "joints/piston_pin/eccentricity");
+    let fnorm = g
+        .dataset("normal_force")
+        .unwrap()
+        .read_raw::<f64>()
+        .unwrap();
+    let state = g
+        .dataset("contact_state")
+        .unwrap()
+        .read_raw::<u8>()
+        .unwrap();
+    let pen = g.dataset("penetration").unwrap().read_raw::<f64>().unwrap();
+    let c = 5e-4;
+    let peak = fnorm.iter().cloned().fold(0.0, f64::max);
+    // The journal stays in the bearing: its eccentricity exceeds the clearance only by the
+    // contact penetration, which Hertz bounds by (F_max / K)^(2/3) with K = 6.61e10 N/m^1.5.
+    let max_pen = (peak / 6.61e10f64).powf(2.0 / 3.0);
+    for (e, d) in ecc.iter().zip(&pen) {
+        let r = (e[0] * e[0] + e[1] * e[1]).sqrt();
+        assert!(
+            (r - c - d).abs() < 1e-12,
+            "penetration {d} inconsistent with eccentricity {r}"
+        );
+        assert!(
+            *d <= max_pen * 1.001,
+            "penetration {d} above the Hertz bound {max_pen}"
+        );
+        assert!(e[2].abs() < 1e-9, "out-of-plane eccentricity {}", e[2]);
+    }
+    // Impacts happen, and the contact state agrees with the force.
+    assert!(
+        peak > 1e3 && peak.is_finite(),
+        "peak contact force {peak} N"
+    );
+    for (s, f) in state.iter().zip(&fnorm) {
+        assert_eq!(*s == 1, *f > 0.0);
+    }
+    assert!(state.contains(&0) && state.contains(&1));
 }

@@ -75,6 +75,22 @@ fn write_n<const N: usize>(
     str_attr(&ds, "description", desc)
 }
 
+fn write_matrix<T: hdf5::H5Type + Clone>(
+    g: &hdf5::Group,
+    name: &str,
+    data: &[T],
+    cols: usize,
+    unit: &str,
+    desc: &str,
+) -> hdf5::Result<()> {
+    let rows = data.len().checked_div(cols).unwrap_or(0);
+    let arr = Array2::from_shape_vec((rows, cols), data.to_vec())
+        .map_err(|e| hdf5::Error::from(e.to_string()))?;
+    let ds = g.new_dataset_builder().with_data(&arr).create(name)?;
+    str_attr(&ds, "unit", unit)?;
+    str_attr(&ds, "description", desc)
+}
+
 /// Writes `run` to `dir/<scene_name>.h5` and returns the path.
 pub fn write_run(dir: &Path, meta: &Meta, run: &RunResult) -> Result<PathBuf> {
     std::fs::create_dir_all(dir).map_err(|e| Error::Io {
@@ -182,6 +198,35 @@ fn write_file(path: &Path, meta: &Meta, run: &RunResult) -> Result<()> {
                 "torque of the joint on its body_b about the joint point on body_b, global axes",
             )?;
         }
+        for c in &rec.clearances {
+            let g = match joints.group(&c.name) {
+                Ok(g) => g,
+                Err(_) => joints.create_group(&c.name)?,
+            };
+            let nc = c.contacts.len();
+            str_attr(&g, "contacts", &c.contacts.join(","))?;
+            f64_attr(&g, "radial_clearance", c.radial_clearance)?;
+            str_attr(&g, "radial_clearance_unit", "m")?;
+            write_n(&g, "eccentricity", &c.eccentricity, "m", "journal centre relative to the housing centre, housing axes")?;
+            write_n(&g, "eccentricity_global", &c.eccentricity_global, "m", "journal centre relative to the housing centre, global axes")?;
+            write_n(
+                &g,
+                "radial_eccentricity",
+                &c.radial_eccentricity,
+                "m",
+                "eccentricity along the two housing directions normal to its axis (u, w): the journal-centre orbit",
+            )?;
+            let per = |what: &str| format!("{what}, one column per contact ({})", c.contacts.join(", "));
+            write_matrix(&g, "penetration", &c.penetration, nc, "m", &per("penetration, negative while apart"))?;
+            write_matrix(&g, "penetration_rate", &c.penetration_rate, nc, "m/s", &per("penetration rate, approach positive"))?;
+            write_matrix(&g, "normal_force", &c.normal_force, nc, "N", &per("normal contact force"))?;
+            write_matrix(&g, "friction_force", &c.friction_force, nc, "N", &per("magnitude of the friction force"))?;
+            write_matrix(&g, "contact_state", &c.state, nc, "1", &per("1 in contact, 0 free"))?;
+            write_n(&g, "force_on_journal", &c.force_journal, "N", "resultant contact force on the journal body (body_b), global axes")?;
+            write_n(&g, "moment_on_journal", &c.moment_journal, "N m", "resultant contact moment on the journal body about its centre of mass, global axes")?;
+            write_n(&g, "force_on_housing", &c.force_housing, "N", "resultant contact force on the housing body (body_a), global axes")?;
+            write_n(&g, "moment_on_housing", &c.moment_housing, "N m", "resultant contact moment on the housing body about its centre of mass, global axes")?;
+        }
         let drives = file.create_group("drives")?;
         for d in &rec.drives {
             let g = drives.create_group(&d.name)?;
@@ -228,4 +273,62 @@ fn write_file(path: &Path, meta: &Meta, run: &RunResult) -> Result<()> {
     .map_err(&e)?;
     file.close().map_err(&e)?;
     Ok(())
+}
+
+/// One component of a recorded dataset with its time axis, for comparing runs.
+#[derive(Debug, Clone)]
+pub struct SeriesData {
+    pub time: Vec<f64>,
+    pub values: Vec<f64>,
+    pub unit: String,
+    pub scene_name: String,
+}
+
+/// Reads column `component` of `dataset` (1-D datasets ignore it) and `/time` from a run file.
+pub fn read_series(path: &Path, dataset: &str, component: usize) -> Result<SeriesData> {
+    let e = h5err(path);
+    let file = hdf5::File::open(path).map_err(&e)?;
+    let time = file
+        .dataset("time")
+        .map_err(&e)?
+        .read_raw::<f64>()
+        .map_err(&e)?;
+    let ds = file.dataset(dataset).map_err(|err| Error::Hdf5 {
+        file: path.to_path_buf(),
+        message: format!("no dataset '{dataset}': {err}"),
+    })?;
+    let shape = ds.shape();
+    let raw = ds.read_raw::<f64>().map_err(&e)?;
+    let values = match shape.as_slice() {
+        [_] => raw,
+        [n, m] => {
+            if component >= *m {
+                return Err(Error::Hdf5 {
+                    file: path.to_path_buf(),
+                    message: format!(
+                        "'{dataset}' has {m} components; component {component} does not exist"
+                    ),
+                });
+            }
+            (0..*n).map(|i| raw[i * m + component]).collect()
+        }
+        _ => {
+            return Err(Error::Hdf5 {
+                file: path.to_path_buf(),
+                message: format!("'{dataset}' has shape {shape:?}; expected one or two dimensions"),
+            });
+        }
+    };
+    let read_str = |loc: &hdf5::Location, name: &str| -> String {
+        loc.attr(name)
+            .and_then(|a| a.read_scalar::<VarLenUnicode>())
+            .map(|v| v.to_string())
+            .unwrap_or_default()
+    };
+    Ok(SeriesData {
+        unit: read_str(&ds, "unit"),
+        scene_name: read_str(&file, "scene_name"),
+        time,
+        values,
+    })
 }

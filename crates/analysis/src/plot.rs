@@ -36,6 +36,29 @@ pub struct Panel {
     pub series: Vec<Series>,
     /// Logarithmic y axis (non-positive values are left out).
     pub log_y: bool,
+    /// Fixed axis ranges (default: fitted to the data).
+    pub x_range: Option<(f64, f64)>,
+    pub y_range: Option<(f64, f64)>,
+}
+
+impl Panel {
+    /// A panel with fitted linear axes.
+    pub fn new(
+        title: impl Into<String>,
+        x_label: impl Into<String>,
+        y_label: impl Into<String>,
+        series: Vec<Series>,
+    ) -> Panel {
+        Panel {
+            title: title.into(),
+            x_label: x_label.into(),
+            y_label: y_label.into(),
+            series,
+            log_y: false,
+            x_range: None,
+            y_range: None,
+        }
+    }
 }
 
 /// Output formats of a figure.
@@ -97,7 +120,9 @@ where
     let rows = panels.len().div_ceil(cols);
     let areas = root.split_evenly((rows, cols));
     for (panel, area) in panels.iter().zip(areas) {
-        let (x0, x1) = range(panel.series.iter().flat_map(|s| s.x.iter().copied()));
+        let (x0, x1) = panel
+            .x_range
+            .unwrap_or_else(|| range(panel.series.iter().flat_map(|s| s.x.iter().copied())));
         let ys = || {
             panel
                 .series
@@ -105,7 +130,7 @@ where
                 .flat_map(|s| s.y.iter().copied())
                 .filter(|v| !panel.log_y || *v > 0.0)
         };
-        let (y0, y1) = range(ys());
+        let (y0, y1) = panel.y_range.unwrap_or_else(|| range(ys()));
         fn builder<'a, 'b, DB: DrawingBackend>(
             area: &'a DrawingArea<DB, Shift>,
             title: &str,

@@ -41,6 +41,36 @@ pub struct JointTrack {
     pub torque: Vec<[f64; 3]>,
 }
 
+/// One joint with clearance (per sample; per-contact arrays hold `contacts.len()` values per
+/// sample, in the order of `contacts`).
+#[derive(Debug, Clone, Default)]
+pub struct ClearanceTrack {
+    pub name: String,
+    /// Contact names: "radial" (spherical, planar) or P, Q (rims), M, N (faces).
+    pub contacts: Vec<String>,
+    /// Journal centre relative to the housing centre, housing axes (m).
+    pub eccentricity: Vec<[f64; 3]>,
+    /// The same in global axes (m).
+    pub eccentricity_global: Vec<[f64; 3]>,
+    /// Eccentricity components in the plane normal to the housing axis (m), along the joint
+    /// frame's u and w directions: the orbit of the journal centre.
+    pub radial_eccentricity: Vec<[f64; 2]>,
+    /// m, m/s, N, N per contact.
+    pub penetration: Vec<f64>,
+    pub penetration_rate: Vec<f64>,
+    pub normal_force: Vec<f64>,
+    pub friction_force: Vec<f64>,
+    /// 1 in contact, 0 free, per contact.
+    pub state: Vec<u8>,
+    /// Resultant force (N) and moment about the centre of mass (N m) on journal and housing.
+    pub force_journal: Vec<[f64; 3]>,
+    pub moment_journal: Vec<[f64; 3]>,
+    pub force_housing: Vec<[f64; 3]>,
+    pub moment_housing: Vec<[f64; 3]>,
+    /// The clearance (m): radial clearance for the orbit figure.
+    pub radial_clearance: f64,
+}
+
 /// One drive: its coordinate and actuator effort.
 #[derive(Debug, Clone, Default)]
 pub struct DriveTrack {
@@ -71,6 +101,7 @@ pub struct Recording {
     pub bodies: Vec<BodyTrack>,
     pub joints: Vec<JointTrack>,
     pub drives: Vec<DriveTrack>,
+    pub clearances: Vec<ClearanceTrack>,
     pub diagnostics: Option<Diagnostics>,
 }
 
@@ -118,6 +149,7 @@ pub fn simulate(
         joints: out
             .joints
             .iter()
+            .filter(|&&j| !model.joints[j].rows.is_empty())
             .map(|&j| JointTrack {
                 name: model.joints[j].name.clone(),
                 ..Default::default()
@@ -132,8 +164,38 @@ pub fn simulate(
                 ..Default::default()
             })
             .collect(),
+        clearances: out
+            .joints
+            .iter()
+            .filter_map(|&j| model.joints[j].clearance)
+            .map(|c| {
+                let cl = &model.clearances[c];
+                ClearanceTrack {
+                    name: cl.name.clone(),
+                    contacts: cl
+                        .geometry
+                        .contact_names()
+                        .iter()
+                        .map(|s| s.to_string())
+                        .collect(),
+                    radial_clearance: cl.geometry.radial_clearance(),
+                    ..Default::default()
+                }
+            })
+            .collect(),
         diagnostics: out.diagnostics.then(Diagnostics::default),
     };
+    let ideal_joints: Vec<usize> = out
+        .joints
+        .iter()
+        .copied()
+        .filter(|&j| !model.joints[j].rows.is_empty())
+        .collect();
+    let clearance_ids: Vec<usize> = out
+        .joints
+        .iter()
+        .filter_map(|&j| model.joints[j].clearance)
+        .collect();
     let np = model.n_pos();
     let (t0, t1) = (model.settings.start_time, model.settings.end_time);
     let mut failure = None;
@@ -165,7 +227,7 @@ pub fn simulate(
                 tr.angular_acceleration.push(ang);
             }
         }
-        for (tr, &j) in rec.joints.iter_mut().zip(&out.joints) {
+        for (tr, &j) in rec.joints.iter_mut().zip(&ideal_joints) {
             let (f, n) = model.reaction(j, ws);
             let (f, n) = ([f.x, f.y, f.z], [n.x, n.y, n.z]);
             finite3(&f, &format!("reaction force of joint '{}'", tr.name), t)?;
@@ -179,6 +241,45 @@ pub fn simulate(
             finite3(&[f, c, 0.0], &format!("force of drive '{}'", tr.name), t)?;
             tr.force.push(f);
             tr.coordinate.push(c);
+        }
+        // Contact data of this evaluation (read before drift and energy reuse the scratch).
+        for (tr, &c) in rec.clearances.iter_mut().zip(&clearance_ids) {
+            let cl = &model.clearances[c];
+            let (kh, kj) = (
+                model.kinematics_of(cl.housing, ws),
+                model.kinematics_of(cl.journal, ws),
+            );
+            let e = cl.eccentricity(&kh, &kj);
+            let el = kh.rot.transpose() * e;
+            let (u, w) = cl.radial_axes();
+            tr.eccentricity.push([el.x, el.y, el.z]);
+            tr.eccentricity_global.push([e.x, e.y, e.z]);
+            tr.radial_eccentricity.push([el.dot(&u), el.dot(&w)]);
+            for ce in &ws.contacts[cl.first..cl.first + cl.geometry.n_contacts()] {
+                tr.penetration.push(ce.delta);
+                tr.penetration_rate.push(ce.delta_dot);
+                tr.normal_force.push(ce.fn_);
+                tr.friction_force.push(ce.ft.norm());
+                tr.state.push(u8::from(ce.active()));
+            }
+            let r = &ws.resultants[c];
+            let v = |x: nalgebra::Vector3<f64>| [x.x, x.y, x.z];
+            for (a, what) in [
+                (&r.force_j, "force"),
+                (&r.moment_j, "moment"),
+                (&r.force_h, "force"),
+                (&r.moment_h, "moment"),
+            ] {
+                finite3(
+                    &v(*a),
+                    &format!("contact {what} of clearance joint '{}'", tr.name),
+                    t,
+                )?;
+            }
+            tr.force_journal.push(v(r.force_j));
+            tr.moment_journal.push(v(r.moment_j));
+            tr.force_housing.push(v(r.force_h));
+            tr.moment_housing.push(v(r.moment_h));
         }
         if let Some(diag) = rec.diagnostics.as_mut() {
             let (p, v) = model.drift(t, y, ws);

@@ -84,6 +84,22 @@ impl Geometry {
         }
     }
 
+    /// The radial clearance (m).
+    pub fn radial_clearance(&self) -> f64 {
+        match *self {
+            Geometry::Spherical { clearance, .. } => clearance,
+            Geometry::Planar {
+                journal_radius,
+                bearing_radius,
+            } => bearing_radius - journal_radius,
+            Geometry::Revolute {
+                journal_radius,
+                bushing_radius,
+                ..
+            } => bushing_radius - journal_radius,
+        }
+    }
+
     pub fn describe(&self) -> String {
         match *self {
             Geometry::Spherical {
@@ -94,7 +110,7 @@ impl Geometry {
                 journal_radius,
                 bearing_radius,
             } => format!(
-                "planar revolute, journal radius {journal_radius} m, bearing radius {bearing_radius} m (clearance {:e} m); contact: radial",
+                "planar revolute, journal radius {journal_radius} m, bearing radius {bearing_radius} m (clearance {:.4e} m); contact: radial",
                 bearing_radius - journal_radius
             ),
             Geometry::Revolute {
@@ -105,13 +121,13 @@ impl Geometry {
                 journal_length,
             } => {
                 let mut s = format!(
-                    "spatial revolute, journal radius {journal_radius} m, bushing {bushing_radius} m x {bushing_length} m (radial clearance {:e} m); contacts: radial at rims P, Q",
+                    "spatial revolute, journal radius {journal_radius} m, bushing {bushing_radius} m x {bushing_length} m (radial clearance {:.4e} m); contacts: radial at rims P, Q",
                     bushing_radius - journal_radius
                 );
                 match journal_length {
                     Some(lj) => {
                         s += &format!(
-                            ", axial at faces M, N (face radius {face_radius} m, axial clearance {:e} m)",
+                            ", axial at faces M, N (face radius {face_radius} m, axial clearance {:.4e} m)",
                             0.5 * (lj - bushing_length)
                         )
                     }
@@ -187,6 +203,17 @@ fn vel(k: &Kin, p: &Vector3<f64>) -> Vector3<f64> {
 }
 
 impl Clearance {
+    /// Orthonormal directions (u, w) normal to the housing axis, housing axes: the plane in which
+    /// the journal-centre orbit is drawn (for a spherical joint, the housing's x-y plane).
+    pub fn radial_axes(&self) -> (Vector3<f64>, Vector3<f64>) {
+        let a = match self.geometry {
+            Geometry::Spherical { .. } => Vector3::z(),
+            _ => self.axis_h,
+        };
+        let u = crate::model::any_normal(&a);
+        (u, a.cross(&u))
+    }
+
     /// Eccentricity of the journal centre from the housing centre, global (m).
     pub fn eccentricity(&self, kh: &Kin, kj: &Kin) -> Vector3<f64> {
         (kj.r + kj.rot * self.sj) - (kh.r + kh.rot * self.sh)

@@ -163,6 +163,11 @@ pub fn rotation(q: &[f64]) -> Matrix3<f64> {
 }
 
 impl Model {
+    /// Kinematics of body `b` (or the ground) from the last [`Model::kinematics`].
+    pub fn kinematics_of(&self, b: usize, ws: &Workspace) -> Kin {
+        ws.kin[if b == GROUND { self.nb() } else { b }]
+    }
+
     /// Fills the body kinematics of the workspace from the state vector.
     pub fn kinematics(&self, y: &[f64], ws: &mut Workspace) {
         let nb = self.nb();

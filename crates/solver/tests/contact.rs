@@ -340,3 +340,116 @@ fn response_approaches_the_ideal_joint_as_the_clearance_closes() {
     );
     assert!(errors[2] < 3e-5, "{errors:?}");
 }
+
+/// A 2 kg shaft in a bushing fixed to the ground (the paper's R1 dimensions), axis along z,
+/// gravity along -y; `axial` adds the axial clearance (faces M, N).
+fn shaft_scene(axial: bool, friction: &str) -> SceneFile {
+    let axial = if axial {
+        "\nface_radius = 0.014\naxial_clearance = 3e-4"
+    } else {
+        ""
+    };
+    let text = format!(
+        r#"
+gravity = [0.0, -9.81, 0.0]
+[ground]
+points = {{ B = [0.0, 0.0, 0.0] }}
+axes = {{ z = [0.0, 0.0, 1.0] }}
+[[bodies]]
+name = "shaft"
+mass = 2.0
+inertia = {{ ixx = 5e-3, iyy = 5e-3, izz = 1e-4 }}
+points = {{ J = [0.0, 0.0, 0.0] }}
+axes = {{ z = [0.0, 0.0, 1.0] }}
+[[joints]]
+name = "R1"
+kind = "revolute"
+body_a = "ground"
+body_b = "shaft"
+point_a = "B"
+point_b = "J"
+axis_a = "z"
+axis_b = "z"
+[joints.clearance]
+journal_radius = 0.0097
+radial_clearance = 3e-4
+bushing_length = 0.18{axial}
+normal = {{ law = "lankarani_nikravesh", youngs_modulus = 207e9, poisson_ratio = 0.3, restitution = 0.5 }}
+friction = {friction}
+[solver]
+end_time = 1.0
+"#
+    );
+    let path = Path::new("shaft.toml");
+    SceneFile {
+        path: path.to_path_buf(),
+        spec: SceneSpec::parse(&text, path).unwrap(),
+        text,
+    }
+}
+
+#[test]
+fn shaft_in_bushing_settles_with_the_load_shared_by_both_rims() {
+    for axial in [false, true] {
+        let (m, mut s) = compile(&shaft_scene(axial, r#"{ law = "none" }"#));
+        let out = run(&m, &mut s, tight(1e-3), 0.5, &[0.5]);
+        let y = &out[0].1;
+        let k = point_contact_stiffness(0.0097, 0.0100, E, NU, E, NU);
+        // Axes parallel: line contact carried by the two rim points, 2 K delta^1.5 = m g.
+        let delta = -y[1] - 3e-4;
+        let exact = (2.0 * 9.81 / (2.0 * k)).powf(2.0 / 3.0);
+        // Measured to ~1e-10 relative; the bound is 1e-7 (delta ~ 2.3e-7 m).
+        assert!(
+            ((delta - exact) / exact).abs() < 1e-7,
+            "axial {axial}: delta {delta:e} vs {exact:e}"
+        );
+        // No axial motion, no tilt.
+        assert!(
+            y[2].abs() < 1e-12 && y[4].abs() < 1e-9 && y[5].abs() < 1e-9,
+            "{y:?}"
+        );
+    }
+}
+
+#[test]
+fn friction_never_exceeds_mu_times_the_normal_force_in_a_running_mechanism() {
+    // A shaft spinning in its bushing under gravity: it rolls up the wall and slides, with
+    // Ambrosio's friction mu = 0.1 between v0 = 1e-4 and v1 = 1e-2 m/s.
+    let f = shaft_scene(
+        true,
+        r#"{ law = "ambrosio", coefficient = 0.1, v0 = 1e-4, v1 = 1e-2 }"#,
+    );
+    let f = SceneFile {
+        text: f.text.replace(
+            "points = { J = [0.0, 0.0, 0.0] }",
+            "points = { J = [0.0, 0.0, 0.0] }\nangular_velocity = [0.0, 0.0, 50.0]",
+        ),
+        ..f
+    };
+    let f = SceneFile {
+        spec: SceneSpec::parse(&f.text, &f.path).unwrap(),
+        ..f
+    };
+    let (m, mut s) = compile(&f);
+    let samples: Vec<f64> = (0..=400).map(|k| k as f64 * 5e-4).collect();
+    let out = run(&m, &mut s, tight(1e-4), 0.2, &samples);
+    let mut ws = jointplay_solver::dynamics::Workspace::new(&m);
+    let (mut sliding, mut worst) = (0, 0.0f64);
+    for (t, y) in &out {
+        m.accelerations(*t, y, &mut ws);
+        for c in &ws.contacts {
+            if c.fn_ > 0.0 {
+                let ratio = c.ft.norm() / c.fn_;
+                worst = worst.max(ratio);
+                if ratio > 0.05 {
+                    sliding += 1;
+                }
+            }
+        }
+    }
+    assert!(worst <= 0.1 * (1.0 + 1e-12), "|F_T| / F_N reached {worst}");
+    assert!(
+        sliding > 10,
+        "the test must exercise sliding contact ({sliding} samples)"
+    );
+}
