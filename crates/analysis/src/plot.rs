@@ -5,6 +5,9 @@ use std::path::Path;
 use std::sync::Once;
 
 use plotters::coord::Shift;
+use plotters::coord::cartesian::Cartesian2d;
+use plotters::coord::ranged1d::{Ranged, ValueFormatter};
+use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
 use crate::{Error, Result};
@@ -108,6 +111,56 @@ fn tick(v: f64, span: f64) -> String {
     }
 }
 
+/// Mesh, axis labels, lines and legend of one panel, for linear and logarithmic y axes alike.
+/// Points with y outside `keep` are left out (non-positive values on a log axis).
+fn fill_chart<'a, DB, Y>(
+    chart: &mut ChartContext<'a, DB, Cartesian2d<RangedCoordf64, Y>>,
+    panel: &Panel,
+    x_fmt: &dyn Fn(&f64) -> String,
+    y_fmt: &dyn Fn(&f64) -> String,
+    keep: fn(f64) -> bool,
+) -> Result<(), String>
+where
+    DB: DrawingBackend + 'a,
+    DB::ErrorType: 'static,
+    Y: Ranged<ValueType = f64> + ValueFormatter<f64>,
+{
+    chart
+        .configure_mesh()
+        .x_desc(&panel.x_label)
+        .y_desc(&panel.y_label)
+        .x_label_formatter(x_fmt)
+        .y_label_formatter(y_fmt)
+        .label_style(("sans-serif", 13))
+        .axis_desc_style(("sans-serif", 15))
+        .draw()
+        .map_err(|e| e.to_string())?;
+    for (i, s) in panel.series.iter().enumerate() {
+        let c = COLORS[i % COLORS.len()];
+        chart
+            .draw_series(LineSeries::new(
+                s.x.iter()
+                    .zip(&s.y)
+                    .filter(|(_, y)| keep(**y))
+                    .map(|(x, y)| (*x, *y)),
+                c.stroke_width(2),
+            ))
+            .map_err(|e| e.to_string())?
+            .label(&s.label)
+            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));
+    }
+    if panel.series.len() > 1 {
+        chart
+            .configure_series_labels()
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 13))
+            .draw()
+            .map_err(|e| e.to_string())?;
+    }
+    Ok(())
+}
+
 fn draw<DB: DrawingBackend>(
     root: DrawingArea<DB, Shift>,
     panels: &[Panel],
@@ -131,95 +184,29 @@ where
                 .filter(|v| !panel.log_y || *v > 0.0)
         };
         let (y0, y1) = panel.y_range.unwrap_or_else(|| range(ys()));
-        fn builder<'a, 'b, DB: DrawingBackend>(
-            area: &'a DrawingArea<DB, Shift>,
-            title: &str,
-        ) -> ChartBuilder<'a, 'b, DB> {
-            let mut b = ChartBuilder::on(area);
-            b.caption(title, ("sans-serif", 20))
-                .margin(10)
-                .x_label_area_size(40)
-                .y_label_area_size(80);
-            b
-        }
-        let (xs, yspan) = (x1 - x0, y1 - y0);
+        let mut builder = ChartBuilder::on(&area);
+        builder
+            .caption(&panel.title, ("sans-serif", 20))
+            .margin(10)
+            .x_label_area_size(40)
+            .y_label_area_size(80);
+        let xs = x1 - x0;
+        let x_fmt = |v: &f64| tick(*v, xs);
         if panel.log_y {
             let lo = ys().fold(f64::INFINITY, f64::min).max(1e-300);
             let hi = ys().fold(0.0, f64::max).max(lo * 10.0);
-            let mut chart = builder(&area, &panel.title)
+            let mut chart = builder
                 .build_cartesian_2d(x0..x1, (lo / 2.0..hi * 2.0).log_scale())
                 .map_err(|e| e.to_string())?;
-            chart
-                .configure_mesh()
-                .x_desc(&panel.x_label)
-                .y_desc(&panel.y_label)
-                .x_label_formatter(&|v| tick(*v, xs))
-                .y_label_formatter(&|v| format!("{v:.0e}"))
-                .label_style(("sans-serif", 13))
-                .axis_desc_style(("sans-serif", 15))
-                .draw()
+            fill_chart(&mut chart, panel, &x_fmt, &|v| format!("{v:.0e}"), |y| {
+                y > 0.0
+            })?;
+        } else {
+            let mut chart = builder
+                .build_cartesian_2d(x0..x1, y0..y1)
                 .map_err(|e| e.to_string())?;
-            for (i, s) in panel.series.iter().enumerate() {
-                let c = COLORS[i % COLORS.len()];
-                chart
-                    .draw_series(LineSeries::new(
-                        s.x.iter()
-                            .zip(&s.y)
-                            .filter(|(_, y)| **y > 0.0)
-                            .map(|(x, y)| (*x, *y)),
-                        c.stroke_width(1),
-                    ))
-                    .map_err(|e| e.to_string())?
-                    .label(&s.label)
-                    .legend(move |(x, y)| {
-                        PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2))
-                    });
-            }
-            if panel.series.len() > 1 {
-                chart
-                    .configure_series_labels()
-                    .background_style(WHITE.mix(0.8))
-                    .border_style(BLACK)
-                    .label_font(("sans-serif", 13))
-                    .draw()
-                    .map_err(|e| e.to_string())?;
-            }
-            continue;
-        }
-        let mut chart = builder(&area, &panel.title)
-            .build_cartesian_2d(x0..x1, y0..y1)
-            .map_err(|e| e.to_string())?;
-        chart
-            .configure_mesh()
-            .x_desc(&panel.x_label)
-            .y_desc(&panel.y_label)
-            .x_label_formatter(&|v| tick(*v, xs))
-            .y_label_formatter(&|v| tick(*v, yspan))
-            .label_style(("sans-serif", 13))
-            .axis_desc_style(("sans-serif", 15))
-            .draw()
-            .map_err(|e| e.to_string())?;
-        for (i, s) in panel.series.iter().enumerate() {
-            let c = COLORS[i % COLORS.len()];
-            chart
-                .draw_series(LineSeries::new(
-                    s.x.iter().zip(&s.y).map(|(x, y)| (*x, *y)),
-                    c.stroke_width(2),
-                ))
-                .map_err(|e| e.to_string())?
-                .label(&s.label)
-                .legend(move |(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2))
-                });
-        }
-        if panel.series.len() > 1 {
-            chart
-                .configure_series_labels()
-                .background_style(WHITE.mix(0.8))
-                .border_style(BLACK)
-                .label_font(("sans-serif", 13))
-                .draw()
-                .map_err(|e| e.to_string())?;
+            let yspan = y1 - y0;
+            fill_chart(&mut chart, panel, &x_fmt, &|v| tick(*v, yspan), |_| true)?;
         }
     }
     root.present().map_err(|e| e.to_string())?;

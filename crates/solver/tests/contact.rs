@@ -2,12 +2,13 @@
 //! duration, the restitution each damped law produces, energy conservation, ballistic flight
 //! inside the gap, and convergence to the ideal joint as the clearance closes.
 
+mod common;
+
 use std::path::Path;
 
 use jointplay_solver::contact::{Damping, hunt_crossley_restitution, point_contact_stiffness};
-use jointplay_solver::dynamics::Mechanism;
 use jointplay_solver::model::{Model, State};
-use jointplay_solver::ode::{Flow, Method, integrate};
+use jointplay_solver::ode::Method;
 use jointplay_solver::scene::{SceneFile, SceneSpec};
 
 /// A 1 kg ball (radius 15 mm) in a socket fixed to the ground, clearance `c`, with the given
@@ -58,32 +59,7 @@ fn compile(f: &SceneFile) -> (Model, State) {
     (m, s)
 }
 
-/// Integrates and returns (t, y) at the sample times.
-fn run(
-    model: &Model,
-    state: &mut State,
-    method: Method,
-    t_end: f64,
-    samples: &[f64],
-) -> Vec<(f64, Vec<f64>)> {
-    let mut out = Vec::new();
-    let mut sys = Mechanism::new(model);
-    integrate(
-        &mut sys,
-        method,
-        state.t,
-        &mut state.y,
-        t_end,
-        samples,
-        |_, t, y| {
-            out.push((t, y.to_vec()));
-            Flow::Continue
-        },
-    )
-    .unwrap();
-    state.t = t_end;
-    out
-}
+use common::run_samples as run;
 
 fn tight(max_step: f64) -> Method {
     Method::Dopri5 {

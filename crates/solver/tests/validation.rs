@@ -1,10 +1,12 @@
 //! Validation of the constrained solver against closed-form results, on the bundled scenes.
 
+mod common;
+
 use std::path::PathBuf;
 
-use jointplay_solver::dynamics::{Mechanism, Workspace};
+use jointplay_solver::dynamics::Workspace;
 use jointplay_solver::model::{Model, State};
-use jointplay_solver::ode::{Flow, Method, integrate};
+use jointplay_solver::ode::Method;
 use jointplay_solver::scene::SceneSpec;
 use nalgebra::{Matrix3, Vector3};
 
@@ -66,23 +68,7 @@ fn run(
 ) -> Vec<(f64, Vec<f64>)> {
     let n = ((t_end - state.t) / dt).round() as usize;
     let samples: Vec<f64> = (0..=n).map(|k| state.t + k as f64 * dt).collect();
-    let mut out = Vec::new();
-    let mut sys = Mechanism::new(model);
-    integrate(
-        &mut sys,
-        method,
-        state.t,
-        &mut state.y,
-        t_end,
-        &samples,
-        |_, t, y| {
-            out.push((t, y.to_vec()));
-            Flow::Continue
-        },
-    )
-    .unwrap();
-    state.t = t_end;
-    out
+    common::run_samples(model, state, method, t_end, &samples)
 }
 
 fn tight() -> Method {
