@@ -379,7 +379,7 @@ fn radial(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::contact::NormalLaw;
+    use crate::contact::{Elastic, NormalLaw};
     use nalgebra::{Matrix3, Rotation3};
 
     fn kin(r: Vector3<f64>, rot: Matrix3<f64>) -> Kin {
@@ -415,7 +415,9 @@ mod tests {
                 face_radius: RB2,
                 journal_length: Some(LB + 2.0 * CA),
             },
-            law: NormalLaw::Hertz { k: 8.62e10, n: 1.5 },
+            law: NormalLaw::Hertz {
+                el: Elastic::Power { k: 8.62e10, n: 1.5 },
+            },
             friction: FrictionLaw::None,
             first: 0,
         }
@@ -480,7 +482,9 @@ mod tests {
     #[test]
     fn degenerate_configurations_give_finite_forces() {
         let mut c = revolute();
-        c.law = NormalLaw::Hertz { k: 8.62e10, n: 1.5 };
+        c.law = NormalLaw::Hertz {
+            el: Elastic::Power { k: 8.62e10, n: 1.5 },
+        };
         c.friction = FrictionLaw::Coulomb {
             mu: 0.1,
             v_reg: 1e-3,

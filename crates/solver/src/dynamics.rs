@@ -742,18 +742,15 @@ impl Model {
             let dl = (pb - pa).norm() - s.free_length;
             e += 0.5 * s.stiffness * dl * dl;
         }
-        // Elastic energy stored in the contacts: the integral of K delta^n, K delta^(n+1)/(n+1).
+        // Elastic energy stored in the contacts (the integral of the elastic force).
         let nb = self.nb();
         for c in &self.clearances {
             let idx = |b: usize| if b == GROUND { nb } else { b };
             let slots = c.first..c.first + c.geometry.n_contacts();
             let (kh, kj) = (ws.kin[idx(c.housing)], ws.kin[idx(c.journal)]);
             c.geometry(&kh, &kj, &mut ws.contacts[slots.clone()]);
-            let (k, n) = c.law.stiffness();
             for ce in &ws.contacts[slots] {
-                if ce.delta > 0.0 {
-                    e += k * ce.delta.powf(n + 1.0) / (n + 1.0);
-                }
+                e += c.law.elastic_energy(ce.delta);
             }
         }
         e

@@ -32,7 +32,7 @@ use std::path::{Path, PathBuf};
 use nalgebra::{Matrix3, SymmetricEigen, UnitQuaternion, Vector3};
 
 use crate::clearance::{Clearance, Geometry};
-use crate::contact::{Damping, FrictionLaw, NormalLaw, point_contact_stiffness};
+use crate::contact::{Damping, Elastic, FrictionLaw, NormalLaw, point_contact_stiffness};
 use crate::error::{Error, Result};
 use crate::ode::Method;
 use crate::profile::{Profile, Spline};
@@ -732,48 +732,108 @@ fn compile_clearance(
     // Normal law.
     let n = &c.normal;
     let nf = format!("{f}.normal");
-    let exponent = match n.exponent {
-        None => 1.5,
-        Some(e) => positive(Some(e), format!("{nf}.exponent"), "", cx)?,
+    let material = |cx: &Ctx| -> Result<Option<(f64, f64)>> {
+        match (n.youngs_modulus, n.poisson_ratio) {
+            (None, None) => Ok(None),
+            (Some(e), Some(nu)) => {
+                positive(Some(e), format!("{nf}.youngs_modulus"), "", cx)?;
+                if !(0.0..0.5).contains(&nu) {
+                    return Err(cx.err(
+                        format!("{nf}.poisson_ratio"),
+                        format!("must be in [0, 0.5), got {nu}"),
+                    ));
+                }
+                Ok(Some((e, nu)))
+            }
+            (Some(_), None) => Err(cx.err(
+                format!("{nf}.poisson_ratio"),
+                "missing: youngs_modulus needs poisson_ratio",
+            )),
+            (None, Some(_)) => Err(cx.err(
+                format!("{nf}.youngs_modulus"),
+                "missing: poisson_ratio needs youngs_modulus",
+            )),
+        }
     };
-    let k = match (n.stiffness, n.youngs_modulus, n.poisson_ratio) {
-        (Some(k), None, None) => positive(Some(k), format!("{nf}.stiffness"), "", cx)?,
-        (None, Some(e), Some(nu)) => {
-            positive(Some(e), format!("{nf}.youngs_modulus"), "", cx)?;
-            if !(0.0..0.5).contains(&nu) {
+    let el = match n.contact {
+        ContactModel::Point => {
+            if n.contact_length.is_some() {
                 return Err(cx.err(
-                    format!("{nf}.poisson_ratio"),
-                    format!("must be in [0, 0.5), got {nu}"),
+                    format!("{nf}.contact_length"),
+                    "only line contact has a contact length",
                 ));
             }
-            let (ri, rj) = match geometry {
-                Geometry::Spherical {
-                    ball_radius,
-                    clearance,
-                } => (ball_radius, ball_radius + clearance),
-                Geometry::Planar {
-                    journal_radius,
-                    bearing_radius,
-                } => (journal_radius, bearing_radius),
-                Geometry::Revolute {
-                    journal_radius,
-                    bushing_radius,
-                    ..
-                } => (journal_radius, bushing_radius),
+            let exponent = match n.exponent {
+                None => 1.5,
+                Some(e) => positive(Some(e), format!("{nf}.exponent"), "", cx)?,
             };
-            point_contact_stiffness(ri, rj, e, nu, e, nu)
+            let k = match (n.stiffness, material(cx)?) {
+                (Some(k), None) => positive(Some(k), format!("{nf}.stiffness"), "", cx)?,
+                (None, Some((e, nu))) => {
+                    let (ri, rj) = match geometry {
+                        Geometry::Spherical {
+                            ball_radius,
+                            clearance,
+                        } => (ball_radius, ball_radius + clearance),
+                        Geometry::Planar {
+                            journal_radius,
+                            bearing_radius,
+                        } => (journal_radius, bearing_radius),
+                        Geometry::Revolute {
+                            journal_radius,
+                            bushing_radius,
+                            ..
+                        } => (journal_radius, bushing_radius),
+                    };
+                    point_contact_stiffness(ri, rj, e, nu, e, nu)
+                }
+                (Some(_), Some(_)) => {
+                    return Err(cx.err(
+                        format!("{nf}.stiffness"),
+                        "give stiffness or youngs_modulus + poisson_ratio, not both",
+                    ));
+                }
+                (None, None) => {
+                    return Err(cx.err(
+                        format!("{nf}.stiffness"),
+                        "missing: give stiffness (N/m^n) or youngs_modulus (Pa) and poisson_ratio",
+                    ));
+                }
+            };
+            Elastic::Power { k, n: exponent }
         }
-        (Some(_), _, _) => {
-            return Err(cx.err(
-                format!("{nf}.stiffness"),
-                "give stiffness or youngs_modulus + poisson_ratio, not both",
-            ));
-        }
-        _ => {
-            return Err(cx.err(
-                format!("{nf}.stiffness"),
-                "missing: give stiffness (N/m^n) or youngs_modulus (Pa) and poisson_ratio",
-            ));
+        ContactModel::Line => {
+            let Geometry::Planar {
+                journal_radius,
+                bearing_radius,
+            } = geometry
+            else {
+                return Err(cx.err(
+                    format!("{nf}.contact"),
+                    "line contact is available for planar revolute clearances (model = \"planar\")",
+                ));
+            };
+            if n.stiffness.is_some() || n.exponent.is_some() {
+                return Err(cx.err(format!("{nf}.stiffness"), "line contact derives its force from youngs_modulus and poisson_ratio; stiffness and exponent do not apply"));
+            }
+            let Some((e, nu)) = material(cx)? else {
+                return Err(cx.err(
+                    format!("{nf}.youngs_modulus"),
+                    "missing: line contact needs youngs_modulus (Pa) and poisson_ratio",
+                ));
+            };
+            let length = positive(
+                n.contact_length,
+                format!("{nf}.contact_length"),
+                "line contact needs the contact length (m)",
+                cx,
+            )?;
+            // Same material on both sides: 1/E* = 2 (1 - nu^2) / E.
+            let e_star = e / (2.0 * (1.0 - nu * nu));
+            Elastic::CylinderLine {
+                c: std::f64::consts::PI * length * e_star,
+                dr: bearing_radius - journal_radius,
+            }
         }
     };
     let restitution = |cx: &Ctx| -> Result<f64> {
@@ -808,8 +868,7 @@ fn compile_clearance(
             Some(v) => positive(Some(v), format!("{nf}.onset_velocity_floor"), "", cx)?,
         };
         Ok(NormalLaw::Hysteresis {
-            k,
-            n: exponent,
+            el,
             kind,
             restitution: ce,
             d: kind.factor(ce),
@@ -822,7 +881,7 @@ fn compile_clearance(
             unused(n.max_damping, "max_damping", cx)?;
             unused(n.full_damping_penetration, "full_damping_penetration", cx)?;
             unused(n.onset_velocity_floor, "onset_velocity_floor", cx)?;
-            NormalLaw::Hertz { k, n: exponent }
+            NormalLaw::Hertz { el }
         }
         NormalLawKind::LankaraniNikravesh => damped(Damping::LankaraniNikravesh, cx)?,
         NormalLawKind::HuntCrossley => damped(Damping::HuntCrossley, cx)?,
@@ -853,6 +912,12 @@ fn compile_clearance(
                 "IMPACT needs the penetration at full damping (m)",
                 cx,
             )?;
+            let Elastic::Power { k, n: exponent } = el else {
+                return Err(cx.err(
+                    format!("{nf}.contact"),
+                    "IMPACT is a point-contact law (K delta^n)",
+                ));
+            };
             NormalLaw::Impact {
                 k,
                 n: exponent,

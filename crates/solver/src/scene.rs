@@ -268,11 +268,29 @@ pub enum NormalLawKind {
     Impact,
 }
 
+/// Elastic contact model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ContactModel {
+    /// F = K delta^exponent, K given or from the point-contact formula (paper eq. 49).
+    #[default]
+    Point,
+    /// Johnson's line contact of a journal in a bearing over `contact_length` (planar revolute
+    /// joints; needs youngs_modulus and poisson_ratio).
+    Line,
+}
+
 /// Normal-contact law of a clearance joint.
 #[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct NormalSpec {
     pub law: NormalLawKind,
+    /// Elastic model: point (default) or line.
+    #[serde(default)]
+    pub contact: ContactModel,
+    /// Line contact: axial length of the journal-bearing contact (m).
+    #[serde(default)]
+    pub contact_length: Option<f64>,
     /// Generalised stiffness K (N/m^exponent); or give youngs_modulus and poisson_ratio.
     #[serde(default)]
     pub stiffness: Option<f64>,
