@@ -45,7 +45,12 @@ end_time = 1.0
 "#,
         v[0], v[1], v[2]
     );
-    let path = Path::new("ball.toml");
+    parsed("ball.toml", text)
+}
+
+/// A scene parsed from generated text, named as if read from `name`.
+fn parsed(name: &str, text: String) -> SceneFile {
+    let path = Path::new(name);
     SceneFile {
         path: path.to_path_buf(),
         spec: SceneSpec::parse(&text, path).unwrap(),
@@ -267,12 +272,7 @@ end_time = 1.0
         0.5 * th.sin(),
         -0.5 * th.cos()
     );
-    let path = Path::new("pendulum-clearance.toml");
-    SceneFile {
-        path: path.to_path_buf(),
-        spec: SceneSpec::parse(&text, path).unwrap(),
-        text,
-    }
+    parsed("pendulum-clearance.toml", text)
 }
 
 #[test]
@@ -356,12 +356,7 @@ friction = {friction}
 end_time = 1.0
 "#
     );
-    let path = Path::new("shaft.toml");
-    SceneFile {
-        path: path.to_path_buf(),
-        spec: SceneSpec::parse(&text, path).unwrap(),
-        text,
-    }
+    parsed("shaft.toml", text)
 }
 
 #[test]
@@ -472,12 +467,7 @@ end_time = 1.0
             ", restitution = 0.5"
         }
     );
-    let path = Path::new("pin.toml");
-    SceneFile {
-        path: path.to_path_buf(),
-        spec: SceneSpec::parse(&text, path).unwrap(),
-        text,
-    }
+    parsed("pin.toml", text)
 }
 
 #[test]
