@@ -364,7 +364,7 @@ mod tests {
 
     #[test]
     fn restitution_relation_matches_known_values() {
-        // ce = 0.9 with Lankarani-Nikravesh: the reference value 0.913.
+        // ce = 0.9 with Lankarani-Nikravesh restores about 0.913 (the value usually quoted).
         let e = hunt_crossley_restitution(Damping::LankaraniNikravesh.factor(0.9));
         assert!((e - 0.913).abs() < 5e-4, "{e}");
         // Small damping: e = 1 - 2D/3 + O(D^2), which is Hunt & Crossley's own derivation.
