@@ -9,9 +9,13 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use jointplay_analysis::h5::{Meta, read_series, write_run};
+use jointplay_analysis::figures::study_figures;
+use jointplay_analysis::h5::{Meta, StudyMeta, read_series, write_run, write_study};
 use jointplay_analysis::plot::{Format, Panel, Series, figure};
+use jointplay_analysis::report::{self, markdown};
+use jointplay_analysis::run::Recording;
 use jointplay_analysis::run::{RunResult, simulate};
+use jointplay_analysis::study::{Study, is_study};
 use jointplay_solver::model::{GROUND, Model};
 use jointplay_solver::ode::Method;
 use jointplay_solver::profile::Profile;
@@ -36,9 +40,10 @@ enum Command {
         /// Scene file (TOML).
         scene: PathBuf,
     },
-    /// Simulate a scene; write DIR/<scene-name>.h5 and figures (PNG and SVG).
+    /// Simulate a scene, or every case of a study; write DIR/<name>.h5 and figures (PNG and
+    /// SVG); a study also writes DIR/<name>.md, its comparison table.
     Run {
-        /// Scene file (TOML).
+        /// Scene or study file (TOML; a study has a [study] table).
         scene: PathBuf,
         /// Output directory (created if missing).
         #[arg(long, default_value = "out")]
@@ -49,6 +54,14 @@ enum Command {
         /// No progress bar.
         #[arg(long, short)]
         quiet: bool,
+    },
+    /// Compute a study's comparison table (markdown) from its HDF5 file.
+    Report {
+        /// Study file written by `jointplay run STUDY`.
+        file: PathBuf,
+        /// Write the table here instead of standard output.
+        #[arg(long)]
+        out: Option<PathBuf>,
     },
     /// Overlay one recorded quantity from several run files in one figure (PNG and SVG).
     Compare {
@@ -80,6 +93,7 @@ fn main() {
             no_plots,
             quiet,
         } => run(&scene, &out, !no_plots, quiet),
+        Command::Report { file, out } => report_cmd(&file, out.as_deref()),
         Command::Compare {
             files,
             dataset,
@@ -268,7 +282,127 @@ fn check(path: &Path) -> Result<()> {
     Ok(())
 }
 
+fn report_cmd(file: &Path, out: Option<&Path>) -> Result<()> {
+    let md = markdown(&report::compute(file)?);
+    match out {
+        Some(p) => {
+            std::fs::write(p, &md).with_context(|| format!("writing {}", p.display()))?;
+            println!("wrote        {}", p.display());
+        }
+        None => print!("{md}"),
+    }
+    Ok(())
+}
+
+fn meta_of<'a>(model: &'a Model, file: &'a Path, text: &'a str) -> Meta<'a> {
+    Meta {
+        scene_name: &model.name,
+        scene_file: file,
+        scene_text: text,
+        program_version: env!("CARGO_PKG_VERSION"),
+        integrator: method_text(&model.settings.method),
+        baumgarte_alpha: model.settings.alpha,
+        baumgarte_beta: model.settings.beta,
+        drive_period: model.settings.period,
+    }
+}
+
+fn run_study(path: &Path, out: &Path, plots: bool, quiet: bool) -> Result<()> {
+    let study = Study::load(path)?;
+    // Compile every case first so that a bad case fails before any simulation starts.
+    for c in &study.cases {
+        Model::compile(&c.scene).with_context(|| format!("case '{}'", c.label))?;
+    }
+    let start = Instant::now();
+    let n = study.cases.len();
+    let bar = ProgressBar::with_draw_target(
+        Some(n as u64),
+        if quiet {
+            ProgressDrawTarget::hidden()
+        } else {
+            ProgressDrawTarget::stderr()
+        },
+    );
+    bar.set_style(
+        ProgressStyle::with_template(
+            "[{elapsed_precise}] {bar:40} {pos}/{len} cases (eta {eta}) {msg}",
+        )
+        .expect("static template"),
+    );
+    bar.tick();
+    let done = |label: &str| {
+        bar.inc(1);
+        bar.set_message(format!("{label} done"));
+    };
+    let results = study.run(&done);
+    bar.finish_and_clear();
+    let mut runs = Vec::new();
+    for r in results {
+        runs.push(r.with_context(|| format!("running study {}", path.display()))?);
+    }
+    let wall = start.elapsed().as_secs_f64();
+    let metas: Vec<(String, Meta, &RunResult)> = runs
+        .iter()
+        .zip(&study.cases)
+        .map(|(r, c)| {
+            (
+                r.label.clone(),
+                meta_of(&r.model, &c.scene.path, &c.scene.text),
+                &r.result,
+            )
+        })
+        .collect();
+    let smeta = StudyMeta {
+        study_name: &study.spec.study.name,
+        study_file: path,
+        study_text: &study.text,
+        program_version: env!("CARGO_PKG_VERSION"),
+    };
+    let file = write_study(out, &smeta, &metas)?;
+    println!(
+        "study        {} ({}), {n} cases",
+        study.spec.study.name,
+        path.display()
+    );
+    for r in &runs {
+        let st = &r.result.stats;
+        let w = st.wall.as_secs_f64();
+        println!(
+            "  {:<14} {} steps, {} RHS evaluations, {:.1} s ({:.0} RHS/s)",
+            r.label,
+            st.accepted,
+            st.rhs_evals,
+            w,
+            st.rhs_evals as f64 / w.max(1e-9)
+        );
+    }
+    println!(
+        "wall time    {wall:.1} s for the study on {} threads",
+        rayon::current_num_threads()
+    );
+    println!("wrote        {}", file.display());
+    let md_path = out.join(format!("{}.md", study.spec.study.name));
+    std::fs::write(&md_path, markdown(&report::compute(&file)?))
+        .with_context(|| format!("writing {}", md_path.display()))?;
+    println!("wrote        {}", md_path.display());
+    if plots {
+        let recs: Vec<(&str, &Recording)> = runs
+            .iter()
+            .map(|r| (r.label.as_str(), &r.result.recording))
+            .collect();
+        for f in study_figures(out, &study.spec.study.name, &study.spec.report, &recs)? {
+            println!("wrote        {}", f.display());
+        }
+    }
+    Ok(())
+}
+
 fn run(path: &Path, out: &Path, plots: bool, quiet: bool) -> Result<()> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    if is_study(&text) {
+        return run_study(path, out, plots, quiet);
+    }
     let scene = SceneSpec::load(path)?;
     let (model, state) = Model::compile(&scene)?;
     let start = Instant::now();
@@ -290,15 +424,7 @@ fn run(path: &Path, out: &Path, plots: bool, quiet: bool) -> Result<()> {
     let result = simulate(&model, state, &mut progress)
         .with_context(|| format!("simulating {}", path.display()))?;
     bar.finish_and_clear();
-    let meta = Meta {
-        scene_name: &model.name,
-        scene_file: path,
-        scene_text: &scene.text,
-        program_version: env!("CARGO_PKG_VERSION"),
-        integrator: method_text(&model.settings.method),
-        baumgarte_alpha: model.settings.alpha,
-        baumgarte_beta: model.settings.beta,
-    };
+    let meta = meta_of(&model, path, &scene.text);
     let file = write_run(out, &meta, &result)?;
     let st = &result.stats;
     let wall = st.wall.as_secs_f64();

@@ -360,3 +360,118 @@ fn slider_crank_with_clearance_writes_contact_outputs_and_check_lists_the_joint(
     }
     assert!(state.contains(&0) && state.contains(&1));
 }
+
+#[test]
+fn a_study_runs_its_cases_into_one_file_and_its_table_is_regenerated_from_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let study = write_scene(
+        dir.path(),
+        "study.toml",
+        &format!(
+            r#"
+[study]
+name = "pin"
+scene = "{}"
+set = {{ "solver.periods" = 0.25, "output.interval" = 1e-4 }}
+[[cases]]
+label = "ideal"
+remove = ["joints.piston_pin.clearance"]
+[[cases]]
+label = "c-0_5mm"
+[report]
+body = "slider"
+axes = ["x"]
+joints = ["piston_pin"]
+reference = "ideal"
+published = [{{ case = "c-0_5mm", quantity = "offset_max_x", value = 1e-4, source = "made up" }}]
+"#,
+            scenes().join("slider-crank-clearance.toml").display()
+        ),
+    );
+    let out = bin()
+        .arg("run")
+        .arg(&study)
+        .arg("--out")
+        .arg(dir.path())
+        .arg("-q")
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{:?}", text(&out));
+    let file = hdf5::File::open(dir.path().join("pin.h5")).unwrap();
+    let ideal = read2(&file, "cases/ideal/bodies/slider/position");
+    let play = read2(&file, "cases/c-0_5mm/bodies/slider/position");
+    assert_eq!(ideal.len(), play.len());
+    assert!(
+        file.dataset("cases/c-0_5mm/joints/piston_pin/force_on_journal")
+            .is_ok()
+    );
+    assert!(
+        file.dataset("cases/ideal/joints/piston_pin/reaction_force")
+            .is_ok()
+    );
+    // The table's offset is the largest slider deviation, recomputed here from the file.
+    let dev = ideal
+        .iter()
+        .zip(&play)
+        .map(|(a, b)| (a[0] - b[0]).abs())
+        .fold(0.0f64, f64::max);
+    assert!(dev > 0.0 && dev < 1e-3, "{dev}");
+    let md = std::fs::read_to_string(dir.path().join("pin.md")).unwrap();
+    let row = md
+        .lines()
+        .find(|l| l.starts_with("| `offset_max_x`"))
+        .unwrap();
+    let ours: f64 = row.split('|').nth(4).unwrap().trim().parse().unwrap();
+    assert!((ours - dev).abs() <= 1e-3 * dev, "{row} vs {dev}");
+    assert!(
+        md.contains("| c-0_5mm | `offset_max_x` (m) | 1.000e-4 |"),
+        "{md}"
+    );
+    // `jointplay report` gives the same table from the file alone.
+    let rep = bin()
+        .arg("report")
+        .arg(dir.path().join("pin.h5"))
+        .output()
+        .unwrap();
+    assert!(rep.status.success(), "{:?}", text(&rep));
+    assert_eq!(text(&rep).0, md);
+    for f in ["pin-motion.png", "pin-forces.svg", "pin-orbits.png"] {
+        assert!(dir.path().join(f).exists(), "{f}");
+    }
+}
+
+#[test]
+fn a_study_edit_that_matches_nothing_names_the_study_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let study = write_scene(
+        dir.path(),
+        "bad.toml",
+        &format!(
+            r#"
+[study]
+name = "bad"
+scene = "{}"
+[[cases]]
+label = "a"
+set = {{ "joints.nope.clearance.radial_clearance" = 1e-4 }}
+"#,
+            scenes().join("slider-crank-clearance.toml").display()
+        ),
+    );
+    let out = bin()
+        .arg("run")
+        .arg(&study)
+        .arg("--out")
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    let (_, err) = text(&out);
+    assert!(!out.status.success());
+    assert!(
+        err.contains("bad.toml")
+            && err.contains("cases[0].set")
+            && err.contains("no element 'nope'"),
+        "{err}"
+    );
+    assert!(!dir.path().join("bad.h5").exists());
+}

@@ -23,6 +23,8 @@ pub struct Meta<'a> {
     pub integrator: String,
     pub baumgarte_alpha: f64,
     pub baumgarte_beta: f64,
+    /// The drives' common period (s), when they have one.
+    pub drive_period: Option<f64>,
 }
 
 fn h5err(file: &Path) -> impl Fn(hdf5::Error) -> Error + '_ {
@@ -111,27 +113,96 @@ pub fn write_run(dir: &Path, meta: &Meta, run: &RunResult) -> Result<PathBuf> {
     Ok(path)
 }
 
+/// Study metadata written as root attributes of a study file.
+#[derive(Debug, Clone)]
+pub struct StudyMeta<'a> {
+    pub study_name: &'a str,
+    pub study_file: &'a Path,
+    pub study_text: &'a str,
+    pub program_version: &'a str,
+}
+
+/// Writes the runs of a study to `dir/<study_name>.h5`, one group `/cases/<label>` per run with
+/// the layout of a run file, and returns the path. Written under a temporary name and renamed
+/// when complete.
+pub fn write_study(
+    dir: &Path,
+    meta: &StudyMeta,
+    runs: &[(String, Meta, &RunResult)],
+) -> Result<PathBuf> {
+    std::fs::create_dir_all(dir).map_err(|e| Error::Io {
+        file: dir.to_path_buf(),
+        message: format!("cannot create output directory: {e}"),
+    })?;
+    let path = dir.join(format!("{}.h5", meta.study_name));
+    let partial = dir.join(format!("{}.h5.partial", meta.study_name));
+    let e = h5err(&partial);
+    let res = (|| -> Result<()> {
+        let file = hdf5::File::create(&partial).map_err(&e)?;
+        (|| -> hdf5::Result<()> {
+            str_attr(&file, "program", "jointplay")?;
+            str_attr(&file, "program_version", meta.program_version)?;
+            str_attr(&file, "units", "SI: m, kg, s, rad, N, N m, J")?;
+            str_attr(&file, "study_name", meta.study_name)?;
+            str_attr(&file, "study_file", &meta.study_file.display().to_string())?;
+            str_attr(&file, "study", meta.study_text)?;
+            let labels: Vec<&str> = runs.iter().map(|r| r.0.as_str()).collect();
+            str_attr(&file, "cases", &labels.join(","))?;
+            let cases = file.create_group("cases")?;
+            for (label, m, run) in runs {
+                let g = cases.create_group(label)?;
+                write_group(&g, m, run)?;
+            }
+            Ok(())
+        })()
+        .map_err(&e)?;
+        file.close().map_err(&e)
+    })();
+    if let Err(err) = res {
+        let _ = std::fs::remove_file(&partial);
+        return Err(err);
+    }
+    std::fs::rename(&partial, &path).map_err(|e| Error::Io {
+        file: path.clone(),
+        message: format!("cannot move the finished file into place: {e}"),
+    })?;
+    Ok(path)
+}
+
 fn write_file(path: &Path, meta: &Meta, run: &RunResult) -> Result<()> {
     let e = h5err(path);
     let file = hdf5::File::create(path).map_err(&e)?;
-    let rec = &run.recording;
     (|| -> hdf5::Result<()> {
         str_attr(&file, "program", "jointplay")?;
         str_attr(&file, "program_version", meta.program_version)?;
-        str_attr(&file, "scene_name", meta.scene_name)?;
-        str_attr(&file, "scene_file", &meta.scene_file.display().to_string())?;
-        str_attr(&file, "scene", meta.scene_text)?;
-        str_attr(&file, "integrator", &meta.integrator)?;
         str_attr(&file, "units", "SI: m, kg, s, rad, N, N m, J")?;
-        f64_attr(&file, "baumgarte_alpha", meta.baumgarte_alpha)?;
-        f64_attr(&file, "baumgarte_beta", meta.baumgarte_beta)?;
-        u64_attr(&file, "steps_accepted", run.stats.accepted)?;
-        u64_attr(&file, "steps_rejected", run.stats.rejected)?;
-        u64_attr(&file, "rhs_evaluations", run.stats.rhs_evals)?;
-        f64_attr(&file, "wall_time_s", run.stats.wall.as_secs_f64())?;
-        f64_attr(&file, "assembly_residual", run.assembly.final_residual)?;
+        write_group(&file, meta, run)
+    })()
+    .map_err(&e)?;
+    file.close().map_err(&e)?;
+    Ok(())
+}
 
-        write1(&file, "time", &rec.time, "s", "sample times")?;
+/// Writes one run (its attributes and datasets, the layout of a run file's root) into `file`.
+fn write_group(file: &hdf5::Group, meta: &Meta, run: &RunResult) -> hdf5::Result<()> {
+    let rec = &run.recording;
+    {
+        str_attr(file, "scene_name", meta.scene_name)?;
+        str_attr(file, "scene_file", &meta.scene_file.display().to_string())?;
+        str_attr(file, "scene", meta.scene_text)?;
+        str_attr(file, "integrator", &meta.integrator)?;
+        f64_attr(file, "baumgarte_alpha", meta.baumgarte_alpha)?;
+        f64_attr(file, "baumgarte_beta", meta.baumgarte_beta)?;
+        if let Some(p) = meta.drive_period {
+            f64_attr(file, "drive_period", p)?;
+        }
+        u64_attr(file, "steps_accepted", run.stats.accepted)?;
+        u64_attr(file, "steps_rejected", run.stats.rejected)?;
+        u64_attr(file, "rhs_evaluations", run.stats.rhs_evals)?;
+        f64_attr(file, "wall_time_s", run.stats.wall.as_secs_f64())?;
+        f64_attr(file, "assembly_residual", run.assembly.final_residual)?;
+
+        write1(file, "time", &rec.time, "s", "sample times")?;
         let bodies = file.create_group("bodies")?;
         for b in &rec.bodies {
             let g = bodies.create_group(&b.name)?;
@@ -207,8 +278,20 @@ fn write_file(path: &Path, meta: &Meta, run: &RunResult) -> Result<()> {
             str_attr(&g, "contacts", &c.contacts.join(","))?;
             f64_attr(&g, "radial_clearance", c.radial_clearance)?;
             str_attr(&g, "radial_clearance_unit", "m")?;
-            write_n(&g, "eccentricity", &c.eccentricity, "m", "journal centre relative to the housing centre, housing axes")?;
-            write_n(&g, "eccentricity_global", &c.eccentricity_global, "m", "journal centre relative to the housing centre, global axes")?;
+            write_n(
+                &g,
+                "eccentricity",
+                &c.eccentricity,
+                "m",
+                "journal centre relative to the housing centre, housing axes",
+            )?;
+            write_n(
+                &g,
+                "eccentricity_global",
+                &c.eccentricity_global,
+                "m",
+                "journal centre relative to the housing centre, global axes",
+            )?;
             write_n(
                 &g,
                 "radial_eccentricity",
@@ -216,16 +299,85 @@ fn write_file(path: &Path, meta: &Meta, run: &RunResult) -> Result<()> {
                 "m",
                 "eccentricity along the two housing directions normal to its axis (u, w): the journal-centre orbit",
             )?;
-            let per = |what: &str| format!("{what}, one column per contact ({})", c.contacts.join(", "));
-            write_matrix(&g, "penetration", &c.penetration, nc, "m", &per("penetration, negative while apart"))?;
-            write_matrix(&g, "penetration_rate", &c.penetration_rate, nc, "m/s", &per("penetration rate, approach positive"))?;
-            write_matrix(&g, "normal_force", &c.normal_force, nc, "N", &per("normal contact force"))?;
-            write_matrix(&g, "friction_force", &c.friction_force, nc, "N", &per("magnitude of the friction force"))?;
-            write_matrix(&g, "contact_state", &c.state, nc, "1", &per("1 in contact, 0 free"))?;
-            write_n(&g, "force_on_journal", &c.force_journal, "N", "resultant contact force on the journal body (body_b), global axes")?;
-            write_n(&g, "moment_on_journal", &c.moment_journal, "N m", "resultant contact moment on the journal body about its centre of mass, global axes")?;
-            write_n(&g, "force_on_housing", &c.force_housing, "N", "resultant contact force on the housing body (body_a), global axes")?;
-            write_n(&g, "moment_on_housing", &c.moment_housing, "N m", "resultant contact moment on the housing body about its centre of mass, global axes")?;
+            if !c.end_eccentricity.is_empty() {
+                write_n(
+                    &g,
+                    "end_eccentricity",
+                    &c.end_eccentricity,
+                    "m",
+                    "journal axis at the rim planes s = +L_B/2 (u, w) and s = -L_B/2 (u, w): the orbits of both journal ends",
+                )?;
+            }
+            let per =
+                |what: &str| format!("{what}, one column per contact ({})", c.contacts.join(", "));
+            write_matrix(
+                &g,
+                "penetration",
+                &c.penetration,
+                nc,
+                "m",
+                &per("penetration, negative while apart"),
+            )?;
+            write_matrix(
+                &g,
+                "penetration_rate",
+                &c.penetration_rate,
+                nc,
+                "m/s",
+                &per("penetration rate, approach positive"),
+            )?;
+            write_matrix(
+                &g,
+                "normal_force",
+                &c.normal_force,
+                nc,
+                "N",
+                &per("normal contact force"),
+            )?;
+            write_matrix(
+                &g,
+                "friction_force",
+                &c.friction_force,
+                nc,
+                "N",
+                &per("magnitude of the friction force"),
+            )?;
+            write_matrix(
+                &g,
+                "contact_state",
+                &c.state,
+                nc,
+                "1",
+                &per("1 in contact, 0 free"),
+            )?;
+            write_n(
+                &g,
+                "force_on_journal",
+                &c.force_journal,
+                "N",
+                "resultant contact force on the journal body (body_b), global axes",
+            )?;
+            write_n(
+                &g,
+                "moment_on_journal",
+                &c.moment_journal,
+                "N m",
+                "resultant contact moment on the journal body about its centre of mass, global axes",
+            )?;
+            write_n(
+                &g,
+                "force_on_housing",
+                &c.force_housing,
+                "N",
+                "resultant contact force on the housing body (body_a), global axes",
+            )?;
+            write_n(
+                &g,
+                "moment_on_housing",
+                &c.moment_housing,
+                "N m",
+                "resultant contact moment on the housing body about its centre of mass, global axes",
+            )?;
         }
         let drives = file.create_group("drives")?;
         for d in &rec.drives {
@@ -268,10 +420,7 @@ fn write_file(path: &Path, meta: &Meta, run: &RunResult) -> Result<()> {
                 "kinetic + gravitational + spring energy",
             )?;
         }
-        Ok(())
-    })()
-    .map_err(&e)?;
-    file.close().map_err(&e)?;
+    }
     Ok(())
 }
 

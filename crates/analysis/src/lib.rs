@@ -2,11 +2,15 @@
 //!
 //! Runs of a compiled model and what comes out of them: [`run`] integrates a model and records the
 //! requested outputs at exact sample times; [`h5`] writes a recording to HDF5 (layout in the
-//! README); [`plot`] draws figures as PNG and SVG with an embedded font (no system fonts needed).
+//! README); [`study`] reads study files (several cases of a scene, edited by path) and
+//! [`report`] computes their comparison table from the written file; [`plot`] draws figures as PNG and SVG with an embedded font (no system fonts needed).
 
+pub mod figures;
 pub mod h5;
 pub mod plot;
+pub mod report;
 pub mod run;
+pub mod study;
 
 use std::path::PathBuf;
 
@@ -19,6 +23,14 @@ pub enum Error {
     Hdf5 { file: PathBuf, message: String },
     #[error("{file}: {message}")]
     Io { file: PathBuf, message: String },
+    #[error("{file}: {field}: {message}")]
+    Study {
+        file: PathBuf,
+        field: String,
+        message: String,
+    },
+    #[error("case '{label}': {source}")]
+    Case { label: String, source: Box<Error> },
     #[error("{file}: plot: {message}")]
     Plot { file: PathBuf, message: String },
 }

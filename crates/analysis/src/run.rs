@@ -6,6 +6,7 @@
 //! actuator forces and the diagnostics. A non-finite recorded value stops the run with an error
 //! naming the time and the quantity: nothing non-finite is ever recorded.
 
+use jointplay_solver::clearance::Geometry;
 use jointplay_solver::dynamics::{AssemblyReport, Mechanism};
 use jointplay_solver::model::{Model, State};
 use jointplay_solver::ode::{Flow, Stats, integrate};
@@ -55,6 +56,9 @@ pub struct ClearanceTrack {
     /// Eccentricity components in the plane normal to the housing axis (m), along the joint
     /// frame's u and w directions: the orbit of the journal centre.
     pub radial_eccentricity: Vec<[f64; 2]>,
+    /// Spatial revolute: the journal axis at the two rim planes (P side u, w, Q side u, w) in the
+    /// same axes (m): the orbits of both journal ends. Empty for other joints.
+    pub end_eccentricity: Vec<[f64; 4]>,
     /// m, m/s, N, N per contact.
     pub penetration: Vec<f64>,
     pub penetration_rate: Vec<f64>,
@@ -255,6 +259,14 @@ pub fn simulate(
             tr.eccentricity.push([el.x, el.y, el.z]);
             tr.eccentricity_global.push([e.x, e.y, e.z]);
             tr.radial_eccentricity.push([el.dot(&u), el.dot(&w)]);
+            if let Some([p, q]) = cl.end_offsets(&kh, &kj) {
+                tr.end_eccentricity.push([p[0], p[1], q[0], q[1]]);
+            } else if matches!(cl.geometry, Geometry::Revolute { .. }) {
+                // The axis lies in a rim plane (a 90-degree tilt, far outside any clearance):
+                // record the centre's offset at both ends so the columns stay aligned.
+                tr.end_eccentricity
+                    .push([el.dot(&u), el.dot(&w), el.dot(&u), el.dot(&w)]);
+            }
             for ce in &ws.contacts[cl.first..cl.first + cl.geometry.n_contacts()] {
                 tr.penetration.push(ce.delta);
                 tr.penetration_rate.push(ce.delta_dot);

@@ -219,6 +219,32 @@ impl Clearance {
         (kj.r + kj.rot * self.sj) - (kh.r + kh.rot * self.sh)
     }
 
+    /// Spatial revolute only: where the journal axis crosses the planes of the two bushing rims
+    /// (s = +L_B/2, the P side, and s = -L_B/2, the Q side), as (u, w) components in the housing's
+    /// radial axes (m): the orbits of both journal ends. `None` for other geometries or when the
+    /// journal axis lies in a rim plane.
+    pub fn end_offsets(&self, kh: &Kin, kj: &Kin) -> Option<[[f64; 2]; 2]> {
+        let Geometry::Revolute {
+            bushing_length: lb, ..
+        } = self.geometry
+        else {
+            return None;
+        };
+        let el = kh.rot.transpose() * self.eccentricity(kh, kj);
+        let aj = kh.rot.transpose() * (kj.rot * self.axis_j);
+        let ah = self.axis_h;
+        let c = aj.dot(&ah);
+        if c.abs() < 1e-9 {
+            return None;
+        }
+        let (u, w) = self.radial_axes();
+        let at = |s: f64| {
+            let p = el + aj * ((s - el.dot(&ah)) / c);
+            [p.dot(&u), p.dot(&w)]
+        };
+        Some([at(0.5 * lb), at(-0.5 * lb)])
+    }
+
     /// Contact geometry (delta, delta_dot, n, points) of every contact into `out`.
     pub fn geometry(&self, kh: &Kin, kj: &Kin, out: &mut [ContactEval]) {
         let rh = kh.r + kh.rot * self.sh;

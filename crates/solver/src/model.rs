@@ -625,20 +625,14 @@ fn compile_clearance(
                     "a revolute clearance has a journal_radius",
                 ));
             }
-            let rj = positive(
-                c.journal_radius,
-                format!("{f}.journal_radius"),
-                "the journal radius (m)",
-                cx,
-            )?;
-            let rb = match (c.bushing_radius, c.radial_clearance) {
-                (Some(rb), None) => rb,
-                (None, Some(cr)) => {
-                    positive(Some(cr), format!("{f}.radial_clearance"), "", cx)?;
-                    rj + cr
-                }
-                (Some(rb), Some(cr)) => {
-                    if ((rb - rj) - cr).abs() > 1e-9 * rb {
+            // Any two of journal radius, bushing radius and radial clearance.
+            let (rj, rb) = match (c.journal_radius, c.bushing_radius, c.radial_clearance) {
+                (Some(rj), Some(rb), cr) => {
+                    let rj = positive(Some(rj), format!("{f}.journal_radius"), "", cx)?;
+                    let rb = positive(Some(rb), format!("{f}.bushing_radius"), "", cx)?;
+                    if let Some(cr) = cr
+                        && ((rb - rj) - cr).abs() > 1e-9 * rb
+                    {
                         return Err(cx.err(
                             format!("{f}.radial_clearance"),
                             format!(
@@ -647,12 +641,28 @@ fn compile_clearance(
                             ),
                         ));
                     }
-                    rb
+                    (rj, rb)
                 }
-                (None, None) => {
+                (Some(rj), None, Some(cr)) => {
+                    let rj = positive(Some(rj), format!("{f}.journal_radius"), "", cx)?;
+                    let cr = positive(Some(cr), format!("{f}.radial_clearance"), "", cx)?;
+                    (rj, rj + cr)
+                }
+                (None, Some(rb), Some(cr)) => {
+                    let rb = positive(Some(rb), format!("{f}.bushing_radius"), "", cx)?;
+                    let cr = positive(Some(cr), format!("{f}.radial_clearance"), "", cx)?;
+                    if cr >= rb {
+                        return Err(cx.err(
+                            format!("{f}.radial_clearance"),
+                            format!("{cr} m leaves no journal inside a bushing of radius {rb} m"),
+                        ));
+                    }
+                    (rb - cr, rb)
+                }
+                _ => {
                     return Err(cx.err(
                         format!("{f}.radial_clearance"),
-                        "missing: give radial_clearance or bushing_radius (m)",
+                        "missing: give two of journal_radius, bushing_radius and radial_clearance (m)",
                     ));
                 }
             };

@@ -1,0 +1,521 @@
+//! Study files: several runs of one or more scenes, compared in one HDF5 file, figures and table.
+//!
+//! A study names a base scene and a list of cases. Each case may take another scene and edit the
+//! scene's TOML tree before it is compiled:
+//!
+//! * `set = { "path" = value, ... }` replaces (or adds) the value at `path`;
+//! * `remove = ["path", ...]` deletes it (e.g. a joint's `clearance` table, which makes it ideal).
+//!
+//! A path is a dot-separated list of keys. Where the tree holds an array of tables (bodies, joints,
+//! drives, springs, loads), a segment selects the element whose `name` equals it, `*` selects every
+//! element, and a number selects by position: `joints.S2.clearance.radial_clearance`,
+//! `drives.*.profile.omega`. A path with `*` edits only the elements where it exists; a path that
+//! edits nothing is an error, so a typo never passes silently. Study-level `set` and `remove` apply
+//! to every case before the case's own.
+//!
+//! The edited scene text is stored in the output file with each case, so every run can be repeated
+//! from the file alone.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use jointplay_solver::model::Model;
+use jointplay_solver::scene::{SceneFile, SceneSpec};
+use rayon::prelude::*;
+use serde::Deserialize;
+use toml::{Table, Value};
+
+use crate::run::{RunResult, simulate};
+use crate::{Error, Result};
+
+/// A study file.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StudySpec {
+    pub study: StudyHeader,
+    pub cases: Vec<CaseSpec>,
+    #[serde(default)]
+    pub report: ReportSpec,
+}
+
+/// The `[study]` table.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StudyHeader {
+    pub name: String,
+    #[serde(default)]
+    pub description: String,
+    /// Base scene, relative to the study file.
+    pub scene: PathBuf,
+    /// Edits applied to every case.
+    #[serde(default)]
+    pub set: BTreeMap<String, Value>,
+    #[serde(default)]
+    pub remove: Vec<String>,
+}
+
+/// One run of a study.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CaseSpec {
+    /// Short label: legend entry and HDF5 group name (`/cases/<label>`).
+    pub label: String,
+    /// Scene of this case (relative to the study file); default the study's.
+    #[serde(default)]
+    pub scene: Option<PathBuf>,
+    #[serde(default)]
+    pub set: BTreeMap<String, Value>,
+    #[serde(default)]
+    pub remove: Vec<String>,
+    /// Label of the case this one is compared with (default `report.reference`).
+    #[serde(default)]
+    pub reference: Option<String>,
+}
+
+/// What the figures and the table look at.
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ReportSpec {
+    /// The body whose motion is drawn and compared (e.g. the moving platform).
+    #[serde(default)]
+    pub body: Option<String>,
+    /// Joints whose forces (contact force with clearance, reaction force when ideal) and orbits
+    /// are drawn and tabulated.
+    #[serde(default)]
+    pub joints: Vec<String>,
+    /// Global axes of the body's motion to draw and tabulate: any of "x", "y", "z" (default all).
+    #[serde(default)]
+    pub axes: Vec<String>,
+    /// Default reference case for the deviations.
+    #[serde(default)]
+    pub reference: Option<String>,
+    /// Band around the settled force range within which a force counts as settled, as a fraction
+    /// of its settled mean (default 0.1).
+    #[serde(default)]
+    pub settle_tolerance: Option<f64>,
+    /// Published values to set beside ours.
+    #[serde(default)]
+    pub published: Vec<Published>,
+}
+
+/// One published value of a quantity of the report (see [`crate::report`] for the names).
+#[derive(Debug, Clone, Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct Published {
+    pub case: String,
+    pub quantity: String,
+    pub value: f64,
+    /// Where it comes from, e.g. "Fig. 9".
+    #[serde(default)]
+    pub source: String,
+}
+
+/// A loaded study with its cases' scenes edited and parsed.
+#[derive(Debug, Clone)]
+pub struct Study {
+    pub path: PathBuf,
+    pub text: String,
+    pub spec: StudySpec,
+    pub cases: Vec<Case>,
+}
+
+/// One case ready to compile.
+#[derive(Debug, Clone)]
+pub struct Case {
+    pub label: String,
+    /// The scene with this case's edits; `path` names the scene file and the case.
+    pub scene: SceneFile,
+    pub reference: Option<String>,
+}
+
+fn invalid(file: &Path, field: impl Into<String>, message: impl Into<String>) -> Error {
+    Error::Study {
+        file: file.to_path_buf(),
+        field: field.into(),
+        message: message.into(),
+    }
+}
+
+/// True when the TOML text is a study (has a `[study]` table) rather than a scene.
+pub fn is_study(text: &str) -> bool {
+    text.parse::<Table>()
+        .map(|t| t.contains_key("study"))
+        .unwrap_or(false)
+}
+
+impl ReportSpec {
+    /// Indices (0, 1, 2 for x, y, z) and names of the report axes.
+    pub fn axis_list(&self) -> Vec<(usize, &'static str)> {
+        let all = [(0, "x"), (1, "y"), (2, "z")];
+        if self.axes.is_empty() {
+            return all.to_vec();
+        }
+        all.into_iter()
+            .filter(|(_, n)| self.axes.iter().any(|a| a == n))
+            .collect()
+    }
+}
+
+impl Study {
+    /// Reads a study file, edits and parses the scene of every case.
+    pub fn load(path: &Path) -> Result<Study> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::Io {
+            file: path.to_path_buf(),
+            message: e.to_string(),
+        })?;
+        Study::parse(&text, path)
+    }
+
+    /// Parses study text; scene paths are relative to `path`'s directory.
+    pub fn parse(text: &str, path: &Path) -> Result<Study> {
+        let spec: StudySpec = toml::from_str(text).map_err(|e| Error::Io {
+            file: path.to_path_buf(),
+            message: e.to_string().trim_end().to_string(),
+        })?;
+        let dir = path.parent().unwrap_or(Path::new("."));
+        if spec.cases.is_empty() {
+            return Err(invalid(path, "cases", "a study needs at least one case"));
+        }
+        let mut seen = BTreeMap::new();
+        for (i, c) in spec.cases.iter().enumerate() {
+            let field = format!("cases[{i}].label");
+            if c.label.is_empty()
+                || !c
+                    .label
+                    .chars()
+                    .all(|ch| ch.is_ascii_alphanumeric() || "-_.".contains(ch))
+            {
+                return Err(invalid(
+                    path,
+                    field,
+                    format!(
+                        "'{}': use letters, digits, '-', '_' or '.' (it names an HDF5 group)",
+                        c.label
+                    ),
+                ));
+            }
+            if seen.insert(c.label.clone(), i).is_some() {
+                return Err(invalid(
+                    path,
+                    field,
+                    format!("duplicate label '{}'", c.label),
+                ));
+            }
+        }
+        let labels = |r: &str| seen.contains_key(r);
+        if let Some(r) = &spec.report.reference
+            && !labels(r)
+        {
+            return Err(invalid(path, "report.reference", format!("no case '{r}'")));
+        }
+        for (i, c) in spec.cases.iter().enumerate() {
+            if let Some(r) = &c.reference
+                && !labels(r)
+            {
+                return Err(invalid(
+                    path,
+                    format!("cases[{i}].reference"),
+                    format!("no case '{r}'"),
+                ));
+            }
+        }
+        for (i, p) in spec.report.published.iter().enumerate() {
+            if !labels(&p.case) {
+                return Err(invalid(
+                    path,
+                    format!("report.published[{i}].case"),
+                    format!("no case '{}'", p.case),
+                ));
+            }
+            if !p.value.is_finite() {
+                return Err(invalid(
+                    path,
+                    format!("report.published[{i}].value"),
+                    "must be finite",
+                ));
+            }
+        }
+        for (i, a) in spec.report.axes.iter().enumerate() {
+            if !["x", "y", "z"].contains(&a.as_str()) {
+                return Err(invalid(
+                    path,
+                    format!("report.axes[{i}]"),
+                    format!("'{a}': use \"x\", \"y\" or \"z\""),
+                ));
+            }
+        }
+        if let Some(tol) = spec.report.settle_tolerance
+            && !(tol.is_finite() && tol > 0.0)
+        {
+            return Err(invalid(
+                path,
+                "report.settle_tolerance",
+                "must be a positive number",
+            ));
+        }
+        let mut cases = Vec::new();
+        for (i, c) in spec.cases.iter().enumerate() {
+            let scene_path = dir.join(c.scene.as_ref().unwrap_or(&spec.study.scene));
+            let text = std::fs::read_to_string(&scene_path).map_err(|e| {
+                invalid(
+                    path,
+                    if c.scene.is_some() {
+                        format!("cases[{i}].scene")
+                    } else {
+                        "study.scene".into()
+                    },
+                    format!("cannot read {}: {e}", scene_path.display()),
+                )
+            })?;
+            let mut tree: Table = text.parse().map_err(|e: toml::de::Error| Error::Io {
+                file: scene_path.clone(),
+                message: e.to_string().trim_end().to_string(),
+            })?;
+            let edits = [
+                ("study", &spec.study.set, &spec.study.remove),
+                (&*format!("cases[{i}]"), &c.set, &c.remove),
+            ];
+            for (at, set, remove) in edits {
+                for (p, v) in set {
+                    edit(&mut tree, p, Some(v)).map_err(|m| {
+                        invalid(
+                            path,
+                            format!("{at}.set.\"{p}\""),
+                            format!("{m} in {}", scene_path.display()),
+                        )
+                    })?;
+                }
+                for p in remove {
+                    edit(&mut tree, p, None).map_err(|m| {
+                        invalid(
+                            path,
+                            format!("{at}.remove"),
+                            format!("'{p}': {m} in {}", scene_path.display()),
+                        )
+                    })?;
+                }
+            }
+            let edited = if c.set.is_empty()
+                && c.remove.is_empty()
+                && spec.study.set.is_empty()
+                && spec.study.remove.is_empty()
+            {
+                text
+            } else {
+                toml::to_string(&tree)
+                    .map_err(|e| invalid(path, format!("cases[{i}]"), e.to_string()))?
+            };
+            let named = PathBuf::from(format!(
+                "{} (case '{}' of {})",
+                scene_path.display(),
+                c.label,
+                path.display()
+            ));
+            let scene_spec = SceneSpec::parse(&edited, &named)?;
+            cases.push(Case {
+                label: c.label.clone(),
+                scene: SceneFile {
+                    path: named,
+                    text: edited,
+                    spec: scene_spec,
+                },
+                reference: c
+                    .reference
+                    .clone()
+                    .or_else(|| spec.report.reference.clone().filter(|r| *r != c.label)),
+            });
+        }
+        Ok(Study {
+            path: path.to_path_buf(),
+            text: text.to_string(),
+            spec,
+            cases,
+        })
+    }
+}
+
+/// One finished case.
+#[derive(Debug)]
+pub struct CaseRun {
+    pub label: String,
+    pub model: Model,
+    pub result: RunResult,
+}
+
+impl Study {
+    /// Compiles and runs every case, in parallel over rayon's thread pool; `done` is called with
+    /// the label of each case as it finishes. Results come back in the order of the cases.
+    pub fn run(&self, done: &(dyn Fn(&str) + Sync)) -> Vec<Result<CaseRun>> {
+        self.cases
+            .par_iter()
+            .map(|c| {
+                let (model, state) = Model::compile(&c.scene)?;
+                let result = simulate(&model, state, &mut |_| {}).map_err(|e| match e {
+                    Error::Solver(inner) => Error::Case {
+                        label: c.label.clone(),
+                        source: Box::new(Error::Solver(inner)),
+                    },
+                    other => other,
+                })?;
+                done(&c.label);
+                Ok(CaseRun {
+                    label: c.label.clone(),
+                    model,
+                    result,
+                })
+            })
+            .collect()
+    }
+}
+
+/// Sets (`Some`) or removes (`None`) the value at `path` in `tree`; errors when nothing matched.
+pub fn edit(tree: &mut Table, path: &str, value: Option<&Value>) -> Result<(), String> {
+    let segs: Vec<&str> = path.split('.').collect();
+    if segs.iter().any(|s| s.is_empty()) {
+        return Err("empty path segment".into());
+    }
+    let wild = segs.contains(&"*");
+    let n = walk(tree, &segs, value, wild)?;
+    if n == 0 {
+        Err("matches nothing".into())
+    } else {
+        Ok(())
+    }
+}
+
+fn walk(t: &mut Table, segs: &[&str], value: Option<&Value>, wild: bool) -> Result<usize, String> {
+    let (head, rest) = (segs[0], &segs[1..]);
+    if rest.is_empty() {
+        return Ok(match value {
+            Some(v) => {
+                if wild && !t.contains_key(head) {
+                    0
+                } else {
+                    t.insert(head.to_string(), v.clone());
+                    1
+                }
+            }
+            None => usize::from(t.remove(head).is_some()),
+        });
+    }
+    match t.get_mut(head) {
+        None if wild => Ok(0),
+        None => Err(format!("no key '{head}'")),
+        Some(Value::Table(sub)) => walk(sub, rest, value, wild),
+        Some(Value::Array(items)) => {
+            let sel = rest[0];
+            let after = &rest[1..];
+            if after.is_empty() {
+                return Err(format!(
+                    "'{head}.{sel}' selects a whole element; name a field in it"
+                ));
+            }
+            let mut n = 0;
+            for (k, item) in items.iter_mut().enumerate() {
+                let Value::Table(it) = item else {
+                    return Err(format!("'{head}' is not an array of tables"));
+                };
+                let hit = sel == "*"
+                    || sel.parse::<usize>() == Ok(k)
+                    || it.get("name").and_then(Value::as_str) == Some(sel);
+                if hit {
+                    n += walk(it, after, value, wild)?;
+                }
+            }
+            if n == 0 && !wild {
+                return Err(format!("no element '{sel}' in '{head}'"));
+            }
+            Ok(n)
+        }
+        Some(_) if wild => Ok(0),
+        Some(_) => Err(format!("'{head}' is a value, not a table")),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const SCENE: &str = r#"
+name = "s"
+[[joints]]
+name = "A"
+clearance = { radial_clearance = 3e-4 }
+[[joints]]
+name = "B"
+[[drives]]
+name = "d1"
+profile = { omega = 3.14 }
+[[drives]]
+name = "d2"
+profile = { omega = 3.14 }
+"#;
+
+    #[test]
+    fn edits_by_name_wildcard_and_index() {
+        let mut t: Table = SCENE.parse().unwrap();
+        edit(&mut t, "drives.*.profile.omega", Some(&Value::Float(1.57))).unwrap();
+        edit(
+            &mut t,
+            "joints.A.clearance.radial_clearance",
+            Some(&Value::Float(2e-4)),
+        )
+        .unwrap();
+        edit(
+            &mut t,
+            "joints.1.kind",
+            Some(&Value::String("fixed".into())),
+        )
+        .unwrap();
+        let d = t["drives"].as_array().unwrap();
+        assert!(
+            d.iter()
+                .all(|x| x["profile"]["omega"].as_float() == Some(1.57))
+        );
+        let j = t["joints"].as_array().unwrap();
+        assert_eq!(j[0]["clearance"]["radial_clearance"].as_float(), Some(2e-4));
+        assert_eq!(j[1]["kind"].as_str(), Some("fixed"));
+        // Wildcards edit only where the path exists: B has no clearance.
+        edit(
+            &mut t,
+            "joints.*.clearance.radial_clearance",
+            Some(&Value::Float(1e-4)),
+        )
+        .unwrap();
+        assert!(
+            t["joints"].as_array().unwrap()[1]
+                .get("clearance")
+                .is_none()
+        );
+        edit(&mut t, "joints.A.clearance", None).unwrap();
+        assert!(
+            t["joints"].as_array().unwrap()[0]
+                .get("clearance")
+                .is_none()
+        );
+    }
+
+    #[test]
+    fn edits_that_match_nothing_are_errors() {
+        let mut t: Table = SCENE.parse().unwrap();
+        assert!(
+            edit(
+                &mut t,
+                "joints.C.clearance.radial_clearance",
+                Some(&Value::Float(1.0))
+            )
+            .is_err()
+        );
+        assert!(
+            edit(
+                &mut t,
+                "joints.*.clearance.stiffness",
+                Some(&Value::Float(1.0))
+            )
+            .is_err()
+        );
+        assert!(edit(&mut t, "joints.B.clearance", None).is_err());
+        assert!(edit(&mut t, "solver..step", None).is_err());
+        assert!(edit(&mut t, "joints.A", None).is_err());
+    }
+}
