@@ -336,9 +336,26 @@ fn run_study(path: &Path, out: &Path, plots: bool, quiet: bool) -> Result<()> {
     };
     let results = study.run(&done);
     bar.finish_and_clear();
+    // Keep every finished case even when others fail: they are written, the failures are
+    // recorded in the file and reported, and the program exits with an error.
     let mut runs = Vec::new();
-    for r in results {
-        runs.push(r.with_context(|| format!("running study {}", path.display()))?);
+    let mut failed = Vec::new();
+    for (r, c) in results.into_iter().zip(&study.cases) {
+        match r {
+            Ok(run) => runs.push(run),
+            Err(e) => failed.push((c.label.clone(), e.to_string())),
+        }
+    }
+    if runs.is_empty() {
+        anyhow::bail!(
+            "running study {}: every case failed:\n  {}",
+            path.display(),
+            failed
+                .iter()
+                .map(|f| f.1.as_str())
+                .collect::<Vec<_>>()
+                .join("\n  ")
+        );
     }
     let wall = start.elapsed().as_secs_f64();
     let metas: Vec<(String, Meta, &RunResult)> = runs
@@ -358,7 +375,7 @@ fn run_study(path: &Path, out: &Path, plots: bool, quiet: bool) -> Result<()> {
         study_text: &study.text,
         program_version: env!("CARGO_PKG_VERSION"),
     };
-    let file = write_study(out, &smeta, &metas)?;
+    let file = write_study(out, &smeta, &metas, &failed)?;
     println!(
         "study        {} ({}), {n} cases",
         study.spec.study.name,
@@ -393,6 +410,18 @@ fn run_study(path: &Path, out: &Path, plots: bool, quiet: bool) -> Result<()> {
         for f in study_figures(out, &study.spec.study.name, &study.spec.report, &recs)? {
             println!("wrote        {}", f.display());
         }
+    }
+    if !failed.is_empty() {
+        anyhow::bail!(
+            "{} of {n} cases of study {} failed (the others are written; the file records the failures):\n  {}",
+            failed.len(),
+            path.display(),
+            failed
+                .iter()
+                .map(|(l, e)| format!("{l}: {e}"))
+                .collect::<Vec<_>>()
+                .join("\n  ")
+        );
     }
     Ok(())
 }

@@ -475,3 +475,52 @@ set = {{ "joints.nope.clearance.radial_clearance" = 1e-4 }}
     );
     assert!(!dir.path().join("bad.h5").exists());
 }
+
+#[test]
+fn a_study_case_that_diverges_is_recorded_and_the_others_are_kept() {
+    let dir = tempfile::tempdir().unwrap();
+    let study = write_scene(
+        dir.path(),
+        "fail.toml",
+        &format!(
+            r#"
+[study]
+name = "fail"
+scene = "{}"
+[[cases]]
+label = "fine"
+set = {{ "solver.end_time" = 1.0 }}
+[[cases]]
+label = "diverges"
+set = {{ "solver.integrator" = "rk4", "solver.step" = 3.0, "solver.end_time" = 300.0 }}
+remove = ["solver.rtol", "solver.atol"]
+[report]
+body = "bob"
+reference = "fine"
+"#,
+            scenes().join("pendulum.toml").display()
+        ),
+    );
+    let out = bin()
+        .arg("run")
+        .arg(&study)
+        .arg("--out")
+        .arg(dir.path())
+        .arg("-q")
+        .output()
+        .unwrap();
+    let (_, err) = text(&out);
+    // RK4 with a 3 s step on a 1 m pendulum is far past its stability limit.
+    assert!(!out.status.success());
+    assert!(
+        err.contains("1 of 2 cases") && err.contains("diverges") && err.contains("non-finite"),
+        "{err}"
+    );
+    let file = hdf5::File::open(dir.path().join("fail.h5")).unwrap();
+    assert!(file.dataset("cases/fine/bodies/bob/position").is_ok());
+    let g = file.group("cases/diverges").unwrap();
+    assert!(g.attr("error").is_ok());
+    assert!(g.dataset("time").is_err());
+    let md = std::fs::read_to_string(dir.path().join("fail.md")).unwrap();
+    assert!(md.contains("| diverges | failed:"), "{md}");
+}

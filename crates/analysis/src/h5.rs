@@ -123,12 +123,14 @@ pub struct StudyMeta<'a> {
 }
 
 /// Writes the runs of a study to `dir/<study_name>.h5`, one group `/cases/<label>` per run with
-/// the layout of a run file, and returns the path. Written under a temporary name and renamed
+/// the layout of a run file, and one group with an `error` attribute per failed case, and returns
+/// the path. Written under a temporary name and renamed
 /// when complete.
 pub fn write_study(
     dir: &Path,
     meta: &StudyMeta,
     runs: &[(String, Meta, &RunResult)],
+    failed: &[(String, String)],
 ) -> Result<PathBuf> {
     std::fs::create_dir_all(dir).map_err(|e| Error::Io {
         file: dir.to_path_buf(),
@@ -152,6 +154,12 @@ pub fn write_study(
             for (label, m, run) in runs {
                 let g = cases.create_group(label)?;
                 write_group(&g, m, run)?;
+            }
+            // A case that failed keeps its group, empty but for the error, so the file says
+            // what is missing and why.
+            for (label, err) in failed {
+                let g = cases.create_group(label)?;
+                str_attr(&g, "error", err)?;
             }
             Ok(())
         })()

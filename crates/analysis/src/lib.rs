@@ -29,8 +29,8 @@ pub enum Error {
         field: String,
         message: String,
     },
-    #[error("case '{label}': {source}")]
-    Case { label: String, source: Box<Error> },
+    #[error("case '{label}': {inner}")]
+    Case { label: String, inner: Box<Error> },
     #[error("{file}: plot: {message}")]
     Plot { file: PathBuf, message: String },
 }

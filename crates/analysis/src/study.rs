@@ -353,7 +353,7 @@ impl Study {
                 let result = simulate(&model, state, &mut |_| {}).map_err(|e| match e {
                     Error::Solver(inner) => Error::Case {
                         label: c.label.clone(),
-                        source: Box::new(Error::Solver(inner)),
+                        inner: Box::new(Error::Solver(inner)),
                     },
                     other => other,
                 })?;
