@@ -245,6 +245,12 @@ fn check(path: &Path) -> Result<()> {
             println!("  - {e}");
         }
     }
+    if !model.disabled.is_empty() {
+        println!("effects disabled (scene's disable list; not evaluated, not stored)");
+        for d in &model.disabled {
+            println!("  - {d}");
+        }
+    }
     let s = &model.settings;
     let periods = s
         .period
@@ -598,47 +604,45 @@ fn figures(out: &Path, name: &str, run: &RunResult) -> Result<Vec<PathBuf>> {
         ));
     }
     if let Some(d) = &rec.diagnostics {
-        sets.push((
-            format!("{name}-diagnostics"),
-            vec![
-                Panel {
-                    title: "Constraint drift".into(),
-                    x_label: "time t (s)".into(),
-                    y_label: "residual (m, rad; m/s, rad/s)".into(),
-                    series: vec![
-                        Series {
-                            label: "position |Phi|".into(),
-                            x: t.clone(),
-                            y: d.constraint_drift.clone(),
-                        },
-                        Series {
-                            label: "velocity |Phi'|".into(),
-                            x: t.clone(),
-                            y: d.velocity_drift.clone(),
-                        },
-                    ],
-                    log_y: true,
-                    x_range: None,
-                    y_range: None,
+        let mut panels = vec![Panel {
+            title: "Constraint drift".into(),
+            x_label: "time t (s)".into(),
+            y_label: "residual (m, rad; m/s, rad/s)".into(),
+            series: vec![
+                Series {
+                    label: "position |Phi|".into(),
+                    x: t.clone(),
+                    y: d.constraint_drift.clone(),
                 },
-                Panel {
-                    title: format!(
-                        "Mechanical energy change (E(0) = {:.6e} J)",
-                        d.energy.first().copied().unwrap_or(0.0)
-                    ),
-                    x_label: "time t (s)".into(),
-                    y_label: "E - E(0) (J)".into(),
-                    series: vec![Series {
-                        label: "energy".into(),
-                        x: t.clone(),
-                        y: d.energy.iter().map(|e| e - d.energy[0]).collect(),
-                    }],
-                    log_y: false,
-                    x_range: None,
-                    y_range: None,
+                Series {
+                    label: "velocity |Phi'|".into(),
+                    x: t.clone(),
+                    y: d.velocity_drift.clone(),
                 },
             ],
-        ));
+            log_y: true,
+            x_range: None,
+            y_range: None,
+        }];
+        if !d.energy.is_empty() {
+            panels.push(Panel {
+                title: format!(
+                    "Mechanical energy change (E(0) = {:.6e} J)",
+                    d.energy.first().copied().unwrap_or(0.0)
+                ),
+                x_label: "time t (s)".into(),
+                y_label: "E - E(0) (J)".into(),
+                series: vec![Series {
+                    label: "energy".into(),
+                    x: t.clone(),
+                    y: d.energy.iter().map(|e| e - d.energy[0]).collect(),
+                }],
+                log_y: false,
+                x_range: None,
+                y_range: None,
+            });
+        }
+        sets.push((format!("{name}-diagnostics"), panels));
     }
     for c in &rec.clearances {
         let nc = c.contacts.len();

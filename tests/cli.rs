@@ -524,3 +524,43 @@ reference = "fine"
     let md = std::fs::read_to_string(dir.path().join("fail.md")).unwrap();
     assert!(md.contains("| diverges | failed:"), "{md}");
 }
+
+#[test]
+fn check_lists_disabled_effects_and_rejects_a_disable_that_disables_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let base = std::fs::read_to_string(scenes().join("4ups-rpu-mixed.toml")).unwrap();
+    let with =
+        |list: &str| base.replacen("\n[ground]", &format!("\ndisable = {list}\n\n[ground]"), 1);
+    let ok = write_scene(
+        dir.path(),
+        "ok.toml",
+        &with(r#"["R1.axial_contact", "friction"]"#),
+    );
+    let out = bin().arg("check").arg(&ok).output().unwrap();
+    let (so, se) = text(&out);
+    assert!(out.status.success(), "{se}");
+    assert!(so.contains("effects disabled"), "{so}");
+    assert!(so.contains("axial contact in R1"), "{so}");
+    assert!(so.contains("friction in R1, S2, S5"), "{so}");
+    assert!(
+        so.contains("axial position held by a constraint row"),
+        "{so}"
+    );
+    for (list, msg) in [
+        (
+            r#"["S3.friction"]"#,
+            "disable[0]: nothing to disable: joint 'S3' has no friction",
+        ),
+        (
+            r#"["gravity", "wobble"]"#,
+            "disable[1]: unknown effect 'wobble'",
+        ),
+        (r#"["X9.clearance"]"#, "disable[0]: no joint 'X9'"),
+    ] {
+        let bad = write_scene(dir.path(), "bad.toml", &with(list));
+        let out = bin().arg("check").arg(&bad).output().unwrap();
+        let (_, se) = text(&out);
+        assert!(!out.status.success());
+        assert!(se.contains("bad.toml") && se.contains(msg), "{se}");
+    }
+}

@@ -420,13 +420,15 @@ fn write_group(file: &hdf5::Group, meta: &Meta, run: &RunResult) -> hdf5::Result
                 "m/s, rad/s",
                 "2-norm of the velocity constraint residuals",
             )?;
-            write1(
-                &g,
-                "energy",
-                &diag.energy,
-                "J",
-                "kinetic + gravitational + spring energy",
-            )?;
+            if !diag.energy.is_empty() {
+                write1(
+                    &g,
+                    "energy",
+                    &diag.energy,
+                    "J",
+                    "kinetic + gravitational + spring energy",
+                )?;
+            }
         }
     }
     Ok(())

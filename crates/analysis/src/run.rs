@@ -93,7 +93,7 @@ pub struct Diagnostics {
     pub constraint_drift: Vec<f64>,
     /// 2-norm of the velocity constraint residuals (m/s and rad/s mixed).
     pub velocity_drift: Vec<f64>,
-    /// Kinetic + gravitational + spring energy (J).
+    /// Kinetic + gravitational + spring energy (J); empty when energy is not recorded.
     pub energy: Vec<f64>,
 }
 
@@ -295,11 +295,17 @@ pub fn simulate(
         }
         if let Some(diag) = rec.diagnostics.as_mut() {
             let (p, v) = model.drift(t, y, ws);
-            let e = model.energy(y, ws);
+            let e = if model.outputs.energy {
+                model.energy(y, ws)
+            } else {
+                0.0
+            };
             finite3(&[p, v, e], "constraint drift or energy", t)?;
             diag.constraint_drift.push(p);
             diag.velocity_drift.push(v);
-            diag.energy.push(e);
+            if model.outputs.energy {
+                diag.energy.push(e);
+            }
         }
         progress((t - t0) / (t1 - t0));
         Ok(())

@@ -15,6 +15,7 @@
 
 pub mod clearance;
 pub mod contact;
+pub mod disable;
 pub mod dynamics;
 pub mod error;
 pub mod linalg;

@@ -250,6 +250,8 @@ pub struct Outputs {
     pub drives: Vec<usize>,
     pub accelerations: bool,
     pub diagnostics: bool,
+    /// Energy with the diagnostics.
+    pub energy: bool,
 }
 
 /// The immutable simulation model.
@@ -273,6 +275,8 @@ pub struct Model {
     pub joint_rows: usize,
     pub n_rows: usize,
     pub effects: Effects,
+    /// What the scene's `disable` list removed, one line per entry (see [`crate::disable`]).
+    pub disabled: Vec<String>,
     pub settings: Settings,
     pub outputs: Outputs,
 }
@@ -994,7 +998,10 @@ impl Model {
     /// (not yet assembled onto the constraints: see [`Model::assemble`]).
     pub fn compile(scene: &SceneFile) -> Result<(Model, State)> {
         let cx = Ctx { file: &scene.path };
-        let spec = &scene.spec;
+        // Disabled effects are removed from the scene before anything is compiled.
+        let (spec, disabled) = crate::disable::apply(&scene.spec)
+            .map_err(|(field, message)| cx.err(field, message))?;
+        let spec = &spec;
         let raw: toml::Value = toml::from_str(&scene.text).map_err(|e| Error::Parse {
             file: scene.path.clone(),
             message: e.to_string(),
@@ -1623,6 +1630,7 @@ impl Model {
             drives: pick(&out.drives, "drives", &dnames)?,
             accelerations: out.accelerations,
             diagnostics: out.diagnostics,
+            energy: out.diagnostics && out.energy,
         };
 
         let gravity = spec.gravity.map(v3);
@@ -1660,6 +1668,7 @@ impl Model {
             joint_rows,
             n_rows,
             effects,
+            disabled,
             settings,
             outputs,
         };

@@ -50,6 +50,10 @@ pub struct SceneSpec {
     pub solver: SolverSpec,
     #[serde(default)]
     pub output: OutputSpec,
+    /// Effects switched off (see [`crate::disable`]): "friction", "S2.friction",
+    /// "axial_contact", "gravity", ...
+    #[serde(default)]
+    pub disable: Vec<String>,
 }
 
 /// Points and axes fixed in the global frame.
@@ -529,6 +533,9 @@ pub struct OutputSpec {
     /// Record constraint drift, velocity drift and energy (default true).
     #[serde(default = "yes")]
     pub diagnostics: bool,
+    /// Record the mechanical energy with the diagnostics (default true).
+    #[serde(default = "yes")]
+    pub energy: bool,
 }
 
 fn yes() -> bool {
@@ -544,6 +551,7 @@ impl Default for OutputSpec {
             drives: None,
             accelerations: true,
             diagnostics: true,
+            energy: true,
         }
     }
 }

@@ -1,0 +1,112 @@
+//! What each effect costs: the right-hand side of the 4-UPS/RPU with effects added one at a time.
+//!
+//! `cargo bench -p jointplay-analysis --bench effects`
+//!
+//! Variants, each built from `data/scenes/4ups-rpu-mixed.toml` by the study path edits:
+//! ideal joints; clearance in S2; S2 + S5; + R1 radial (rims P, Q, the axial position a
+//! constraint row); + R1 axial (faces M, N); + friction in all three. Friction stays off until
+//! the last step. Every variant is first integrated for 0.15 s (RK4, h = 1e-4 s) so the timed
+//! evaluation sees the contacts active, as they are for most of a run; the time is per
+//! evaluation of the right-hand side at that state.
+
+use std::path::PathBuf;
+
+use jointplay_analysis::study::edit;
+use jointplay_solver::dynamics::Mechanism;
+use jointplay_solver::model::Model;
+use jointplay_solver::ode::{Flow, OdeSystem, integrate};
+use jointplay_solver::scene::{SceneFile, SceneSpec};
+use toml::{Table, Value};
+
+fn main() {
+    divan::main();
+}
+
+const STEPS: [&str; 6] = [
+    "1 ideal (0 contacts, 67 rows)",
+    "2 +S2 (1 contact, 64 rows)",
+    "3 +S5 (2 contacts, 61 rows)",
+    "4 +R1 radial (4 contacts, 57 rows)",
+    "5 +R1 axial (6 contacts, 56 rows)",
+    "6 +friction (6 contacts, 56 rows)",
+];
+
+/// The scene of step `k` of [`STEPS`] and its state after 0.15 s.
+fn prepared(k: usize) -> (Model, f64, Vec<f64>) {
+    let path =
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../data/scenes/4ups-rpu-mixed.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let mut t: Table = text.parse().unwrap();
+    let rm = |t: &mut Table, p: &str| edit(t, p, None).unwrap();
+    if k < 5 {
+        edit(
+            &mut t,
+            "joints.*.clearance.friction",
+            Some(&Value::Table(toml::toml! { law = "none" })),
+        )
+        .unwrap();
+    }
+    if k < 4 {
+        rm(&mut t, "joints.R1.clearance.axial_clearance");
+        rm(&mut t, "joints.R1.clearance.face_radius");
+    }
+    if k < 3 {
+        rm(&mut t, "joints.R1.clearance");
+    }
+    if k < 2 {
+        rm(&mut t, "joints.S5.clearance");
+    }
+    if k < 1 {
+        rm(&mut t, "joints.S2.clearance");
+    }
+    let text = toml::to_string(&t).unwrap();
+    let spec = SceneSpec::parse(&text, &path).unwrap();
+    let (model, mut state) = Model::compile(&SceneFile { path, text, spec }).unwrap();
+    model.assemble(&mut state).unwrap();
+    let mut sys = Mechanism::new(&model);
+    integrate(
+        &mut sys,
+        model.settings.method,
+        0.0,
+        &mut state.y,
+        0.15,
+        &[],
+        |_, _, _| Flow::Continue,
+    )
+    .unwrap();
+    // The labels state the sizes; make sure they stay true.
+    let label = STEPS[k];
+    assert!(label.contains(&format!("{} rows", model.n_rows)), "{label}");
+    assert!(
+        label.contains(&format!("{} contact", model.n_contacts)),
+        "{label}"
+    );
+    (model, 0.15, state.y)
+}
+
+fn index(step: &str) -> usize {
+    STEPS.iter().position(|s| *s == step).unwrap()
+}
+
+#[divan::bench(args = STEPS, sample_count = 200)]
+fn rhs(bencher: divan::Bencher, step: &str) {
+    let (model, t, y) = prepared(index(step));
+    let mut sys = Mechanism::new(&model);
+    let mut dy = vec![0.0; y.len()];
+    bencher.bench_local(|| {
+        sys.rhs(t, divan::black_box(&y), &mut dy);
+        divan::black_box(&dy);
+    });
+}
+
+/// The applied-force stage alone (gyroscopic terms, gravity, contact and friction forces) at the
+/// same states: the part of the right-hand side the contact effects add to.
+#[divan::bench(args = STEPS, sample_count = 200)]
+fn applied_forces(bencher: divan::Bencher, step: &str) {
+    let (model, t, y) = prepared(index(step));
+    let mut ws = jointplay_solver::dynamics::Workspace::new(&model);
+    model.kinematics(&y, &mut ws);
+    bencher.bench_local(|| {
+        model.applied_forces(divan::black_box(t), &mut ws);
+    });
+}
