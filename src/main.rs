@@ -9,7 +9,7 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use jointplay_analysis::figures::study_figures;
+use jointplay_analysis::figures::{circle, study_figures};
 use jointplay_analysis::h5::{Meta, StudyMeta, read_series, write_run, write_study};
 use jointplay_analysis::plot::{Format, Panel, Series, figure};
 use jointplay_analysis::report::{self, markdown};
@@ -315,10 +315,6 @@ fn meta_of<'a>(model: &'a Model, file: &'a Path, text: &'a str) -> Meta<'a> {
 
 fn run_study(path: &Path, out: &Path, plots: bool, quiet: bool) -> Result<()> {
     let study = Study::load(path)?;
-    // Compile every case first so that a bad case fails before any simulation starts.
-    for c in &study.cases {
-        Model::compile(&c.scene).with_context(|| format!("case '{}'", c.label))?;
-    }
     let start = Instant::now();
     let n = study.cases.len();
     let bar = ProgressBar::with_draw_target(
@@ -342,31 +338,35 @@ fn run_study(path: &Path, out: &Path, plots: bool, quiet: bool) -> Result<()> {
     };
     let results = study.run(&done);
     bar.finish_and_clear();
+    let results = results?;
     // Keep every finished case even when others fail: they are written, the failures are
     // recorded in the file and reported, and the program exits with an error.
     let mut runs = Vec::new();
     let mut failed = Vec::new();
     for (r, c) in results.into_iter().zip(&study.cases) {
         match r {
-            Ok(run) => runs.push(run),
+            Ok(run) => runs.push((run, c)),
+            // The error names the case.
             Err(e) => failed.push((c.label.clone(), e.to_string())),
         }
     }
+    let failures = || {
+        failed
+            .iter()
+            .map(|f| f.1.as_str())
+            .collect::<Vec<_>>()
+            .join("\n  ")
+    };
     if runs.is_empty() {
         anyhow::bail!(
             "running study {}: every case failed:\n  {}",
             path.display(),
-            failed
-                .iter()
-                .map(|f| f.1.as_str())
-                .collect::<Vec<_>>()
-                .join("\n  ")
+            failures()
         );
     }
     let wall = start.elapsed().as_secs_f64();
     let metas: Vec<(String, Meta, &RunResult)> = runs
         .iter()
-        .zip(&study.cases)
         .map(|(r, c)| {
             (
                 r.label.clone(),
@@ -387,7 +387,7 @@ fn run_study(path: &Path, out: &Path, plots: bool, quiet: bool) -> Result<()> {
         study.spec.study.name,
         path.display()
     );
-    for r in &runs {
+    for (r, _) in &runs {
         let st = &r.result.stats;
         let w = st.wall.as_secs_f64();
         println!(
@@ -411,7 +411,7 @@ fn run_study(path: &Path, out: &Path, plots: bool, quiet: bool) -> Result<()> {
     if plots {
         let recs: Vec<(&str, &Recording)> = runs
             .iter()
-            .map(|r| (r.label.as_str(), &r.result.recording))
+            .map(|(r, _)| (r.label.as_str(), &r.result.recording))
             .collect();
         for f in study_figures(out, &study.spec.study.name, &study.spec.report, &recs)? {
             println!("wrote        {}", f.display());
@@ -422,11 +422,7 @@ fn run_study(path: &Path, out: &Path, plots: bool, quiet: bool) -> Result<()> {
             "{} of {n} cases of study {} failed (the others are written; the file records the failures):\n  {}",
             failed.len(),
             path.display(),
-            failed
-                .iter()
-                .map(|(l, e)| format!("{l}: {e}"))
-                .collect::<Vec<_>>()
-                .join("\n  ")
+            failures()
         );
     }
     Ok(())
@@ -646,15 +642,6 @@ fn figures(out: &Path, name: &str, run: &RunResult) -> Result<Vec<PathBuf>> {
     }
     for c in &rec.clearances {
         let nc = c.contacts.len();
-        let circle: Vec<(f64, f64)> = (0..=360)
-            .map(|k| {
-                let a = (k as f64).to_radians();
-                (
-                    c.radial_clearance * a.cos() * 1e3,
-                    c.radial_clearance * a.sin() * 1e3,
-                )
-            })
-            .collect();
         let lim = 1.25 * c.radial_clearance * 1e3;
         let orbit = Panel {
             x_range: Some((-lim, lim)),
@@ -669,11 +656,7 @@ fn figures(out: &Path, name: &str, run: &RunResult) -> Result<Vec<PathBuf>> {
                         x: c.radial_eccentricity.iter().map(|e| e[0] * 1e3).collect(),
                         y: c.radial_eccentricity.iter().map(|e| e[1] * 1e3).collect(),
                     },
-                    Series {
-                        label: "clearance circle".into(),
-                        x: circle.iter().map(|p| p.0).collect(),
-                        y: circle.iter().map(|p| p.1).collect(),
-                    },
+                    circle(c.radial_clearance * 1e3),
                 ],
             )
         };

@@ -150,6 +150,25 @@ fn check_reports_the_redundant_rows_of_a_planar_mechanism() {
     assert!(so.contains("redundant joint rows  3"), "{so}");
 }
 
+/// Writes the study `text` (its `SCENE` replaced by the path of the bundled `scene`) to
+/// `dir/file` and runs it quietly with `--out dir`.
+fn run_study(dir: &Path, file: &str, scene: &str, text: &str) -> Output {
+    let scene = scenes().join(scene);
+    let study = write_scene(
+        dir,
+        file,
+        &text.replace("SCENE", &scene.display().to_string()),
+    );
+    bin()
+        .arg("run")
+        .arg(&study)
+        .arg("--out")
+        .arg(dir)
+        .arg("-q")
+        .output()
+        .unwrap()
+}
+
 fn write_scene(dir: &Path, name: &str, text: &str) -> PathBuf {
     let p = dir.join(name);
     std::fs::write(&p, text).unwrap();
@@ -364,15 +383,15 @@ fn slider_crank_with_clearance_writes_contact_outputs_and_check_lists_the_joint(
 #[test]
 fn a_study_runs_its_cases_into_one_file_and_its_table_is_regenerated_from_the_file() {
     let dir = tempfile::tempdir().unwrap();
-    let study = write_scene(
+    let out = run_study(
         dir.path(),
         "study.toml",
-        &format!(
-            r#"
+        "slider-crank-clearance.toml",
+        r#"
 [study]
 name = "pin"
-scene = "{}"
-set = {{ "solver.periods" = 0.25, "output.interval" = 1e-4 }}
+scene = "SCENE"
+set = { "solver.periods" = 0.25, "output.interval" = 1e-4 }
 [[cases]]
 label = "ideal"
 remove = ["joints.piston_pin.clearance"]
@@ -383,19 +402,9 @@ body = "slider"
 axes = ["x"]
 joints = ["piston_pin"]
 reference = "ideal"
-published = [{{ case = "c-0_5mm", quantity = "offset_max_x", value = 1e-4, source = "made up" }}]
+published = [{ case = "c-0_5mm", quantity = "offset_max_x", value = 1e-4, source = "made up" }]
 "#,
-            scenes().join("slider-crank-clearance.toml").display()
-        ),
     );
-    let out = bin()
-        .arg("run")
-        .arg(&study)
-        .arg("--out")
-        .arg(dir.path())
-        .arg("-q")
-        .output()
-        .unwrap();
     assert!(out.status.success(), "{:?}", text(&out));
     let file = hdf5::File::open(dir.path().join("pin.h5")).unwrap();
     let ideal = read2(&file, "cases/ideal/bodies/slider/position");
@@ -443,28 +452,19 @@ published = [{{ case = "c-0_5mm", quantity = "offset_max_x", value = 1e-4, sourc
 #[test]
 fn a_study_edit_that_matches_nothing_names_the_study_field() {
     let dir = tempfile::tempdir().unwrap();
-    let study = write_scene(
+    let out = run_study(
         dir.path(),
         "bad.toml",
-        &format!(
-            r#"
+        "slider-crank-clearance.toml",
+        r#"
 [study]
 name = "bad"
-scene = "{}"
+scene = "SCENE"
 [[cases]]
 label = "a"
-set = {{ "joints.nope.clearance.radial_clearance" = 1e-4 }}
+set = { "joints.nope.clearance.radial_clearance" = 1e-4 }
 "#,
-            scenes().join("slider-crank-clearance.toml").display()
-        ),
     );
-    let out = bin()
-        .arg("run")
-        .arg(&study)
-        .arg("--out")
-        .arg(dir.path())
-        .output()
-        .unwrap();
     let (_, err) = text(&out);
     assert!(!out.status.success());
     assert!(
@@ -479,36 +479,26 @@ set = {{ "joints.nope.clearance.radial_clearance" = 1e-4 }}
 #[test]
 fn a_study_case_that_diverges_is_recorded_and_the_others_are_kept() {
     let dir = tempfile::tempdir().unwrap();
-    let study = write_scene(
+    let out = run_study(
         dir.path(),
         "fail.toml",
-        &format!(
-            r#"
+        "pendulum.toml",
+        r#"
 [study]
 name = "fail"
-scene = "{}"
+scene = "SCENE"
 [[cases]]
 label = "fine"
-set = {{ "solver.end_time" = 1.0 }}
+set = { "solver.end_time" = 1.0 }
 [[cases]]
 label = "diverges"
-set = {{ "solver.integrator" = "rk4", "solver.step" = 3.0, "solver.end_time" = 300.0 }}
+set = { "solver.integrator" = "rk4", "solver.step" = 3.0, "solver.end_time" = 300.0 }
 remove = ["solver.rtol", "solver.atol"]
 [report]
 body = "bob"
 reference = "fine"
 "#,
-            scenes().join("pendulum.toml").display()
-        ),
     );
-    let out = bin()
-        .arg("run")
-        .arg(&study)
-        .arg("--out")
-        .arg(dir.path())
-        .arg("-q")
-        .output()
-        .unwrap();
     let (_, err) = text(&out);
     // RK4 with a 3 s step on a 1 m pendulum is far past its stability limit.
     assert!(!out.status.success());

@@ -13,6 +13,7 @@ use std::path::{Path, PathBuf};
 
 use crate::Result;
 use crate::plot::{Format, Panel, Series, figure};
+use crate::report::norm;
 use crate::run::Recording;
 use crate::study::ReportSpec;
 
@@ -20,17 +21,13 @@ fn col3(v: &[[f64; 3]], k: usize, scale: f64) -> Vec<f64> {
     v.iter().map(|p| p[k] * scale).collect()
 }
 
-fn circle(r: f64) -> Series {
-    let pts: Vec<(f64, f64)> = (0..=360)
-        .map(|k| {
-            let a = (k as f64).to_radians();
-            (r * a.cos(), r * a.sin())
-        })
-        .collect();
+/// The clearance circle of radius `r_mm` (mm), for orbit panels drawn in mm.
+pub fn circle(r_mm: f64) -> Series {
+    let angles = (0..=360).map(|k| (k as f64).to_radians());
     Series {
-        label: format!("clearance {:.3} mm", r),
-        x: pts.iter().map(|p| p.0).collect(),
-        y: pts.iter().map(|p| p.1).collect(),
+        label: format!("clearance {r_mm:.3} mm"),
+        x: angles.clone().map(|a| r_mm * a.cos()).collect(),
+        y: angles.map(|a| r_mm * a.sin()).collect(),
     }
 }
 
@@ -93,23 +90,19 @@ pub fn study_figures(
     for j in &spec.joints {
         let mut series = Vec::new();
         for (label, rec) in runs {
-            if let Some(c) = rec.clearances.iter().find(|c| &c.name == j) {
+            let found = match rec.clearances.iter().find(|c| &c.name == j) {
+                Some(c) => Some(("contact", &c.force_journal)),
+                None => rec
+                    .joints
+                    .iter()
+                    .find(|r| &r.name == j)
+                    .map(|r| ("ideal, reaction", &r.force)),
+            };
+            if let Some((what, forces)) = found {
                 series.push(Series {
-                    label: format!("{label} (contact)"),
+                    label: format!("{label} ({what})"),
                     x: rec.time.clone(),
-                    y: c.force_journal
-                        .iter()
-                        .map(|f| (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt())
-                        .collect(),
-                });
-            } else if let Some(r) = rec.joints.iter().find(|r| &r.name == j) {
-                series.push(Series {
-                    label: format!("{label} (ideal, reaction)"),
-                    x: rec.time.clone(),
-                    y: r.force
-                        .iter()
-                        .map(|f| (f[0] * f[0] + f[1] * f[1] + f[2] * f[2]).sqrt())
-                        .collect(),
+                    y: forces.iter().map(norm).collect(),
                 });
             }
         }
@@ -145,14 +138,12 @@ pub fn study_figures(
             } else {
                 vec![("centre", None)]
             };
+        let spherical = with.iter().all(|(_, c)| c.spherical);
+        let (p0, p1) = (
+            axes.first().map(|a| a.0).unwrap_or(0),
+            axes.get(1).map(|a| a.0).unwrap_or(1),
+        );
         for (end, col) in ends {
-            let spherical = with
-                .iter()
-                .all(|(_, c)| c.contacts.len() == 1 && c.end_eccentricity.is_empty());
-            let (p0, p1) = (
-                axes.first().map(|a| a.0).unwrap_or(0),
-                axes.get(1).map(|a| a.0).unwrap_or(1),
-            );
             let mut series: Vec<Series> = with
                 .iter()
                 .map(|(label, c)| {

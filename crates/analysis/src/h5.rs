@@ -93,24 +93,48 @@ fn write_matrix<T: hdf5::H5Type + Clone>(
     str_attr(&ds, "description", desc)
 }
 
-/// Writes `run` to `dir/<scene_name>.h5` and returns the path.
-pub fn write_run(dir: &Path, meta: &Meta, run: &RunResult) -> Result<PathBuf> {
+/// Creates `dir/<name>.h5` under the temporary name `<name>.h5.partial`, writes the program's
+/// root attributes and then `body`, and renames the file only once it is complete and closed; on
+/// any error the partial file is removed.
+fn write_atomically(
+    dir: &Path,
+    name: &str,
+    program_version: &str,
+    body: impl FnOnce(&hdf5::File) -> hdf5::Result<()>,
+) -> Result<PathBuf> {
     std::fs::create_dir_all(dir).map_err(|e| Error::Io {
         file: dir.to_path_buf(),
         message: format!("cannot create output directory: {e}"),
     })?;
-    let path = dir.join(format!("{}.h5", meta.scene_name));
-    let partial = dir.join(format!("{}.h5.partial", meta.scene_name));
-    let res = write_file(&partial, meta, run);
-    if let Err(e) = res {
+    let path = dir.join(format!("{name}.h5"));
+    let partial = dir.join(format!("{name}.h5.partial"));
+    let e = h5err(&partial);
+    let res = hdf5::File::create(&partial).map_err(&e).and_then(|file| {
+        (|| -> hdf5::Result<()> {
+            str_attr(&file, "program", "jointplay")?;
+            str_attr(&file, "program_version", program_version)?;
+            str_attr(&file, "units", "SI: m, kg, s, rad, N, N m, J")?;
+            body(&file)
+        })()
+        .map_err(&e)?;
+        file.close().map_err(&e)
+    });
+    if let Err(err) = res {
         let _ = std::fs::remove_file(&partial);
-        return Err(e);
+        return Err(err);
     }
     std::fs::rename(&partial, &path).map_err(|e| Error::Io {
         file: path.clone(),
         message: format!("cannot move the finished file into place: {e}"),
     })?;
     Ok(path)
+}
+
+/// Writes `run` to `dir/<scene_name>.h5` and returns the path.
+pub fn write_run(dir: &Path, meta: &Meta, run: &RunResult) -> Result<PathBuf> {
+    write_atomically(dir, meta.scene_name, meta.program_version, |file| {
+        write_group(file, meta, run)
+    })
 }
 
 /// Study metadata written as root attributes of a study file.
@@ -124,71 +148,32 @@ pub struct StudyMeta<'a> {
 
 /// Writes the runs of a study to `dir/<study_name>.h5`, one group `/cases/<label>` per run with
 /// the layout of a run file, and one group with an `error` attribute per failed case, and returns
-/// the path. Written under a temporary name and renamed
-/// when complete.
+/// the path.
 pub fn write_study(
     dir: &Path,
     meta: &StudyMeta,
     runs: &[(String, Meta, &RunResult)],
     failed: &[(String, String)],
 ) -> Result<PathBuf> {
-    std::fs::create_dir_all(dir).map_err(|e| Error::Io {
-        file: dir.to_path_buf(),
-        message: format!("cannot create output directory: {e}"),
-    })?;
-    let path = dir.join(format!("{}.h5", meta.study_name));
-    let partial = dir.join(format!("{}.h5.partial", meta.study_name));
-    let e = h5err(&partial);
-    let res = (|| -> Result<()> {
-        let file = hdf5::File::create(&partial).map_err(&e)?;
-        (|| -> hdf5::Result<()> {
-            str_attr(&file, "program", "jointplay")?;
-            str_attr(&file, "program_version", meta.program_version)?;
-            str_attr(&file, "units", "SI: m, kg, s, rad, N, N m, J")?;
-            str_attr(&file, "study_name", meta.study_name)?;
-            str_attr(&file, "study_file", &meta.study_file.display().to_string())?;
-            str_attr(&file, "study", meta.study_text)?;
-            let labels: Vec<&str> = runs.iter().map(|r| r.0.as_str()).collect();
-            str_attr(&file, "cases", &labels.join(","))?;
-            let cases = file.create_group("cases")?;
-            for (label, m, run) in runs {
-                let g = cases.create_group(label)?;
-                write_group(&g, m, run)?;
-            }
-            // A case that failed keeps its group, empty but for the error, so the file says
-            // what is missing and why.
-            for (label, err) in failed {
-                let g = cases.create_group(label)?;
-                str_attr(&g, "error", err)?;
-            }
-            Ok(())
-        })()
-        .map_err(&e)?;
-        file.close().map_err(&e)
-    })();
-    if let Err(err) = res {
-        let _ = std::fs::remove_file(&partial);
-        return Err(err);
-    }
-    std::fs::rename(&partial, &path).map_err(|e| Error::Io {
-        file: path.clone(),
-        message: format!("cannot move the finished file into place: {e}"),
-    })?;
-    Ok(path)
-}
-
-fn write_file(path: &Path, meta: &Meta, run: &RunResult) -> Result<()> {
-    let e = h5err(path);
-    let file = hdf5::File::create(path).map_err(&e)?;
-    (|| -> hdf5::Result<()> {
-        str_attr(&file, "program", "jointplay")?;
-        str_attr(&file, "program_version", meta.program_version)?;
-        str_attr(&file, "units", "SI: m, kg, s, rad, N, N m, J")?;
-        write_group(&file, meta, run)
-    })()
-    .map_err(&e)?;
-    file.close().map_err(&e)?;
-    Ok(())
+    write_atomically(dir, meta.study_name, meta.program_version, |file| {
+        str_attr(file, "study_name", meta.study_name)?;
+        str_attr(file, "study_file", &meta.study_file.display().to_string())?;
+        str_attr(file, "study", meta.study_text)?;
+        let labels: Vec<&str> = runs.iter().map(|r| r.0.as_str()).collect();
+        str_attr(file, "cases", &labels.join(","))?;
+        let cases = file.create_group("cases")?;
+        for (label, m, run) in runs {
+            let g = cases.create_group(label)?;
+            write_group(&g, m, run)?;
+        }
+        // A case that failed keeps its group, empty but for the error, so the file says what
+        // is missing and why.
+        for (label, err) in failed {
+            let g = cases.create_group(label)?;
+            str_attr(&g, "error", err)?;
+        }
+        Ok(())
+    })
 }
 
 /// Writes one run (its attributes and datasets, the layout of a run file's root) into `file`.

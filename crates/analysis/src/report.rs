@@ -106,8 +106,25 @@ fn read_str(loc: &hdf5::Location, name: &str) -> Option<String> {
         .ok()
 }
 
-fn norm(v: &[f64; 3]) -> f64 {
+/// Euclidean length of a 3-vector.
+pub fn norm(v: &[f64; 3]) -> f64 {
     (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
+}
+
+/// Index and value of the largest element (the first one on ties).
+fn argmax(v: &[f64]) -> (usize, f64) {
+    v.iter().enumerate().fold(
+        (0, f64::NEG_INFINITY),
+        |m, (i, &x)| if x > m.1 { (i, x) } else { m },
+    )
+}
+
+/// Smallest and largest element.
+fn range(v: &[f64]) -> (f64, f64) {
+    v.iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &x| {
+            (lo.min(x), hi.max(x))
+        })
 }
 
 /// Start index of the settled window.
@@ -195,10 +212,7 @@ pub fn compute(path: &Path) -> Result<Report> {
                 })?;
             forces.insert(j.clone(), f.iter().map(norm).collect::<Vec<_>>());
         }
-        let reference = c
-            .reference
-            .clone()
-            .or_else(|| spec.report.reference.clone().filter(|r| *r != c.label));
+        let reference = spec.reference_of(c);
         let mut edits: Vec<String> = Vec::new();
         if let Some(sc) = &c.scene {
             edits.push(format!("scene {}", sc.display()));
@@ -289,11 +303,7 @@ pub fn compute(path: &Path) -> Result<Report> {
                             .copied()
                             .fold(0.0f64, |m, x| if x.abs() > m.abs() { x } else { m }),
                         _ => {
-                            let (lo, hi) = d[s..]
-                                .iter()
-                                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &x| {
-                                    (lo.min(x), hi.max(x))
-                                });
+                            let (lo, hi) = range(&d[s..]);
                             0.5 * (hi - lo)
                         }
                     };
@@ -327,18 +337,10 @@ pub fn compute(path: &Path) -> Result<Report> {
             let Some(c) = c else { continue };
             let f = &c.forces[j];
             let s = settled_start(c);
-            let (ip, peak) =
-                f.iter().enumerate().fold(
-                    (0, f64::NEG_INFINITY),
-                    |m, (i, &x)| if x > m.1 { (i, x) } else { m },
-                );
+            let (ip, peak) = argmax(f);
             let win = &f[s..];
             let mean = win.iter().sum::<f64>() / win.len() as f64;
-            let (lo, hi) = win
-                .iter()
-                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &x| {
-                    (lo.min(x), hi.max(x))
-                });
+            let (lo, hi) = range(win);
             let (blo, bhi) = (lo - tol * mean, hi + tol * mean);
             let last_out = f[..s].iter().rposition(|&x| x < blo || x > bhi);
             let settle = match last_out {
@@ -349,14 +351,7 @@ pub fn compute(path: &Path) -> Result<Report> {
             let (t0, t1) = (c.time[0], c.time[c.time.len() - 1]);
             let su_end = t0 + 0.1 * c.period.unwrap_or(t1 - t0);
             let n_su = c.time.partition_point(|&t| t <= su_end).max(1);
-            let (isu, su_peak) =
-                f[..n_su]
-                    .iter()
-                    .enumerate()
-                    .fold(
-                        (0, f64::NEG_INFINITY),
-                        |m, (i, &x)| if x > m.1 { (i, x) } else { m },
-                    );
+            let (isu, su_peak) = argmax(&f[..n_su]);
             for (row, v) in rows.iter_mut().zip([
                 peak,
                 c.time[ip],

@@ -73,6 +73,8 @@ pub struct ClearanceTrack {
     pub moment_housing: Vec<[f64; 3]>,
     /// The clearance (m): radial clearance for the orbit figure.
     pub radial_clearance: f64,
+    /// A spherical joint: its orbit is three-dimensional (the eccentricity), not a plane one.
+    pub spherical: bool,
 }
 
 /// One drive: its coordinate and actuator effort.
@@ -183,6 +185,7 @@ pub fn simulate(
                         .map(|s| s.to_string())
                         .collect(),
                     radial_clearance: cl.geometry.radial_clearance(),
+                    spherical: matches!(cl.geometry, Geometry::Spherical { .. }),
                     ..Default::default()
                 }
             })
@@ -261,11 +264,6 @@ pub fn simulate(
             tr.radial_eccentricity.push([el.dot(&u), el.dot(&w)]);
             if let Some([p, q]) = cl.end_offsets(&kh, &kj) {
                 tr.end_eccentricity.push([p[0], p[1], q[0], q[1]]);
-            } else if matches!(cl.geometry, Geometry::Revolute { .. }) {
-                // The axis lies in a rim plane (a 90-degree tilt, far outside any clearance):
-                // record the centre's offset at both ends so the columns stay aligned.
-                tr.end_eccentricity
-                    .push([el.dot(&u), el.dot(&w), el.dot(&u), el.dot(&w)]);
             }
             for ce in &ws.contacts[cl.first..cl.first + cl.geometry.n_contacts()] {
                 tr.penetration.push(ce.delta);

@@ -125,7 +125,6 @@ pub struct Case {
     pub label: String,
     /// The scene with this case's edits; `path` names the scene file and the case.
     pub scene: SceneFile,
-    pub reference: Option<String>,
 }
 
 fn invalid(file: &Path, field: impl Into<String>, message: impl Into<String>) -> Error {
@@ -141,6 +140,16 @@ pub fn is_study(text: &str) -> bool {
     text.parse::<Table>()
         .map(|t| t.contains_key("study"))
         .unwrap_or(false)
+}
+
+impl StudySpec {
+    /// The label of the case `c` is compared with: its own `reference`, else `report.reference`
+    /// unless that is `c` itself.
+    pub fn reference_of(&self, c: &CaseSpec) -> Option<String> {
+        c.reference
+            .clone()
+            .or_else(|| self.report.reference.clone().filter(|r| *r != c.label))
+    }
 }
 
 impl ReportSpec {
@@ -319,10 +328,6 @@ impl Study {
                     text: edited,
                     spec: scene_spec,
                 },
-                reference: c
-                    .reference
-                    .clone()
-                    .or_else(|| spec.report.reference.clone().filter(|r| *r != c.label)),
             });
         }
         Ok(Study {
@@ -343,19 +348,23 @@ pub struct CaseRun {
 }
 
 impl Study {
-    /// Compiles and runs every case, in parallel over rayon's thread pool; `done` is called with
-    /// the label of each case as it finishes. Results come back in the order of the cases.
-    pub fn run(&self, done: &(dyn Fn(&str) + Sync)) -> Vec<Result<CaseRun>> {
-        self.cases
-            .par_iter()
-            .map(|c| {
-                let (model, state) = Model::compile(&c.scene)?;
-                let result = simulate(&model, state, &mut |_| {}).map_err(|e| match e {
-                    Error::Solver(inner) => Error::Case {
-                        label: c.label.clone(),
-                        inner: Box::new(Error::Solver(inner)),
-                    },
-                    other => other,
+    /// Compiles every case, so that a bad one fails before any simulation starts, then runs
+    /// them in parallel over rayon's thread pool; `done` is called with the label of each case as
+    /// it finishes. The runs come back in the order of the cases, each failure wrapped with its
+    /// case's label.
+    pub fn run(&self, done: &(dyn Fn(&str) + Sync)) -> Result<Vec<Result<CaseRun>>> {
+        let compiled = self
+            .cases
+            .iter()
+            .map(|c| Model::compile(&c.scene))
+            .collect::<Result<Vec<_>, _>>()?;
+        Ok(compiled
+            .into_par_iter()
+            .zip(&self.cases)
+            .map(|((model, state), c)| {
+                let result = simulate(&model, state, &mut |_| {}).map_err(|e| Error::Case {
+                    label: c.label.clone(),
+                    inner: Box::new(e),
                 })?;
                 done(&c.label);
                 Ok(CaseRun {
@@ -364,7 +373,7 @@ impl Study {
                     result,
                 })
             })
-            .collect()
+            .collect())
     }
 }
 

@@ -2,16 +2,12 @@
 //! bounded constraint drift and contact inside its clearance; with the three clearance blocks
 //! removed it is the ideal mechanism, bit for bit.
 
-use std::path::PathBuf;
+mod common;
 
+use common::scenes;
 use jointplay_analysis::run::simulate;
-use jointplay_analysis::study::Study;
 use jointplay_solver::model::Model;
 use jointplay_solver::scene::SceneSpec;
-
-fn scenes() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../data/scenes")
-}
 
 #[test]
 fn mixed_clearance_runs_a_full_drive_period() {
@@ -76,26 +72,21 @@ fn mixed_clearance_runs_a_full_drive_period() {
 
 #[test]
 fn removing_the_clearance_blocks_gives_the_ideal_mechanism() {
-    let dir = scenes();
-    let text = format!(
+    let runs = common::run_study(
         r#"
 [study]
 name = "ideal-check"
-scene = "{mixed}"
-set = {{ "solver.periods" = 0.025 }}
+scene = "4ups-rpu-mixed.toml"
+set = { "solver.periods" = 0.025 }
 [[cases]]
 label = "declared-ideal"
-scene = "{ideal}"
+scene = "4ups-rpu.toml"
 [[cases]]
 label = "clearances-removed"
 remove = ["joints.S2.clearance", "joints.S5.clearance", "joints.R1.clearance"]
 "#,
-        mixed = dir.join("4ups-rpu-mixed.toml").display(),
-        ideal = dir.join("4ups-rpu.toml").display(),
     );
-    let study = Study::parse(&text, &dir.join("ideal-check.toml")).unwrap();
-    let runs: Vec<_> = study.run(&|_| {}).into_iter().map(|r| r.unwrap()).collect();
-    let (a, b) = (&runs[0].result.recording, &runs[1].result.recording);
+    let (a, b) = (&runs[0].recording, &runs[1].recording);
     assert!(b.clearances.is_empty());
     assert_eq!(a.time, b.time);
     for (ba, bb) in a.bodies.iter().zip(&b.bodies) {

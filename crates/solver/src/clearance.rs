@@ -221,8 +221,9 @@ impl Clearance {
 
     /// Spatial revolute only: where the journal axis crosses the planes of the two bushing rims
     /// (s = +L_B/2, the P side, and s = -L_B/2, the Q side), as (u, w) components in the housing's
-    /// radial axes (m): the orbits of both journal ends. `None` for other geometries or when the
-    /// journal axis lies in a rim plane.
+    /// radial axes (m): the orbits of both journal ends. `None` for other geometries. When the
+    /// journal axis lies in a rim plane (a 90-degree tilt, far outside any clearance) it meets
+    /// neither, and both ends report the centre's offset.
     pub fn end_offsets(&self, kh: &Kin, kj: &Kin) -> Option<[[f64; 2]; 2]> {
         let Geometry::Revolute {
             bushing_length: lb, ..
@@ -234,12 +235,13 @@ impl Clearance {
         let aj = kh.rot.transpose() * (kj.rot * self.axis_j);
         let ah = self.axis_h;
         let c = aj.dot(&ah);
-        if c.abs() < 1e-9 {
-            return None;
-        }
         let (u, w) = self.radial_axes();
         let at = |s: f64| {
-            let p = el + aj * ((s - el.dot(&ah)) / c);
+            let p = if c.abs() < 1e-9 {
+                el
+            } else {
+                el + aj * ((s - el.dot(&ah)) / c)
+            };
             [p.dot(&u), p.dot(&w)]
         };
         Some([at(0.5 * lb), at(-0.5 * lb)])

@@ -629,11 +629,17 @@ fn compile_clearance(
                     "a revolute clearance has a journal_radius",
                 ));
             }
-            // Any two of journal radius, bushing radius and radial clearance.
-            let (rj, rb) = match (c.journal_radius, c.bushing_radius, c.radial_clearance) {
+            // Any two of journal radius, bushing radius and radial clearance, each positive.
+            let given = |v: Option<f64>, n: &str| {
+                v.map(|x| positive(Some(x), format!("{f}.{n}"), "", cx))
+                    .transpose()
+            };
+            let (rj, rb) = match (
+                given(c.journal_radius, "journal_radius")?,
+                given(c.bushing_radius, "bushing_radius")?,
+                given(c.radial_clearance, "radial_clearance")?,
+            ) {
                 (Some(rj), Some(rb), cr) => {
-                    let rj = positive(Some(rj), format!("{f}.journal_radius"), "", cx)?;
-                    let rb = positive(Some(rb), format!("{f}.bushing_radius"), "", cx)?;
                     if let Some(cr) = cr
                         && ((rb - rj) - cr).abs() > 1e-9 * rb
                     {
@@ -647,14 +653,8 @@ fn compile_clearance(
                     }
                     (rj, rb)
                 }
-                (Some(rj), None, Some(cr)) => {
-                    let rj = positive(Some(rj), format!("{f}.journal_radius"), "", cx)?;
-                    let cr = positive(Some(cr), format!("{f}.radial_clearance"), "", cx)?;
-                    (rj, rj + cr)
-                }
+                (Some(rj), None, Some(cr)) => (rj, rj + cr),
                 (None, Some(rb), Some(cr)) => {
-                    let rb = positive(Some(rb), format!("{f}.bushing_radius"), "", cx)?;
-                    let cr = positive(Some(cr), format!("{f}.radial_clearance"), "", cx)?;
                     if cr >= rb {
                         return Err(cx.err(
                             format!("{f}.radial_clearance"),
