@@ -27,14 +27,14 @@ pub struct Meta<'a> {
     pub drive_period: Option<f64>,
 }
 
-fn h5err(file: &Path) -> impl Fn(hdf5::Error) -> Error + '_ {
+pub(crate) fn h5err(file: &Path) -> impl Fn(hdf5::Error) -> Error + '_ {
     move |e| Error::Hdf5 {
         file: file.to_path_buf(),
         message: e.to_string(),
     }
 }
 
-fn str_attr(loc: &hdf5::Location, name: &str, value: &str) -> hdf5::Result<()> {
+pub(crate) fn str_attr(loc: &hdf5::Location, name: &str, value: &str) -> hdf5::Result<()> {
     // Strings with interior NUL bytes cannot be stored; replace them (never expected in practice).
     let v: VarLenUnicode = value
         .replace('\0', " ")
@@ -45,15 +45,21 @@ fn str_attr(loc: &hdf5::Location, name: &str, value: &str) -> hdf5::Result<()> {
         .write_scalar(&v)
 }
 
-fn f64_attr(loc: &hdf5::Location, name: &str, value: f64) -> hdf5::Result<()> {
+pub(crate) fn f64_attr(loc: &hdf5::Location, name: &str, value: f64) -> hdf5::Result<()> {
     loc.new_attr::<f64>().create(name)?.write_scalar(&value)
 }
 
-fn u64_attr(loc: &hdf5::Location, name: &str, value: u64) -> hdf5::Result<()> {
+pub(crate) fn u64_attr(loc: &hdf5::Location, name: &str, value: u64) -> hdf5::Result<()> {
     loc.new_attr::<u64>().create(name)?.write_scalar(&value)
 }
 
-fn write1(g: &hdf5::Group, name: &str, data: &[f64], unit: &str, desc: &str) -> hdf5::Result<()> {
+pub(crate) fn write1(
+    g: &hdf5::Group,
+    name: &str,
+    data: &[f64],
+    unit: &str,
+    desc: &str,
+) -> hdf5::Result<()> {
     let ds = g
         .new_dataset_builder()
         .with_data(&Array1::from(data.to_vec()))
@@ -77,7 +83,7 @@ fn write_n<const N: usize>(
     str_attr(&ds, "description", desc)
 }
 
-fn write_matrix<T: hdf5::H5Type + Clone>(
+pub(crate) fn write_matrix<T: hdf5::H5Type + Clone>(
     g: &hdf5::Group,
     name: &str,
     data: &[T],
@@ -96,7 +102,7 @@ fn write_matrix<T: hdf5::H5Type + Clone>(
 /// Creates `dir/<name>.h5` under the temporary name `<name>.h5.partial`, writes the program's
 /// root attributes and then `body`, and renames the file only once it is complete and closed; on
 /// any error the partial file is removed.
-fn write_atomically(
+pub(crate) fn write_atomically(
     dir: &Path,
     name: &str,
     program_version: &str,

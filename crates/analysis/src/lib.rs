@@ -4,13 +4,22 @@
 //! requested outputs at exact sample times; [`h5`] writes a recording to HDF5 (layout in the
 //! README); [`study`] reads study files (several cases of a scene, edited by path) and
 //! [`report`] computes their comparison table from the written file; [`plot`] draws figures as PNG and SVG with an embedded font (no system fonts needed).
+//!
+//! Nonlinear analysis works on any flow: [`sections`] runs N periods of an ODE and keeps the
+//! stroboscopic and hyperplane Poincare sections; [`observe`] addresses a mechanism's quantities
+//! by path; [`systems`] holds the built-in reference ODEs (Duffing, pendulum, Lorenz); and
+//! [`nonlinear`] reads analysis studies, runs their sweeps in parallel and streams them to HDF5.
 
 pub mod figures;
 pub mod h5;
+pub mod nonlinear;
+pub mod observe;
 pub mod plot;
 pub mod report;
 pub mod run;
+pub mod sections;
 pub mod study;
+pub mod systems;
 
 use std::path::PathBuf;
 

@@ -292,6 +292,38 @@ fn initial_step<S: OdeSystem>(
     (100.0 * h0).min(h1).min(max_step)
 }
 
+/// The step observer of [`integrate_steps`].
+pub type StepObserver<'f, S> = &'f mut dyn FnMut(&mut S, &Step) -> Flow;
+
+/// One accepted step and its continuous extension, handed to the step observer of
+/// [`integrate_steps`] (for event location such as Poincare sections).
+pub struct Step<'a> {
+    /// Start and end time of the step (s).
+    pub t0: f64,
+    pub t1: f64,
+    /// States at both ends.
+    pub y0: &'a [f64],
+    pub y1: &'a [f64],
+    rk4: bool,
+    w: &'a Work,
+}
+
+impl Step<'_> {
+    /// The state at `t` in `[t0, t1]` on the method's dense output (the same interpolant as the
+    /// samples: cubic Hermite for RK4, Hairer's order-4 extension for DOPRI5).
+    pub fn eval(&self, t: f64, out: &mut [f64]) {
+        let h = self.t1 - self.t0;
+        let theta = ((t - self.t0) / h).clamp(0.0, 1.0);
+        if theta == 1.0 {
+            out.copy_from_slice(self.y1);
+        } else if self.rk4 {
+            hermite_eval(self.y0, self.w, 4, h, theta, out);
+        } else {
+            dopri5_eval(self.w, theta, out);
+        }
+    }
+}
+
 /// Integrates `sys` from `(t0, y)` to `t_end`, leaving the final state in `y`.
 ///
 /// `samples` are the times (non-decreasing, within `[t0, t_end]`) at which `observer(sys, t, y_t)`
@@ -306,7 +338,23 @@ pub fn integrate<S: OdeSystem>(
     y: &mut [f64],
     t_end: f64,
     samples: &[f64],
+    observer: impl FnMut(&mut S, f64, &[f64]) -> Flow,
+) -> Result<Stats> {
+    integrate_steps(sys, method, t0, y, t_end, samples, observer, None)
+}
+
+/// [`integrate`] with a second observer called after every accepted step (after the samples
+/// inside it) with the step's dense output; it may stop the run too.
+#[allow(clippy::too_many_arguments)]
+pub fn integrate_steps<S: OdeSystem>(
+    sys: &mut S,
+    method: Method,
+    t0: f64,
+    y: &mut [f64],
+    t_end: f64,
+    samples: &[f64],
     mut observer: impl FnMut(&mut S, f64, &[f64]) -> Flow,
+    mut on_step: Option<StepObserver<S>>,
 ) -> Result<Stats> {
     let start = Instant::now();
     let n = sys.dim();
@@ -416,7 +464,7 @@ pub fn integrate<S: OdeSystem>(
         k_step += 1;
         let history_changed = sys.step_accepted(t, y, t_new, &w.y_new);
         let has_dense_sample = next_sample < samples.len() && samples[next_sample] < t_new;
-        if has_dense_sample && !is_rk4 {
+        if (has_dense_sample || on_step.is_some()) && !is_rk4 {
             dopri5_dense(y, h_try, &mut w);
         }
         // Emit the samples inside (t, t_new].
@@ -435,6 +483,21 @@ pub fn integrate<S: OdeSystem>(
             };
             next_sample += 1;
             if flow == Flow::Stop {
+                y.copy_from_slice(&w.y_new);
+                stats.wall = start.elapsed();
+                return Ok(stats);
+            }
+        }
+        if let Some(f) = on_step.as_mut() {
+            let step = Step {
+                t0: t,
+                t1: t_new,
+                y0: y,
+                y1: &w.y_new,
+                rk4: is_rk4,
+                w: &w,
+            };
+            if f(sys, &step) == Flow::Stop {
                 y.copy_from_slice(&w.y_new);
                 stats.wall = start.elapsed();
                 return Ok(stats);

@@ -1,0 +1,1319 @@
+//! Nonlinear-analysis studies: N-period runs, Poincare sections and bifurcation sweeps of a
+//! mechanism scene or a built-in reference system, written to one HDF5 file.
+//!
+//! A study file with an `[analysis]` table (format in the README, "Nonlinear analysis") names a
+//! flow (`study.scene`, edited like a comparison study's cases, or `study.system`), the run
+//! ([`Plan`]: periods, transient, phase, samples per period), the observables by path
+//! ([`crate::observe`]), hyperplane sections, an optional sweep and the figures.
+//!
+//! **Sweeps.** Each value of the swept parameter is one job. Independent jobs run in parallel on
+//! rayon's pool; with `continuation = true` the jobs run in order up the list and back down, each
+//! starting from the previous job's final state. Every job's results are written into the file as
+//! soon as it finishes (the writer is the calling thread; workers send results through a
+//! channel) and the file is flushed, so an interrupted sweep keeps every finished job: the file's
+//! `complete` attribute is 0 until all jobs are done, `/sweep/done` marks each job (0 not run,
+//! 1 done, 2 failed, its message in `/sweep/errors`), and `resume` runs only the jobs not done.
+//! Each job's result depends only on its inputs, so the datasets are bit-identical whatever the
+//! number of threads and whether the sweep was interrupted.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::mpsc;
+use std::time::Instant;
+
+use hdf5::types::VarLenUnicode;
+use jointplay_solver::dynamics::Mechanism;
+use jointplay_solver::model::{Model, State};
+use jointplay_solver::ode::OdeSystem;
+use jointplay_solver::scene::{SceneFile, SceneSpec};
+use ndarray::{Array1, Array2, s};
+use rayon::prelude::*;
+use serde::Deserialize;
+use toml::{Table, Value};
+
+use crate::h5::{f64_attr, h5err, str_attr, u64_attr, write_atomically, write1};
+use crate::observe::Observable;
+use crate::sections::{Direction, Hyperplane, Observed, Plan, Trace, trace};
+use crate::study::edit;
+use crate::systems::{Builtin, SystemSpec};
+use crate::{Error, Result};
+
+/// A nonlinear-analysis study file.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AnalysisStudy {
+    pub study: Header,
+    pub analysis: AnalysisSpec,
+    pub observables: Vec<ObservableSpec>,
+    #[serde(default)]
+    pub sections: Vec<SectionSpec>,
+    #[serde(default)]
+    pub sweep: Option<SweepSpec>,
+    #[serde(default)]
+    pub figures: Vec<FigureSpec>,
+}
+
+/// The `[study]` table.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct Header {
+    pub name: String,
+    #[serde(default)]
+    pub description: String,
+    /// A mechanism scene (relative to the study file) ...
+    #[serde(default)]
+    pub scene: Option<PathBuf>,
+    /// ... or a built-in system (see [`crate::systems`]).
+    #[serde(default)]
+    pub system: Option<Table>,
+    /// Scene edits (as in comparison studies).
+    #[serde(default)]
+    pub set: BTreeMap<String, Value>,
+    #[serde(default)]
+    pub remove: Vec<String>,
+}
+
+/// The `[analysis]` table.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct AnalysisSpec {
+    /// Drive periods simulated.
+    pub periods: usize,
+    /// Leading periods discarded.
+    #[serde(default)]
+    pub transient: usize,
+    /// Offset of the stroboscopic section from the start time (s).
+    #[serde(default)]
+    pub phase: f64,
+    /// Time-history samples per period over the kept window (0: none).
+    #[serde(default = "default_spp")]
+    pub samples_per_period: usize,
+    /// The period (s); default the drive period of the scene or the system's forcing period.
+    #[serde(default)]
+    pub period: Option<f64>,
+}
+
+fn default_spp() -> usize {
+    100
+}
+
+/// One observable: a dataset name and a path.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ObservableSpec {
+    pub name: String,
+    pub path: String,
+}
+
+/// A hyperplane section.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SectionSpec {
+    pub name: String,
+    /// Coefficients of the observables (by name) in the linear function.
+    pub terms: BTreeMap<String, f64>,
+    #[serde(default)]
+    pub value: f64,
+    #[serde(default = "up")]
+    pub direction: Direction,
+}
+
+fn up() -> Direction {
+    Direction::Up
+}
+
+/// The `[sweep]` table.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SweepSpec {
+    /// A scene path (`joints.*.clearance.radial_clearance`) or a system parameter (`gamma`).
+    pub parameter: String,
+    /// Unit of the parameter, for labels (default none).
+    #[serde(default)]
+    pub unit: String,
+    #[serde(default)]
+    pub values: Vec<f64>,
+    /// Or an evenly spaced range: `from`, `to` (inclusive) and `count`.
+    #[serde(default)]
+    pub from: Option<f64>,
+    #[serde(default)]
+    pub to: Option<f64>,
+    #[serde(default)]
+    pub count: Option<usize>,
+    /// Run the values in order, each from the previous one's final state, up and back down.
+    #[serde(default)]
+    pub continuation: bool,
+}
+
+/// Figure kinds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum FigureKind {
+    /// Observable `y` against time.
+    Time,
+    /// `y` against `x` over the kept window, with the stroboscopic points.
+    Phase,
+    /// Section points of `y` against `x`, with the trajectory faint and a zoomed inset when the
+    /// points cluster.
+    Poincare,
+    /// Stroboscopic points of `y` against the swept parameter.
+    Bifurcation,
+    /// `y` against `x` with a clearance circle of radius `circle` (or the swept value).
+    Orbit,
+}
+
+/// One figure.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FigureSpec {
+    pub kind: FigureKind,
+    /// File name stem (default: study name, kind and observables).
+    #[serde(default)]
+    pub name: Option<String>,
+    #[serde(default)]
+    pub x: Option<String>,
+    pub y: String,
+    #[serde(default)]
+    pub title: Option<String>,
+    /// Section for `poincare` (default the stroboscopic one).
+    #[serde(default)]
+    pub section: Option<String>,
+    /// Sweep values to draw (one panel each; default every value, up to 6).
+    #[serde(default)]
+    pub values: Vec<f64>,
+    /// Orbit: circle radius in the unit of the observables, or the swept value when
+    /// `circle_from_parameter`.
+    #[serde(default)]
+    pub circle: Option<f64>,
+    #[serde(default)]
+    pub circle_from_parameter: bool,
+    /// Scale factor for both axes' values and their unit label, e.g. 1000 and "mm".
+    #[serde(default)]
+    pub scale: Option<f64>,
+    #[serde(default)]
+    pub unit: Option<String>,
+}
+
+/// A loaded study: its text, spec and base tree.
+#[derive(Debug, Clone)]
+pub struct Loaded {
+    pub path: PathBuf,
+    pub text: String,
+    pub spec: AnalysisStudy,
+    /// The scene file or the system table after the study's edits.
+    base: Base,
+    /// Observable names; hyperplanes resolved to observable indices.
+    pub planes: Vec<Hyperplane>,
+    /// The parameter values of each job and its direction (+1 up, -1 down).
+    pub jobs: Vec<(f64, i8)>,
+}
+
+#[derive(Debug, Clone)]
+enum Base {
+    Scene { path: PathBuf, tree: Table },
+    System(Table),
+}
+
+fn invalid(file: &Path, field: impl Into<String>, message: impl Into<String>) -> Error {
+    Error::Study {
+        file: file.to_path_buf(),
+        field: field.into(),
+        message: message.into(),
+    }
+}
+
+/// True when the study text is a nonlinear-analysis study (has an `[analysis]` table).
+pub fn is_analysis(text: &str) -> bool {
+    text.parse::<Table>()
+        .map(|t| t.contains_key("study") && t.contains_key("analysis"))
+        .unwrap_or(false)
+}
+
+const RESERVED: [&str; 9] = [
+    "parameter",
+    "direction",
+    "done",
+    "strobe_time",
+    "history",
+    "final_state",
+    "rhs_evals",
+    "errors",
+    "sections",
+];
+
+fn check_name(file: &Path, field: &str, name: &str) -> Result<()> {
+    if name.is_empty()
+        || !name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || "-_.".contains(c))
+        || name == "time"
+        || RESERVED.contains(&name)
+    {
+        return Err(invalid(
+            file,
+            field,
+            format!(
+                "'{name}': use letters, digits, '-', '_' or '.', and not 'time' or {} (it names an HDF5 dataset)",
+                RESERVED.join(", ")
+            ),
+        ));
+    }
+    Ok(())
+}
+
+fn finite(file: &Path, field: &str, v: f64) -> Result<()> {
+    if v.is_finite() {
+        Ok(())
+    } else {
+        Err(invalid(file, field, "must be finite"))
+    }
+}
+
+impl AnalysisStudy {
+    /// Parses the spec alone (no scene is read): what `plot` needs.
+    pub fn parse_spec(text: &str, path: &Path) -> Result<AnalysisStudy> {
+        toml::from_str(text).map_err(|e| Error::Io {
+            file: path.to_path_buf(),
+            message: e.to_string().trim_end().to_string(),
+        })
+    }
+
+    /// The observable index of `name`.
+    pub fn observable(&self, name: &str) -> Option<usize> {
+        self.observables.iter().position(|o| o.name == name)
+    }
+}
+
+impl Loaded {
+    /// Reads and checks a study file and its scene.
+    pub fn load(path: &Path) -> Result<Loaded> {
+        let text = std::fs::read_to_string(path).map_err(|e| Error::Io {
+            file: path.to_path_buf(),
+            message: e.to_string(),
+        })?;
+        Loaded::parse(&text, path)
+    }
+
+    /// Parses study text; scene paths are relative to `path`'s directory.
+    pub fn parse(text: &str, path: &Path) -> Result<Loaded> {
+        let spec = AnalysisStudy::parse_spec(text, path)?;
+        let a = &spec.analysis;
+        check_name(path, "study.name", &spec.study.name)?;
+        if a.periods == 0 {
+            return Err(invalid(path, "analysis.periods", "must be at least 1"));
+        }
+        if a.transient >= a.periods {
+            return Err(invalid(
+                path,
+                "analysis.transient",
+                format!(
+                    "must be less than analysis.periods ({}), so that some periods are kept",
+                    a.periods
+                ),
+            ));
+        }
+        finite(path, "analysis.phase", a.phase)?;
+        if a.phase < 0.0 {
+            return Err(invalid(path, "analysis.phase", "must not be negative"));
+        }
+        if let Some(p) = a.period
+            && !(p.is_finite() && p > 0.0)
+        {
+            return Err(invalid(
+                path,
+                "analysis.period",
+                "must be a positive number of seconds",
+            ));
+        }
+        if spec.observables.is_empty() {
+            return Err(invalid(path, "observables", "name at least one observable"));
+        }
+        let mut names = BTreeMap::new();
+        for (i, o) in spec.observables.iter().enumerate() {
+            check_name(path, &format!("observables[{i}].name"), &o.name)?;
+            if names.insert(o.name.clone(), i).is_some() {
+                return Err(invalid(
+                    path,
+                    format!("observables[{i}].name"),
+                    format!("duplicate name '{}'", o.name),
+                ));
+            }
+        }
+        let mut planes = Vec::new();
+        for (i, s) in spec.sections.iter().enumerate() {
+            check_name(path, &format!("sections[{i}].name"), &s.name)?;
+            if s.name == "strobe" || spec.sections[..i].iter().any(|o| o.name == s.name) {
+                return Err(invalid(
+                    path,
+                    format!("sections[{i}].name"),
+                    format!(
+                        "'{}' is taken ('strobe' is the stroboscopic section)",
+                        s.name
+                    ),
+                ));
+            }
+            finite(path, &format!("sections[{i}].value"), s.value)?;
+            if s.terms.is_empty() {
+                return Err(invalid(
+                    path,
+                    format!("sections[{i}].terms"),
+                    "give at least one term",
+                ));
+            }
+            let mut terms = Vec::new();
+            for (k, c) in &s.terms {
+                let j = *names.get(k).ok_or_else(|| {
+                    invalid(
+                        path,
+                        format!("sections[{i}].terms.{k}"),
+                        "not an observable of this study",
+                    )
+                })?;
+                finite(path, &format!("sections[{i}].terms.{k}"), *c)?;
+                terms.push((j, *c));
+            }
+            planes.push(Hyperplane {
+                name: s.name.clone(),
+                terms,
+                value: s.value,
+                direction: s.direction,
+            });
+        }
+        let dir = path.parent().unwrap_or(Path::new("."));
+        let base = match (&spec.study.scene, &spec.study.system) {
+            (Some(scene), None) => {
+                let sp = dir.join(scene);
+                let st = std::fs::read_to_string(&sp).map_err(|e| {
+                    invalid(
+                        path,
+                        "study.scene",
+                        format!("cannot read {}: {e}", sp.display()),
+                    )
+                })?;
+                let mut tree: Table = st.parse().map_err(|e: toml::de::Error| Error::Io {
+                    file: sp.clone(),
+                    message: e.to_string().trim_end().to_string(),
+                })?;
+                for (p, v) in &spec.study.set {
+                    edit(&mut tree, p, Some(v)).map_err(|m| {
+                        invalid(
+                            path,
+                            format!("study.set.\"{p}\""),
+                            format!("{m} in {}", sp.display()),
+                        )
+                    })?;
+                }
+                for p in &spec.study.remove {
+                    edit(&mut tree, p, None).map_err(|m| {
+                        invalid(
+                            path,
+                            "study.remove",
+                            format!("'{p}': {m} in {}", sp.display()),
+                        )
+                    })?;
+                }
+                Base::Scene { path: sp, tree }
+            }
+            (None, Some(sys)) => {
+                if !spec.study.set.is_empty() || !spec.study.remove.is_empty() {
+                    return Err(invalid(
+                        path,
+                        "study.set",
+                        "edits apply to scenes; give a system's parameters in study.system",
+                    ));
+                }
+                Base::System(sys.clone())
+            }
+            _ => {
+                return Err(invalid(
+                    path,
+                    "study",
+                    "give either scene = \"FILE\" or system = { kind = ... }",
+                ));
+            }
+        };
+        let mut jobs = Vec::new();
+        if let Some(sw) = &spec.sweep {
+            let values = match (&sw.values[..], sw.from, sw.to, sw.count) {
+                (v, None, None, None) if !v.is_empty() => v.to_vec(),
+                ([], Some(a), Some(b), Some(n)) if n >= 2 => (0..n)
+                    .map(|i| a + (b - a) * (i as f64) / ((n - 1) as f64))
+                    .collect(),
+                _ => {
+                    return Err(invalid(
+                        path,
+                        "sweep",
+                        "give either values = [...] or from, to and count (count at least 2)",
+                    ));
+                }
+            };
+            for (i, v) in values.iter().enumerate() {
+                finite(path, &format!("sweep.values[{i}]"), *v)?;
+            }
+            jobs.extend(values.iter().map(|v| (*v, 1i8)));
+            if sw.continuation {
+                jobs.extend(values.iter().rev().map(|v| (*v, -1i8)));
+            }
+        }
+        let loaded = Loaded {
+            path: path.to_path_buf(),
+            text: text.to_string(),
+            spec,
+            base,
+            planes,
+            jobs,
+        };
+        // Build the first job (or the single run) now, so that a bad scene, path or observable
+        // fails before anything runs.
+        let first = loaded.jobs.first().map(|j| j.0);
+        loaded.target(first)?;
+        for (i, f) in loaded.spec.figures.iter().enumerate() {
+            for (what, name) in [("x", f.x.as_deref()), ("y", Some(f.y.as_str()))] {
+                if let Some(n) = name
+                    && loaded.spec.observable(n).is_none()
+                {
+                    return Err(invalid(
+                        &loaded.path,
+                        format!("figures[{i}].{what}"),
+                        format!("'{n}' is not an observable of this study"),
+                    ));
+                }
+            }
+            let needs_x = matches!(
+                f.kind,
+                FigureKind::Phase | FigureKind::Poincare | FigureKind::Orbit
+            );
+            if needs_x && f.x.is_none() {
+                return Err(invalid(
+                    &loaded.path,
+                    format!("figures[{i}].x"),
+                    "this kind needs x",
+                ));
+            }
+            if f.kind == FigureKind::Bifurcation && loaded.spec.sweep.is_none() {
+                return Err(invalid(
+                    &loaded.path,
+                    format!("figures[{i}].kind"),
+                    "a bifurcation diagram needs a [sweep]",
+                ));
+            }
+            if let Some(s) = &f.section
+                && !loaded.planes.iter().any(|p| &p.name == s)
+                && s != "strobe"
+            {
+                return Err(invalid(
+                    &loaded.path,
+                    format!("figures[{i}].section"),
+                    format!("no section '{s}'"),
+                ));
+            }
+        }
+        Ok(loaded)
+    }
+
+    /// Text of the flow (the edited scene or the system table) for the file.
+    fn base_text(&self) -> String {
+        match &self.base {
+            Base::Scene { tree, .. } | Base::System(tree) => {
+                toml::to_string(tree).unwrap_or_default()
+            }
+        }
+    }
+
+    /// The flow with the swept parameter set to `value`, ready to run.
+    fn target(&self, value: Option<f64>) -> Result<Target> {
+        let sweep_field = || match &self.spec.sweep {
+            Some(s) => format!("sweep.parameter ('{}')", s.parameter),
+            None => "sweep.parameter".into(),
+        };
+        match &self.base {
+            Base::Scene { path: sp, tree } => {
+                let mut tree = tree.clone();
+                if let (Some(v), Some(sw)) = (value, &self.spec.sweep) {
+                    edit(&mut tree, &sw.parameter, Some(&Value::Float(v))).map_err(|m| {
+                        invalid(
+                            &self.path,
+                            sweep_field(),
+                            format!("{m} in {}", sp.display()),
+                        )
+                    })?;
+                }
+                let text = toml::to_string(&tree)
+                    .map_err(|e| invalid(&self.path, "study.scene", e.to_string()))?;
+                let named = match value {
+                    Some(v) => PathBuf::from(format!(
+                        "{} ({} = {v} in {})",
+                        sp.display(),
+                        self.spec
+                            .sweep
+                            .as_ref()
+                            .map(|s| s.parameter.as_str())
+                            .unwrap_or(""),
+                        self.path.display()
+                    )),
+                    None => sp.clone(),
+                };
+                let spec = SceneSpec::parse(&text, &named)?;
+                let scene = SceneFile {
+                    path: named,
+                    text,
+                    spec,
+                };
+                let (model, state) = Model::compile(&scene)?;
+                let mut obs = Vec::new();
+                for (i, o) in self.spec.observables.iter().enumerate() {
+                    obs.push(
+                        Observable::for_model(&model, &o.path).map_err(|m| {
+                            invalid(&self.path, format!("observables[{i}].path"), m)
+                        })?,
+                    );
+                }
+                let period = self.period(model.settings.period)?;
+                Ok(Target::Scene {
+                    model: Box::new(model),
+                    state,
+                    obs,
+                    period,
+                })
+            }
+            Base::System(table) => {
+                let mut table = table.clone();
+                if let (Some(v), Some(sw)) = (value, &self.spec.sweep) {
+                    if !table.contains_key(&sw.parameter) && sw.parameter != "start_time" {
+                        // Let the parser name the allowed parameters.
+                        let probe = SystemSpec::parse(&{
+                            let mut t = table.clone();
+                            t.insert(sw.parameter.clone(), Value::Float(v));
+                            t
+                        });
+                        if let Err((_, m)) = probe {
+                            return Err(invalid(&self.path, sweep_field(), m));
+                        }
+                    }
+                    table.insert(sw.parameter.clone(), Value::Float(v));
+                }
+                let sys = SystemSpec::parse(&table)
+                    .map_err(|(k, m)| invalid(&self.path, format!("study.system.{k}"), m))?;
+                let mut obs = Vec::new();
+                for (i, o) in self.spec.observables.iter().enumerate() {
+                    obs.push(
+                        Observable::for_system(&sys.builtin, &o.path).map_err(|m| {
+                            invalid(&self.path, format!("observables[{i}].path"), m)
+                        })?,
+                    );
+                }
+                let period = self.period(sys.builtin.period())?;
+                Ok(Target::System { sys, obs, period })
+            }
+        }
+    }
+
+    fn period(&self, own: Option<f64>) -> Result<f64> {
+        self.spec.analysis.period.or(own).ok_or_else(|| {
+            invalid(
+                &self.path,
+                "analysis.period",
+                "the flow has no drive period: give analysis.period (s)",
+            )
+        })
+    }
+
+    fn plan(&self, method: jointplay_solver::ode::Method, start: f64, period: f64) -> Plan {
+        let a = &self.spec.analysis;
+        Plan {
+            method,
+            start,
+            period,
+            phase: a.phase,
+            periods: a.periods,
+            transient: a.transient,
+            samples_per_period: a.samples_per_period,
+            hyperplanes: self.planes.clone(),
+        }
+    }
+}
+
+/// A compiled flow with its observables.
+enum Target {
+    Scene {
+        model: Box<Model>,
+        state: State,
+        obs: Vec<Observable>,
+        period: f64,
+    },
+    System {
+        sys: SystemSpec,
+        obs: Vec<Observable>,
+        period: f64,
+    },
+}
+
+struct MechFlow<'m> {
+    mech: Mechanism<'m>,
+    obs: &'m [Observable],
+    dynamics: bool,
+}
+
+impl OdeSystem for MechFlow<'_> {
+    fn dim(&self) -> usize {
+        self.mech.dim()
+    }
+    fn rhs(&mut self, t: f64, y: &[f64], d: &mut [f64]) {
+        self.mech.rhs(t, y, d)
+    }
+    fn step_accepted(&mut self, t0: f64, y0: &[f64], t1: f64, y1: &[f64]) -> bool {
+        self.mech.step_accepted(t0, y0, t1, y1)
+    }
+}
+
+impl Observed for MechFlow<'_> {
+    fn n_obs(&self) -> usize {
+        self.obs.len()
+    }
+    fn observe(&mut self, t: f64, y: &[f64], out: &mut [f64]) {
+        let m = self.mech.model;
+        if self.dynamics {
+            m.accelerations(t, y, &mut self.mech.ws);
+        } else {
+            m.kinematics(y, &mut self.mech.ws);
+        }
+        for (o, v) in self.obs.iter().zip(out) {
+            *v = o.eval_model(m, &self.mech.ws, t, y);
+        }
+    }
+    fn obs_name(&self, i: usize) -> String {
+        self.obs[i].path.clone()
+    }
+}
+
+struct SysFlow<'a> {
+    sys: Builtin,
+    obs: &'a [Observable],
+}
+
+impl OdeSystem for SysFlow<'_> {
+    fn dim(&self) -> usize {
+        self.sys.dim()
+    }
+    fn rhs(&mut self, t: f64, y: &[f64], d: &mut [f64]) {
+        self.sys.rhs(t, y, d)
+    }
+}
+
+impl Observed for SysFlow<'_> {
+    fn n_obs(&self) -> usize {
+        self.obs.len()
+    }
+    fn observe(&mut self, _t: f64, y: &[f64], out: &mut [f64]) {
+        for (o, v) in self.obs.iter().zip(out) {
+            *v = o.eval_system(y);
+        }
+    }
+    fn obs_name(&self, i: usize) -> String {
+        self.obs[i].path.clone()
+    }
+}
+
+/// What one job produced, with the units of the observables.
+#[derive(Debug, Clone)]
+pub struct JobResult {
+    pub trace: Trace,
+    pub units: Vec<String>,
+    pub integrator: String,
+    pub period: f64,
+    pub start: f64,
+    pub wall: f64,
+}
+
+impl Loaded {
+    /// Runs job `value` (None: the single run) from the flow's own start state or from `start`
+    /// (a previous job's final state, for continuation). `progress` gets the fraction done.
+    fn run_job(
+        &self,
+        value: Option<f64>,
+        start: Option<&[f64]>,
+        progress: &mut dyn FnMut(f64),
+    ) -> Result<JobResult> {
+        let t0 = Instant::now();
+        let target = self.target(value)?;
+        match target {
+            Target::Scene {
+                model,
+                mut state,
+                obs,
+                period,
+            } => {
+                if let Some(y) = start {
+                    state.y.copy_from_slice(y);
+                }
+                model.assemble(&mut state)?;
+                let plan = self.plan(model.settings.method, state.t, period);
+                let mut flow = MechFlow {
+                    mech: Mechanism::new(&model),
+                    dynamics: obs.iter().any(|o| o.needs_dynamics()),
+                    obs: &obs,
+                };
+                let tr = trace(&mut flow, &plan, &mut state.y, progress)?;
+                Ok(JobResult {
+                    trace: tr,
+                    units: obs.iter().map(|o| o.unit.clone()).collect(),
+                    integrator: format!("{:?}", plan.method),
+                    period,
+                    start: plan.start,
+                    wall: t0.elapsed().as_secs_f64(),
+                })
+            }
+            Target::System { sys, obs, period } => {
+                let mut y = start.map(<[f64]>::to_vec).unwrap_or(sys.initial.clone());
+                let plan = self.plan(sys.method, sys.start_time, period);
+                let mut flow = SysFlow {
+                    sys: sys.builtin,
+                    obs: &obs,
+                };
+                let tr = trace(&mut flow, &plan, &mut y, progress)?;
+                Ok(JobResult {
+                    trace: tr,
+                    units: obs.iter().map(|o| o.unit.clone()).collect(),
+                    integrator: format!("{:?}", plan.method),
+                    period,
+                    start: plan.start,
+                    wall: t0.elapsed().as_secs_f64(),
+                })
+            }
+        }
+    }
+
+    /// Runs the single run of a study without a sweep and returns its result.
+    pub fn run_single(&self, progress: &mut dyn FnMut(f64)) -> Result<JobResult> {
+        self.run_job(None, None, progress)
+    }
+
+    /// Runs the job with parameter `value` alone (tests, scripting).
+    pub fn run_value(&self, value: f64, progress: &mut dyn FnMut(f64)) -> Result<JobResult> {
+        self.run_job(Some(value), None, progress)
+    }
+}
+
+/// Progress reports of [`execute`].
+#[derive(Debug, Clone, Copy)]
+pub enum Progress {
+    /// `total` jobs, of which `pending` will run now.
+    Start { total: usize, pending: usize },
+    /// Job `job` has done `fraction` of its span.
+    Fraction { job: usize, fraction: f64 },
+    /// Job `job` finished (`ok` false: failed).
+    Done { job: usize, ok: bool },
+}
+
+/// Summary of an executed study.
+#[derive(Debug, Clone)]
+pub struct Outcome {
+    pub file: PathBuf,
+    pub jobs: usize,
+    pub ran: usize,
+    /// Every job done (or failed); false when stopped by `max_jobs`.
+    pub complete: bool,
+    pub failed: Vec<(usize, String)>,
+    pub wall: f64,
+    pub rhs_evals: u64,
+}
+
+fn h5e(path: &Path) -> impl Fn(hdf5::Error) -> Error + '_ {
+    h5err(path)
+}
+
+/// How [`execute`] treats an existing file and how much it runs.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Options {
+    /// Keep the finished jobs of an existing file and run only the rest.
+    pub resume: bool,
+    /// Stop after this many jobs have finished (the file stays incomplete; resume later).
+    pub max_jobs: Option<usize>,
+}
+
+/// Runs the study and writes `dir/<name>.h5`: atomically at the end for a single run; streamed
+/// job by job for a sweep (with `resume`, only the jobs the existing file lacks).
+pub fn execute(
+    st: &Loaded,
+    dir: &Path,
+    opts: Options,
+    version: &str,
+    progress: &(dyn Fn(Progress) + Sync),
+) -> Result<Outcome> {
+    let start = Instant::now();
+    let name = &st.spec.study.name;
+    if st.spec.sweep.is_none() {
+        progress(Progress::Start {
+            total: 1,
+            pending: 1,
+        });
+        let mut last = 0.0;
+        let r = st.run_single(&mut |f| {
+            if f - last >= 1e-3 {
+                last = f;
+                progress(Progress::Fraction {
+                    job: 0,
+                    fraction: f,
+                });
+            }
+        })?;
+        progress(Progress::Done { job: 0, ok: true });
+        let file = write_atomically(dir, name, version, |file| {
+            write_root(file, st, &r, 1)?;
+            write_single(file, st, &r)
+        })?;
+        return Ok(Outcome {
+            file,
+            jobs: 1,
+            ran: 1,
+            complete: true,
+            failed: Vec::new(),
+            wall: start.elapsed().as_secs_f64(),
+            rhs_evals: r.trace.stats.rhs_evals,
+        });
+    }
+    std::fs::create_dir_all(dir).map_err(|e| Error::Io {
+        file: dir.to_path_buf(),
+        message: format!("cannot create output directory: {e}"),
+    })?;
+    let path = dir.join(format!("{name}.h5"));
+    let e = h5e(&path);
+    let n = st.jobs.len();
+    let (file, mut done) = if opts.resume && path.exists() {
+        let file = hdf5::File::open_rw(&path).map_err(&e)?;
+        let old: String = file
+            .attr("study")
+            .and_then(|a| a.read_scalar::<VarLenUnicode>())
+            .map(|v| v.to_string())
+            .map_err(&e)?;
+        if old != st.text {
+            return Err(Error::Io {
+                file: path.clone(),
+                message: format!(
+                    "written by a different version of {}: remove it or run without --resume",
+                    st.path.display()
+                ),
+            });
+        }
+        let done = file
+            .dataset("sweep/done")
+            .and_then(|d| d.read_raw::<u8>())
+            .map_err(&e)?;
+        (file, done)
+    } else {
+        let _ = std::fs::remove_file(&path);
+        (create_sweep_file(&path, st, version)?, vec![0u8; n])
+    };
+    let pending: Vec<usize> = (0..n).filter(|&j| done[j] == 0).collect();
+    progress(Progress::Start {
+        total: n,
+        pending: pending.len(),
+    });
+    let mut failed: Vec<(usize, String)> = Vec::new();
+    let mut rhs = 0u64;
+    let limit = opts.max_jobs.unwrap_or(usize::MAX);
+    let mut finished = 0usize;
+    let stop = AtomicBool::new(limit == 0);
+    let mut write = |j: usize, res: Result<JobResult>, done: &mut Vec<u8>| -> Result<()> {
+        match res {
+            Ok(r) => {
+                rhs += r.trace.stats.rhs_evals;
+                write_job(&file, st, j, &r).map_err(&e)?;
+                done[j] = 1;
+                progress(Progress::Done { job: j, ok: true });
+            }
+            Err(err) => {
+                let msg = err.to_string();
+                let g = file.group("sweep/errors").map_err(&e)?;
+                str_attr(&g, &j.to_string(), &msg).map_err(&e)?;
+                done[j] = 2;
+                failed.push((j, msg));
+                progress(Progress::Done { job: j, ok: false });
+            }
+        }
+        file.dataset("sweep/done")
+            .and_then(|d| d.write_slice(&Array1::from(vec![done[j]]), s![j..j + 1]))
+            .map_err(&e)?;
+        finished += 1;
+        if finished >= limit {
+            stop.store(true, Ordering::SeqCst);
+        }
+        file.flush().map_err(&e)
+    };
+    let continuation = st.spec.sweep.as_ref().is_some_and(|s| s.continuation);
+    if continuation {
+        // In order; each job starts from the previous job's final state (read back from the file
+        // when resuming, so a resumed run continues from exactly the same state).
+        let mut prev: Option<Vec<f64>> = None;
+        for j in 0..n {
+            if stop.load(Ordering::SeqCst) {
+                break;
+            }
+            if done[j] != 0 {
+                prev = if done[j] == 1 {
+                    Some(read_row(&file, "sweep/final_state", j).map_err(&e)?)
+                } else {
+                    None
+                };
+                continue;
+            }
+            let mut last = 0.0;
+            let res = st.run_job(Some(st.jobs[j].0), prev.as_deref(), &mut |f| {
+                if f - last >= 1e-3 {
+                    last = f;
+                    progress(Progress::Fraction {
+                        job: j,
+                        fraction: f,
+                    });
+                }
+            });
+            prev = res.as_ref().ok().map(|r| r.trace.final_state.clone());
+            write(j, res, &mut done)?;
+        }
+    } else {
+        let (tx, rx) = mpsc::channel::<(usize, Result<JobResult>)>();
+        let mut write_err = None;
+        std::thread::scope(|scope| {
+            let (pending, stop) = (&pending, &stop);
+            scope.spawn(move || {
+                pending.par_iter().for_each_with(tx, |tx, &j| {
+                    if stop.load(Ordering::SeqCst) {
+                        return;
+                    }
+                    let mut last = 0.0;
+                    let r = st.run_job(Some(st.jobs[j].0), None, &mut |f| {
+                        if f - last >= 1e-3 {
+                            last = f;
+                            progress(Progress::Fraction {
+                                job: j,
+                                fraction: f,
+                            });
+                        }
+                    });
+                    // The receiver lives until every sender is gone.
+                    let _ = tx.send((j, r));
+                });
+            });
+            for (j, r) in rx {
+                // Jobs that were running when the limit was reached are dropped unwritten.
+                if write_err.is_none()
+                    && !stop.load(Ordering::SeqCst)
+                    && let Err(err) = write(j, r, &mut done)
+                {
+                    write_err = Some(err);
+                }
+            }
+        });
+        if let Some(err) = write_err {
+            return Err(err);
+        }
+    }
+    let wall = start.elapsed().as_secs_f64();
+    let complete = done.iter().all(|&d| d != 0);
+    u8_attr_set(&file, "complete", u8::from(complete)).map_err(&e)?;
+    set_f64_attr(&file, "wall_time", wall).map_err(&e)?;
+    file.close().map_err(&e)?;
+    Ok(Outcome {
+        file: path.clone(),
+        jobs: n,
+        ran: finished,
+        complete,
+        failed,
+        wall,
+        rhs_evals: rhs,
+    })
+}
+
+fn read_row(file: &hdf5::File, ds: &str, row: usize) -> hdf5::Result<Vec<f64>> {
+    let d = file.dataset(ds)?;
+    let a: Array2<f64> = d.read_slice(s![row..row + 1, ..])?;
+    Ok(a.iter().copied().collect())
+}
+
+fn u8_attr_set(loc: &hdf5::Location, name: &str, v: u8) -> hdf5::Result<()> {
+    match loc.attr(name) {
+        Ok(a) => a.write_scalar(&v),
+        Err(_) => loc.new_attr::<u8>().create(name)?.write_scalar(&v),
+    }
+}
+
+fn set_f64_attr(loc: &hdf5::Location, name: &str, v: f64) -> hdf5::Result<()> {
+    match loc.attr(name) {
+        Ok(a) => a.write_scalar(&v),
+        Err(_) => f64_attr(loc, name, v),
+    }
+}
+
+/// Root attributes shared by single runs and sweeps.
+fn write_root(file: &hdf5::File, st: &Loaded, r: &JobResult, complete: u8) -> hdf5::Result<()> {
+    let a = &st.spec.analysis;
+    str_attr(file, "kind", "analysis")?;
+    str_attr(file, "study_name", &st.spec.study.name)?;
+    str_attr(file, "study_file", &st.path.display().to_string())?;
+    str_attr(file, "study", &st.text)?;
+    str_attr(file, "description", &st.spec.study.description)?;
+    let (flow, flow_text) = match &st.base {
+        Base::Scene { path, .. } => (format!("scene {}", path.display()), st.base_text()),
+        Base::System(_) => ("system".to_string(), st.base_text()),
+    };
+    str_attr(file, "flow", &flow)?;
+    str_attr(file, "flow_text", &flow_text)?;
+    str_attr(file, "integrator", &r.integrator)?;
+    f64_attr(file, "start_time", r.start)?;
+    f64_attr(file, "period", r.period)?;
+    f64_attr(file, "phase", a.phase)?;
+    u64_attr(file, "periods", a.periods as u64)?;
+    u64_attr(file, "transient", a.transient as u64)?;
+    u64_attr(file, "samples_per_period", a.samples_per_period as u64)?;
+    u8_attr_set(file, "complete", complete)
+}
+
+fn obs_datasets(
+    g: &hdf5::Group,
+    st: &Loaded,
+    units: &[String],
+    values: &[Vec<f64>],
+    what: &str,
+) -> hdf5::Result<()> {
+    for ((o, u), v) in st.spec.observables.iter().zip(units).zip(values) {
+        write1(g, &o.name, v, u, &format!("{} {what}", o.path))?;
+        {
+            let ds = g.dataset(&o.name)?;
+            str_attr(&ds, "path", &o.path)?;
+        }
+    }
+    Ok(())
+}
+
+fn write_single(file: &hdf5::File, st: &Loaded, r: &JobResult) -> hdf5::Result<()> {
+    let t = &r.trace;
+    u64_attr(file, "rhs_evals", t.stats.rhs_evals)?;
+    u64_attr(file, "accepted_steps", t.stats.accepted)?;
+    f64_attr(file, "wall_time", r.wall)?;
+    if st.spec.analysis.samples_per_period > 0 {
+        let g = file.create_group("history")?;
+        write1(
+            &g,
+            "time",
+            &t.history_time,
+            "s",
+            "sample times over the kept window",
+        )?;
+        obs_datasets(&g, st, &r.units, &t.history, "over the kept window")?;
+    }
+    let g = file.create_group("sections")?;
+    let s0 = g.create_group("strobe")?;
+    write1(
+        &s0,
+        "time",
+        &t.strobe_time,
+        "s",
+        "t0 + phase + k T, one per kept period",
+    )?;
+    obs_datasets(&s0, st, &r.units, &t.strobe, "at the strobe times")?;
+    for (p, c) in st.planes.iter().zip(&t.crossings) {
+        let gp = g.create_group(&p.name)?;
+        write1(&gp, "time", &c.time, "s", "crossing times")?;
+        obs_datasets(&gp, st, &r.units, &c.values, "at the crossings")?;
+    }
+    write1(
+        file,
+        "final_state",
+        &t.final_state,
+        "SI",
+        "state vector at the end time",
+    )
+}
+
+fn matrix(
+    g: &hdf5::Group,
+    name: &str,
+    rows: usize,
+    cols: usize,
+    unit: &str,
+    desc: &str,
+) -> hdf5::Result<()> {
+    // Rows not yet computed hold NaN; /sweep/done says which rows are valid.
+    let ds = g
+        .new_dataset::<f64>()
+        .shape((rows, cols))
+        .fill_value(f64::NAN)
+        .create(name)?;
+    str_attr(&ds, "unit", unit)?;
+    str_attr(&ds, "description", desc)
+}
+
+fn create_sweep_file(path: &Path, st: &Loaded, version: &str) -> Result<hdf5::File> {
+    let e = h5e(path);
+    // Probe run to learn the units, period and state size without simulating: build job 0.
+    let target = st.target(Some(st.jobs[0].0))?;
+    let (units, dim, method, period, start): (Vec<String>, usize, _, f64, f64) = match &target {
+        Target::Scene {
+            model,
+            state,
+            obs,
+            period,
+        } => (
+            obs.iter().map(|o| o.unit.clone()).collect(),
+            state.y.len(),
+            model.settings.method,
+            *period,
+            state.t,
+        ),
+        Target::System { sys, obs, period } => (
+            obs.iter().map(|o| o.unit.clone()).collect(),
+            sys.initial.len(),
+            sys.method,
+            *period,
+            sys.start_time,
+        ),
+    };
+    let sw = st.spec.sweep.as_ref().expect("sweep");
+    let n = st.jobs.len();
+    let plan = st.plan(method, start, period);
+    let (kept, hl) = (plan.kept(), plan.history_len());
+    let probe = JobResult {
+        trace: Trace::default(),
+        units: units.clone(),
+        integrator: format!("{method:?}"),
+        period,
+        start,
+        wall: 0.0,
+    };
+    let file = hdf5::File::create(path).map_err(&e)?;
+    (|| -> hdf5::Result<()> {
+        str_attr(&file, "program", "jointplay")?;
+        str_attr(&file, "program_version", version)?;
+        str_attr(&file, "units", "SI: m, kg, s, rad, N, N m, J")?;
+        write_root(&file, st, &probe, 0)?;
+        let g = file.create_group("sweep")?;
+        let params: Vec<f64> = st.jobs.iter().map(|j| j.0).collect();
+        write1(
+            &g,
+            "parameter",
+            &params,
+            &sw.unit,
+            "swept parameter value of each job",
+        )?;
+        {
+            let ds = g.dataset("parameter")?;
+            str_attr(&ds, "path", &sw.parameter)?;
+        }
+        let dirs: Vec<i8> = st.jobs.iter().map(|j| j.1).collect();
+        let d = g
+            .new_dataset_builder()
+            .with_data(&Array1::from(dirs))
+            .create("direction")?;
+        str_attr(
+            &d,
+            "description",
+            "+1: up the list, -1: back down (continuation)",
+        )?;
+        let d = g
+            .new_dataset_builder()
+            .with_data(&Array1::from(vec![0u8; n]))
+            .create("done")?;
+        str_attr(
+            &d,
+            "description",
+            "0 not run, 1 done, 2 failed (message in /sweep/errors)",
+        )?;
+        g.create_group("errors")?;
+        u8_attr_set(&g, "continuation", u8::from(sw.continuation))?;
+        matrix(&g, "strobe_time", n, kept, "s", "strobe times of each job")?;
+        for (o, u) in st.spec.observables.iter().zip(&units) {
+            matrix(
+                &g,
+                &o.name,
+                n,
+                kept,
+                u,
+                &format!("{} at the strobe times, per job", o.path),
+            )?;
+            {
+                let ds = g.dataset(&o.name)?;
+                str_attr(&ds, "path", &o.path)?;
+            }
+        }
+        if hl > 0 {
+            let h = g.create_group("history")?;
+            matrix(
+                &h,
+                "time",
+                n,
+                hl,
+                "s",
+                "sample times over the kept window, per job",
+            )?;
+            for (o, u) in st.spec.observables.iter().zip(&units) {
+                matrix(
+                    &h,
+                    &o.name,
+                    n,
+                    hl,
+                    u,
+                    &format!("{} over the kept window, per job", o.path),
+                )?;
+            }
+        }
+        matrix(
+            &g,
+            "final_state",
+            n,
+            dim,
+            "SI",
+            "state vector at the end time, per job",
+        )?;
+        g.new_dataset::<u64>().shape(n).create("rhs_evals")?;
+        if !st.planes.is_empty() {
+            g.create_group("sections")?;
+        }
+        Ok(())
+    })()
+    .map_err(&e)?;
+    file.flush().map_err(&e)?;
+    Ok(file)
+}
+
+fn write_row(g: &hdf5::Group, name: &str, row: usize, data: &[f64]) -> hdf5::Result<()> {
+    let ds = g.dataset(name)?;
+    let cols = ds.shape()[1];
+    if data.len() != cols {
+        return Err(format!("{name}: {} values for {cols} columns", data.len()).into());
+    }
+    ds.write_slice(&Array1::from(data.to_vec()), s![row, ..])
+}
+
+fn write_job(file: &hdf5::File, st: &Loaded, j: usize, r: &JobResult) -> hdf5::Result<()> {
+    let g = file.group("sweep")?;
+    let t = &r.trace;
+    write_row(&g, "strobe_time", j, &t.strobe_time)?;
+    for (o, v) in st.spec.observables.iter().zip(&t.strobe) {
+        write_row(&g, &o.name, j, v)?;
+    }
+    if st.spec.analysis.samples_per_period > 0 {
+        let h = g.group("history")?;
+        write_row(&h, "time", j, &t.history_time)?;
+        for (o, v) in st.spec.observables.iter().zip(&t.history) {
+            write_row(&h, &o.name, j, v)?;
+        }
+    }
+    write_row(&g, "final_state", j, &t.final_state)?;
+    g.dataset("rhs_evals")?
+        .write_slice(&Array1::from(vec![t.stats.rhs_evals]), s![j..j + 1])?;
+    if !st.planes.is_empty() {
+        let sec = g.group("sections")?;
+        // A job interrupted while being written left a partial group: replace it.
+        if sec.link_exists(&j.to_string()) {
+            sec.unlink(&j.to_string())?;
+        }
+        let gj = sec.create_group(&j.to_string())?;
+        for (p, c) in st.planes.iter().zip(&t.crossings) {
+            let gp = gj.create_group(&p.name)?;
+            write1(&gp, "time", &c.time, "s", "crossing times")?;
+            obs_datasets(&gp, st, &r.units, &c.values, "at the crossings")?;
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,313 @@
+//! N-period runs of any flow with stroboscopic and hyperplane Poincare sections.
+//!
+//! A [`Plan`] runs a flow from its start time `t0` to `t0 + phase + periods T` and keeps what
+//! happens after the transient, i.e. after `t_w = t0 + phase + transient T`:
+//!
+//! * **stroboscopic section**: the observables at `t_k = t0 + phase + k T` for
+//!   `k = transient + 1, ..., periods`, evaluated on the integrator's dense output at exactly that
+//!   time (the step sequence does not depend on the sampling, and a fixed-step method whose grid
+//!   contains `t_k` hands over the step end point itself);
+//! * **time histories**: `samples_per_period` samples per period on `t0 + phase + (i / n) T`
+//!   over the kept window (the strobe times are among them, computed by the same expression);
+//! * **hyperplane sections**: the times where `g = sum_i c_i o_i(t) - value` of the observables
+//!   `o_i` changes sign in the chosen direction. Every accepted step is checked at both ends; a
+//!   sign change is refined by the Illinois variant of regula falsi (Dowell & Jarratt, BIT 11:168,
+//!   1971) on the step's dense output, to `1e-13` of the step or an exact zero, and the
+//!   observables are recorded at the crossing. Two crossings inside one step cancel and go
+//!   unseen, so the step must resolve the motion (any useful accuracy setting does).
+//!
+//! The flow only has to be an [`OdeSystem`] that can evaluate observables ([`Observed`]);
+//! nothing here knows mechanics.
+
+use jointplay_solver::ode::{Flow, Method, OdeSystem, Stats, Step, integrate_steps};
+
+use crate::Result;
+
+/// A flow whose observables can be evaluated at any state.
+pub trait Observed: OdeSystem {
+    /// Number of observables.
+    fn n_obs(&self) -> usize;
+    /// Writes the observables at `(t, y)` into `out`.
+    fn observe(&mut self, t: f64, y: &[f64], out: &mut [f64]);
+    /// Name of observable `i`, for error messages.
+    fn obs_name(&self, i: usize) -> String;
+}
+
+/// Crossing direction of a hyperplane section.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Direction {
+    /// `g` increasing through zero.
+    Up,
+    /// `g` decreasing through zero.
+    Down,
+    Both,
+}
+
+/// A hyperplane `sum_i c_i o_i = value` in the observables, crossed in `direction`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Hyperplane {
+    pub name: String,
+    /// (observable index, coefficient).
+    pub terms: Vec<(usize, f64)>,
+    pub value: f64,
+    pub direction: Direction,
+}
+
+impl Hyperplane {
+    fn g(&self, obs: &[f64]) -> f64 {
+        self.terms.iter().map(|&(i, c)| c * obs[i]).sum::<f64>() - self.value
+    }
+}
+
+/// What to run and keep.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Plan {
+    pub method: Method,
+    /// Start time t0 (s).
+    pub start: f64,
+    /// Drive period T (s).
+    pub period: f64,
+    /// Offset of the stroboscopic section from t0 (s).
+    pub phase: f64,
+    pub periods: usize,
+    pub transient: usize,
+    /// Time-history samples per period in the kept window (0: none).
+    pub samples_per_period: usize,
+    pub hyperplanes: Vec<Hyperplane>,
+}
+
+/// Points of one hyperplane section.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Crossings {
+    pub time: Vec<f64>,
+    /// Per observable, one value per crossing.
+    pub values: Vec<Vec<f64>>,
+}
+
+/// What one run kept.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Trace {
+    pub history_time: Vec<f64>,
+    /// Per observable, one value per history sample.
+    pub history: Vec<Vec<f64>>,
+    pub strobe_time: Vec<f64>,
+    /// Per observable, one value per kept period.
+    pub strobe: Vec<Vec<f64>>,
+    /// One per hyperplane of the plan.
+    pub crossings: Vec<Crossings>,
+    pub stats: Stats,
+    /// State at the end time.
+    pub final_state: Vec<f64>,
+}
+
+impl Plan {
+    /// End time of the run.
+    pub fn end_time(&self) -> f64 {
+        self.start + self.phase + self.periods as f64 * self.period
+    }
+
+    /// Start of the kept window.
+    pub fn window_start(&self) -> f64 {
+        self.start + self.phase + self.transient as f64 * self.period
+    }
+
+    /// Number of stroboscopic points kept.
+    pub fn kept(&self) -> usize {
+        self.periods - self.transient
+    }
+
+    /// Number of time-history samples kept.
+    pub fn history_len(&self) -> usize {
+        if self.samples_per_period == 0 {
+            0
+        } else {
+            self.kept() * self.samples_per_period + 1
+        }
+    }
+
+    /// The sample times: history samples, or the strobe times alone; and whether each is a
+    /// strobe time.
+    fn samples(&self) -> Vec<(f64, bool)> {
+        let base = self.start + self.phase;
+        let n = self.samples_per_period;
+        if n == 0 {
+            (self.transient + 1..=self.periods)
+                .map(|k| (base + k as f64 * self.period, true))
+                .collect()
+        } else {
+            // (k n) / n is exactly k in floating point, so strobe samples are base + k T exactly.
+            (self.transient * n..=self.periods * n)
+                .map(|i| {
+                    (
+                        base + (i as f64 / n as f64) * self.period,
+                        i % n == 0 && i > self.transient * n,
+                    )
+                })
+                .collect()
+        }
+    }
+}
+
+fn nonfinite<S: Observed>(sys: &S, i: usize, t: f64) -> crate::Error {
+    jointplay_solver::Error::Diverged {
+        time: t,
+        message: format!("observable '{}' became non-finite", sys.obs_name(i)),
+    }
+    .into()
+}
+
+/// Runs `sys` from state `y` (at `plan.start`) and keeps what the plan asks for; `y` ends at the
+/// final state. `progress` receives the fraction of the span done after every accepted step.
+pub fn trace<S: Observed>(
+    sys: &mut S,
+    plan: &Plan,
+    y: &mut [f64],
+    progress: &mut dyn FnMut(f64),
+) -> Result<Trace> {
+    let no = sys.n_obs();
+    let samples = plan.samples();
+    let times: Vec<f64> = samples.iter().map(|s| s.0).collect();
+    let mut history_time = Vec::new();
+    let mut history = vec![Vec::new(); no];
+    let mut strobe_time = Vec::new();
+    let mut strobe = vec![Vec::new(); no];
+    let mut obs = vec![0.0; no];
+    let mut next = 0usize;
+    let mut fail = None;
+    let keep_history = plan.samples_per_period > 0;
+    let observer = |sys: &mut S, t: f64, y: &[f64]| {
+        sys.observe(t, y, &mut obs);
+        if let Some(i) = obs.iter().position(|v| !v.is_finite()) {
+            fail = Some(nonfinite(sys, i, t));
+            return Flow::Stop;
+        }
+        if keep_history {
+            history_time.push(t);
+            for (h, v) in history.iter_mut().zip(&obs) {
+                h.push(*v);
+            }
+        }
+        if samples[next].1 {
+            strobe_time.push(t);
+            for (s, v) in strobe.iter_mut().zip(&obs) {
+                s.push(*v);
+            }
+        }
+        next += 1;
+        Flow::Continue
+    };
+
+    // Hyperplane sections.
+    let planes = &plan.hyperplanes;
+    let mut crossings = vec![
+        Crossings {
+            time: Vec::new(),
+            values: vec![Vec::new(); no],
+        };
+        planes.len()
+    ];
+    let (tw, t_end) = (plan.window_start(), plan.end_time());
+    let span = t_end - plan.start;
+    let mut g_prev: Option<(f64, Vec<f64>)> = None;
+    let mut o1 = vec![0.0; no];
+    let mut ys = vec![0.0; y.len()];
+    let mut step_fail = None;
+    let mut on_step = |sys: &mut S, st: &Step| -> Flow {
+        progress((st.t1 - plan.start) / span);
+        if planes.is_empty() || st.t1 <= tw {
+            return Flow::Continue;
+        }
+        let g0: Vec<f64> = match g_prev.take() {
+            Some((t, g)) if t == st.t0 => g,
+            _ => {
+                sys.observe(st.t0, st.y0, &mut o1);
+                planes.iter().map(|p| p.g(&o1)).collect()
+            }
+        };
+        sys.observe(st.t1, st.y1, &mut o1);
+        if let Some(i) = o1.iter().position(|v| !v.is_finite()) {
+            step_fail = Some(nonfinite(sys, i, st.t1));
+            return Flow::Stop;
+        }
+        let g1: Vec<f64> = planes.iter().map(|p| p.g(&o1)).collect();
+        for (k, p) in planes.iter().enumerate() {
+            let (a, b) = (g0[k], g1[k]);
+            let hit = match p.direction {
+                Direction::Up => a < 0.0 && b >= 0.0,
+                Direction::Down => a > 0.0 && b <= 0.0,
+                Direction::Both => (a < 0.0 && b >= 0.0) || (a > 0.0 && b <= 0.0),
+            };
+            if !hit {
+                continue;
+            }
+            // Illinois iteration on [t0, t1] with g(t0) = a, g(t1) = b.
+            let (mut ta, mut tb, mut ga, mut gb) = (st.t0, st.t1, a, b);
+            let mut side = 0i8;
+            let tol = 1e-13 * (st.t1 - st.t0).max(f64::MIN_POSITIVE);
+            let mut tc = tb;
+            let mut o = vec![0.0; no];
+            for _ in 0..100 {
+                tc = (ta * gb - tb * ga) / (gb - ga);
+                if !(tc > ta && tc < tb) {
+                    tc = 0.5 * (ta + tb);
+                }
+                st.eval(tc, &mut ys);
+                sys.observe(tc, &ys, &mut o);
+                let gc = p.g(&o);
+                if gc == 0.0 || tb - ta < tol {
+                    break;
+                }
+                if (gc < 0.0) == (ga < 0.0) {
+                    ta = tc;
+                    ga = gc;
+                    if side == -1 {
+                        gb *= 0.5;
+                    }
+                    side = -1;
+                } else {
+                    tb = tc;
+                    gb = gc;
+                    if side == 1 {
+                        ga *= 0.5;
+                    }
+                    side = 1;
+                }
+            }
+            if tc <= tw {
+                continue;
+            }
+            st.eval(tc, &mut ys);
+            sys.observe(tc, &ys, &mut o);
+            let c = &mut crossings[k];
+            c.time.push(tc);
+            for (v, x) in c.values.iter_mut().zip(&o) {
+                v.push(*x);
+            }
+        }
+        g_prev = Some((st.t1, g1));
+        Flow::Continue
+    };
+    let stats = integrate_steps(
+        sys,
+        plan.method,
+        plan.start,
+        y,
+        t_end,
+        &times,
+        observer,
+        Some(&mut on_step),
+    )?;
+    if let Some(e) = fail.or(step_fail) {
+        return Err(e);
+    }
+    Ok(Trace {
+        history_time,
+        history,
+        strobe_time,
+        strobe,
+        crossings,
+        stats,
+        final_state: y.to_vec(),
+    })
+}

@@ -1,0 +1,355 @@
+//! Built-in reference systems: plain ODEs with well-known nonlinear behaviour, usable from a study
+//! file in place of a mechanism scene, so that the analysis pipeline (sections, sweeps, figures)
+//! can be checked against published results.
+//!
+//! * `duffing`: the forced Duffing oscillator
+//!   `x'' + delta x' + alpha x + beta x^3 = gamma cos(omega t)`, state `(x, v)`
+//!   (Guckenheimer & Holmes, *Nonlinear Oscillations, Dynamical Systems, and Bifurcations of
+//!   Vector Fields*, Springer 1983, section 2.2). Its stroboscopic map contracts areas by
+//!   `exp(-delta T)`, `T = 2 pi / omega`.
+//! * `pendulum`: the forced damped pendulum
+//!   `theta'' + damping theta' + omega0^2 sin(theta) = forcing cos(omega t)`, state
+//!   `(theta, theta_dot)` (Baker & Gollub, *Chaotic Dynamics: An Introduction*, 2nd ed.,
+//!   Cambridge 1996, chapter 3). The observable `theta_wrapped` is the angle in `(-pi, pi]`.
+//! * `lorenz`: `x' = sigma (y - x)`, `y' = x (rho - z) - y`, `z' = x y - beta z`
+//!   (Lorenz, J. Atmos. Sci. 20:130-141, 1963); autonomous, so it has no drive period and its
+//!   sections are hyperplanes.
+//!
+//! All three are dimensionless (the pendulum's angle in rad, its time in units of `1/omega0`).
+
+use std::f64::consts::PI;
+
+use jointplay_solver::ode::{Method, OdeSystem};
+use jointplay_solver::scene::IntegratorKind;
+use serde::Deserialize;
+use toml::Table;
+
+/// Which reference system, with its parameters.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Builtin {
+    Duffing {
+        delta: f64,
+        alpha: f64,
+        beta: f64,
+        gamma: f64,
+        omega: f64,
+    },
+    Pendulum {
+        damping: f64,
+        omega0: f64,
+        forcing: f64,
+        omega: f64,
+    },
+    Lorenz {
+        sigma: f64,
+        rho: f64,
+        beta: f64,
+    },
+}
+
+/// Integrator settings of a reference system (the same keys as a scene's `[solver]`).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct OdeSolverSpec {
+    #[serde(default = "dopri5")]
+    pub integrator: IntegratorKind,
+    #[serde(default)]
+    pub step: Option<f64>,
+    #[serde(default = "default_rtol")]
+    pub rtol: f64,
+    #[serde(default = "default_atol")]
+    pub atol: f64,
+    #[serde(default)]
+    pub max_step: Option<f64>,
+}
+
+fn dopri5() -> IntegratorKind {
+    IntegratorKind::Dopri5
+}
+fn default_rtol() -> f64 {
+    1e-10
+}
+fn default_atol() -> f64 {
+    1e-12
+}
+
+impl Default for OdeSolverSpec {
+    fn default() -> Self {
+        OdeSolverSpec {
+            integrator: IntegratorKind::Dopri5,
+            step: None,
+            rtol: default_rtol(),
+            atol: default_atol(),
+            max_step: None,
+        }
+    }
+}
+
+/// The `system` table of a study: `kind`, the parameters, `initial` and `solver`.
+#[derive(Debug, Clone)]
+pub struct SystemSpec {
+    pub builtin: Builtin,
+    pub initial: Vec<f64>,
+    pub method: Method,
+    /// Start time.
+    pub start_time: f64,
+}
+
+fn param(t: &Table, key: &str, default: f64) -> Result<f64, (String, String)> {
+    match t.get(key) {
+        None => Ok(default),
+        Some(v) => {
+            let x = v
+                .as_float()
+                .or_else(|| v.as_integer().map(|i| i as f64))
+                .ok_or_else(|| (key.to_string(), "must be a number".to_string()))?;
+            if x.is_finite() {
+                Ok(x)
+            } else {
+                Err((key.to_string(), "must be finite".to_string()))
+            }
+        }
+    }
+}
+
+impl SystemSpec {
+    /// Parses a `system` table; errors name the key (relative to the table) and the problem.
+    pub fn parse(t: &Table) -> Result<SystemSpec, (String, String)> {
+        let kind = t.get("kind").and_then(|v| v.as_str()).ok_or_else(|| {
+            (
+                "kind".to_string(),
+                "missing: use \"duffing\", \"pendulum\" or \"lorenz\"".to_string(),
+            )
+        })?;
+        let (builtin, allowed, dim): (Builtin, &[&str], usize) = match kind {
+            "duffing" => (
+                Builtin::Duffing {
+                    delta: param(t, "delta", 0.3)?,
+                    alpha: param(t, "alpha", -1.0)?,
+                    beta: param(t, "beta", 1.0)?,
+                    gamma: param(t, "gamma", 0.3)?,
+                    omega: param(t, "omega", 1.2)?,
+                },
+                &["delta", "alpha", "beta", "gamma", "omega"],
+                2,
+            ),
+            "pendulum" => (
+                Builtin::Pendulum {
+                    damping: param(t, "damping", 0.5)?,
+                    omega0: param(t, "omega0", 1.0)?,
+                    forcing: param(t, "forcing", 1.5)?,
+                    omega: param(t, "omega", 2.0 / 3.0)?,
+                },
+                &["damping", "omega0", "forcing", "omega"],
+                2,
+            ),
+            "lorenz" => (
+                Builtin::Lorenz {
+                    sigma: param(t, "sigma", 10.0)?,
+                    rho: param(t, "rho", 28.0)?,
+                    beta: param(t, "beta", 8.0 / 3.0)?,
+                },
+                &["sigma", "rho", "beta"],
+                3,
+            ),
+            other => {
+                return Err((
+                    "kind".into(),
+                    format!(
+                        "unknown system '{other}': use \"duffing\", \"pendulum\" or \"lorenz\""
+                    ),
+                ));
+            }
+        };
+        for key in t.keys() {
+            if !allowed.contains(&key.as_str())
+                && !["kind", "initial", "solver", "start_time"].contains(&key.as_str())
+            {
+                return Err((
+                    key.clone(),
+                    format!(
+                        "unknown key for the {kind} system (its parameters: {})",
+                        allowed.join(", ")
+                    ),
+                ));
+            }
+        }
+        if let Builtin::Duffing { omega, .. } | Builtin::Pendulum { omega, .. } = builtin
+            && omega <= 0.0
+        {
+            return Err(("omega".into(), "must be positive".into()));
+        }
+        let initial = match t.get("initial") {
+            None => vec![if dim == 3 { 1.0 } else { 0.0 }; dim],
+            Some(v) => {
+                let a = v
+                    .as_array()
+                    .ok_or(("initial".to_string(), "must be an array".to_string()))?;
+                let x: Option<Vec<f64>> = a
+                    .iter()
+                    .map(|v| v.as_float().or_else(|| v.as_integer().map(|i| i as f64)))
+                    .collect();
+                let x = x.ok_or(("initial".to_string(), "must hold numbers".to_string()))?;
+                if x.len() != dim || x.iter().any(|v| !v.is_finite()) {
+                    return Err((
+                        "initial".into(),
+                        format!(
+                            "must hold {dim} finite numbers ({})",
+                            state_names(kind).join(", ")
+                        ),
+                    ));
+                }
+                x
+            }
+        };
+        let solver: OdeSolverSpec = match t.get("solver") {
+            None => OdeSolverSpec::default(),
+            Some(v) => v
+                .clone()
+                .try_into()
+                .map_err(|e: toml::de::Error| ("solver".to_string(), e.message().to_string()))?,
+        };
+        let method = match solver.integrator {
+            IntegratorKind::Rk4 => {
+                let step = solver
+                    .step
+                    .ok_or(("solver.step".to_string(), "rk4 needs a step".to_string()))?;
+                if !(step > 0.0 && step.is_finite()) {
+                    return Err(("solver.step".into(), "must be positive".into()));
+                }
+                Method::Rk4 { step }
+            }
+            IntegratorKind::Dopri5 => {
+                if !(solver.rtol > 0.0 && solver.atol > 0.0) {
+                    return Err(("solver.rtol".into(), "tolerances must be positive".into()));
+                }
+                let max_step = solver.max_step.unwrap_or(f64::INFINITY);
+                if max_step <= 0.0 {
+                    return Err(("solver.max_step".into(), "must be positive".into()));
+                }
+                Method::Dopri5 {
+                    rtol: solver.rtol,
+                    atol: solver.atol,
+                    max_step,
+                }
+            }
+        };
+        Ok(SystemSpec {
+            builtin,
+            initial,
+            method,
+            start_time: param(t, "start_time", 0.0)?,
+        })
+    }
+}
+
+fn state_names(kind: &str) -> &'static [&'static str] {
+    match kind {
+        "duffing" => &["x", "v"],
+        "pendulum" => &["theta", "theta_dot"],
+        _ => &["x", "y", "z"],
+    }
+}
+
+impl Builtin {
+    /// Name of the system kind.
+    pub fn kind(&self) -> &'static str {
+        match self {
+            Builtin::Duffing { .. } => "duffing",
+            Builtin::Pendulum { .. } => "pendulum",
+            Builtin::Lorenz { .. } => "lorenz",
+        }
+    }
+
+    /// Names of the state components.
+    pub fn state_names(&self) -> &'static [&'static str] {
+        state_names(self.kind())
+    }
+
+    /// The forcing period `2 pi / omega`, if forced.
+    pub fn period(&self) -> Option<f64> {
+        match self {
+            Builtin::Duffing { omega, .. } | Builtin::Pendulum { omega, .. } => {
+                Some(2.0 * PI / omega)
+            }
+            Builtin::Lorenz { .. } => None,
+        }
+    }
+
+    /// Observable `name` at state `y` with its unit, or `None` for an unknown name.
+    pub fn observable(&self, name: &str) -> Option<(usize, &'static str)> {
+        let unit = match self {
+            Builtin::Pendulum { .. } => ["rad", "rad/s", "rad"],
+            _ => ["1", "1", "1"],
+        };
+        if let Some(i) = self.state_names().iter().position(|s| *s == name) {
+            return Some((i, unit[i]));
+        }
+        match (self, name) {
+            (Builtin::Pendulum { .. }, "theta_wrapped") => Some((WRAPPED, "rad")),
+            _ => None,
+        }
+    }
+
+    /// Every observable name.
+    pub fn observable_names(&self) -> Vec<&'static str> {
+        let mut v = self.state_names().to_vec();
+        if matches!(self, Builtin::Pendulum { .. }) {
+            v.push("theta_wrapped");
+        }
+        v
+    }
+}
+
+/// Index code of the wrapped pendulum angle among [`Builtin::observable`]'s results.
+pub const WRAPPED: usize = usize::MAX;
+
+/// Value of observable `index` (from [`Builtin::observable`]) at state `y`.
+pub fn observe(index: usize, y: &[f64]) -> f64 {
+    if index == WRAPPED {
+        // Into (-pi, pi].
+        let r = y[0].rem_euclid(2.0 * PI);
+        if r > PI { r - 2.0 * PI } else { r }
+    } else {
+        y[index]
+    }
+}
+
+impl OdeSystem for Builtin {
+    fn dim(&self) -> usize {
+        match self {
+            Builtin::Lorenz { .. } => 3,
+            _ => 2,
+        }
+    }
+
+    fn rhs(&mut self, t: f64, y: &[f64], d: &mut [f64]) {
+        match *self {
+            Builtin::Duffing {
+                delta,
+                alpha,
+                beta,
+                gamma,
+                omega,
+            } => {
+                d[0] = y[1];
+                d[1] =
+                    gamma * (omega * t).cos() - delta * y[1] - alpha * y[0] - beta * y[0].powi(3);
+            }
+            Builtin::Pendulum {
+                damping,
+                omega0,
+                forcing,
+                omega,
+            } => {
+                d[0] = y[1];
+                d[1] = forcing * (omega * t).cos() - damping * y[1] - omega0 * omega0 * y[0].sin();
+            }
+            Builtin::Lorenz { sigma, rho, beta } => {
+                d[0] = sigma * (y[1] - y[0]);
+                d[1] = y[0] * (rho - y[2]) - y[1];
+                d[2] = y[0] * y[1] - beta * y[2];
+            }
+        }
+    }
+}
