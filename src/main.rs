@@ -2,8 +2,13 @@
 //!
 //! * `jointplay check SCENE`: validate and compile a scene and print what will be simulated.
 //! * `jointplay run SCENE --out DIR`: simulate it and write `DIR/<scene>.h5` plus figures.
+//! * `jointplay run STUDY --out DIR`: run a comparison study or a nonlinear-analysis study
+//!   (N-period runs, Poincare sections, bifurcation sweeps with `--resume`).
+//! * `jointplay plot FILE.h5`: redraw an analysis file's figures without simulating.
 
+use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
+use std::sync::Mutex;
 use std::time::Instant;
 
 use anyhow::{Context, Result};
@@ -11,6 +16,8 @@ use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use jointplay_analysis::figures::{circle, study_figures};
 use jointplay_analysis::h5::{Meta, StudyMeta, read_series, write_run, write_study};
+use jointplay_analysis::nlfigures::render;
+use jointplay_analysis::nonlinear::{Loaded, Options, Progress, execute, is_analysis};
 use jointplay_analysis::plot::{Format, Panel, Series, figure};
 use jointplay_analysis::report::{self, markdown};
 use jointplay_analysis::run::Recording;
@@ -54,6 +61,24 @@ enum Command {
         /// No progress bar.
         #[arg(long, short)]
         quiet: bool,
+        /// Analysis sweeps: keep the finished values of an existing DIR/<name>.h5 and compute
+        /// only the rest.
+        #[arg(long)]
+        resume: bool,
+        /// Analysis sweeps: stop after this many values have finished (resume later).
+        #[arg(long)]
+        max_jobs: Option<usize>,
+    },
+    /// Redraw every figure of a nonlinear-analysis file without simulating again.
+    Plot {
+        /// File written by `jointplay run STUDY` for an analysis study.
+        file: PathBuf,
+        /// png, svg or both.
+        #[arg(long, default_value = "both")]
+        format: String,
+        /// Output directory (default: the file's directory).
+        #[arg(long)]
+        out: Option<PathBuf>,
     },
     /// Compute a study's comparison table (markdown) from its HDF5 file.
     Report {
@@ -92,7 +117,10 @@ fn main() {
             out,
             no_plots,
             quiet,
-        } => run(&scene, &out, !no_plots, quiet),
+            resume,
+            max_jobs,
+        } => run(&scene, &out, !no_plots, quiet, Options { resume, max_jobs }),
+        Command::Plot { file, format, out } => plot_cmd(&file, &format, out.as_deref()),
         Command::Report { file, out } => report_cmd(&file, out.as_deref()),
         Command::Compare {
             files,
@@ -109,21 +137,7 @@ fn main() {
 }
 
 fn method_text(m: &Method) -> String {
-    match m {
-        Method::Rk4 { step } => format!("rk4, fixed step {step:e} s"),
-        Method::Dopri5 {
-            rtol,
-            atol,
-            max_step,
-        } => {
-            let mut s = format!("dopri5, rtol {rtol:e}, atol {atol:e}");
-            if max_step.is_finite() {
-                s += &format!(", max step {max_step:e} s");
-            }
-            s
-        }
-        Method::Dopri5Fixed { step } => format!("dopri5 (fixed step {step:e} s)"),
-    }
+    m.describe()
 }
 
 fn body_name(m: &Model, b: usize) -> &str {
@@ -428,9 +442,18 @@ fn run_study(path: &Path, out: &Path, plots: bool, quiet: bool) -> Result<()> {
     Ok(())
 }
 
-fn run(path: &Path, out: &Path, plots: bool, quiet: bool) -> Result<()> {
+fn run(path: &Path, out: &Path, plots: bool, quiet: bool, opts: Options) -> Result<()> {
     let text =
         std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    if is_analysis(&text) {
+        return run_analysis(path, out, plots, quiet, opts);
+    }
+    if opts.resume || opts.max_jobs.is_some() {
+        anyhow::bail!(
+            "{}: --resume and --max-jobs apply to analysis studies with a [sweep]",
+            path.display()
+        );
+    }
     if is_study(&text) {
         return run_study(path, out, plots, quiet);
     }
@@ -490,6 +513,119 @@ fn run(path: &Path, out: &Path, plots: bool, quiet: bool) -> Result<()> {
         for f in figures(out, &model.name, &result)? {
             println!("wrote        {}", f.display());
         }
+    }
+    Ok(())
+}
+
+fn formats(s: &str) -> Result<Vec<Format>> {
+    Ok(match s {
+        "png" => vec![Format::Png],
+        "svg" => vec![Format::Svg],
+        "both" => vec![Format::Png, Format::Svg],
+        other => anyhow::bail!("--format {other}: use png, svg or both"),
+    })
+}
+
+fn plot_cmd(file: &Path, format: &str, out: Option<&Path>) -> Result<()> {
+    let dir = out
+        .map(Path::to_path_buf)
+        .unwrap_or_else(|| file.parent().unwrap_or(Path::new(".")).to_path_buf());
+    for f in render(file, &dir, &formats(format)?)? {
+        println!("wrote        {}", f.display());
+    }
+    Ok(())
+}
+
+/// Runs an analysis study (a single N-period run or a sweep) with a progress bar showing the
+/// values done and the time left.
+fn run_analysis(path: &Path, out: &Path, plots: bool, quiet: bool, opts: Options) -> Result<()> {
+    let st = Loaded::load(path)?;
+    if st.spec.sweep.is_none() && (opts.resume || opts.max_jobs.is_some()) {
+        anyhow::bail!(
+            "{}: --resume and --max-jobs apply to studies with a [sweep]",
+            path.display()
+        );
+    }
+    let bar = ProgressBar::with_draw_target(Some(1000), ProgressDrawTarget::hidden());
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:40} {msg} (eta {eta})")
+            .expect("static template"),
+    );
+    let start = Instant::now();
+    // Per-job fraction done, the jobs finished, and how many run now.
+    let state = Mutex::new((BTreeMap::<usize, f64>::new(), 0usize, 0usize, 0usize));
+    let progress = |p: Progress| {
+        let mut s = state.lock().unwrap_or_else(|e| e.into_inner());
+        match p {
+            Progress::Start { total, pending } => {
+                s.2 = pending;
+                s.3 = total - pending;
+            }
+            Progress::Fraction { job, fraction } => {
+                s.0.insert(job, fraction);
+            }
+            Progress::Done { job, .. } => {
+                s.0.remove(&job);
+                s.1 += 1;
+            }
+        }
+        let running: f64 = s.0.values().sum();
+        let frac = (s.1 as f64 + running) / s.2.max(1) as f64;
+        bar.set_position((frac * 1000.0) as u64);
+        bar.set_message(format!("{} of {} values done", s.1 + s.3, s.2 + s.3));
+        if !quiet && start.elapsed().as_secs_f64() > 1.0 && bar.is_hidden() {
+            bar.set_draw_target(ProgressDrawTarget::stderr());
+        }
+    };
+    let res = execute(&st, out, opts, env!("CARGO_PKG_VERSION"), &progress);
+    bar.finish_and_clear();
+    let o = res.with_context(|| format!("running {}", path.display()))?;
+    println!("study        {} ({})", st.spec.study.name, path.display());
+    if let Some(sw) = &st.spec.sweep {
+        println!(
+            "sweep        {} over {} values{}; {} run now",
+            sw.parameter,
+            o.jobs,
+            if sw.continuation {
+                " (continuation, up and back down)"
+            } else {
+                ""
+            },
+            o.ran
+        );
+    }
+    println!(
+        "periods      {} ({} transient), {} samples per period",
+        st.spec.analysis.periods, st.spec.analysis.transient, st.spec.analysis.samples_per_period
+    );
+    println!(
+        "RHS          {} evaluations, {:.0} per second of wall time",
+        o.rhs_evals,
+        o.rhs_evals as f64 / o.wall.max(1e-9)
+    );
+    println!("wall time    {:.3} s", o.wall);
+    println!("wrote        {}", o.file.display());
+    if plots {
+        for f in render(&o.file, out, &[Format::Png, Format::Svg])? {
+            println!("wrote        {}", f.display());
+        }
+    }
+    if !o.complete {
+        println!(
+            "incomplete   stopped after {} values: rerun with --resume to compute the rest",
+            o.ran
+        );
+    }
+    if !o.failed.is_empty() {
+        for (j, m) in &o.failed {
+            eprintln!("failed       value {} ({}): {m}", j, st.jobs[*j].0);
+        }
+        anyhow::bail!(
+            "{} of {} values failed; the others are in {}",
+            o.failed.len(),
+            o.jobs,
+            o.file.display()
+        );
     }
     Ok(())
 }
@@ -569,6 +705,10 @@ fn figures(out: &Path, name: &str, run: &RunResult) -> Result<Vec<PathBuf>> {
             log_y: false,
             x_range: None,
             y_range: None,
+            points: Vec::new(),
+            inset: None,
+            line_width: 2,
+            point_size: 2,
         })
         .collect();
     sets.push((format!("{name}-positions"), body_panels));
@@ -596,6 +736,10 @@ fn figures(out: &Path, name: &str, run: &RunResult) -> Result<Vec<PathBuf>> {
                 log_y: false,
                 x_range: None,
                 y_range: None,
+                points: Vec::new(),
+                inset: None,
+                line_width: 2,
+                point_size: 2,
             }],
         ));
     }
@@ -619,6 +763,10 @@ fn figures(out: &Path, name: &str, run: &RunResult) -> Result<Vec<PathBuf>> {
             log_y: true,
             x_range: None,
             y_range: None,
+            points: Vec::new(),
+            inset: None,
+            line_width: 2,
+            point_size: 2,
         }];
         if !d.energy.is_empty() {
             panels.push(Panel {
@@ -636,6 +784,10 @@ fn figures(out: &Path, name: &str, run: &RunResult) -> Result<Vec<PathBuf>> {
                 log_y: false,
                 x_range: None,
                 y_range: None,
+                points: Vec::new(),
+                inset: None,
+                line_width: 2,
+                point_size: 2,
             });
         }
         sets.push((format!("{name}-diagnostics"), panels));
@@ -646,6 +798,10 @@ fn figures(out: &Path, name: &str, run: &RunResult) -> Result<Vec<PathBuf>> {
         let orbit = Panel {
             x_range: Some((-lim, lim)),
             y_range: Some((-lim, lim)),
+            points: Vec::new(),
+            inset: None,
+            line_width: 2,
+            point_size: 2,
             ..Panel::new(
                 format!("{}: journal-centre orbit", c.name),
                 "eccentricity along u (mm)",

@@ -554,3 +554,261 @@ fn check_lists_disabled_effects_and_rejects_a_disable_that_disables_nothing() {
         assert!(se.contains("bad.toml") && se.contains(msg), "{se}");
     }
 }
+
+const SLIDER_ANALYSIS: &str = r#"
+[study]
+name = "slider-sections"
+scene = "SCENE"
+
+[analysis]
+periods = 6
+transient = 2
+samples_per_period = 50
+
+[[observables]]
+name = "slider_x"
+path = "bodies.slider.position.x"
+
+[[observables]]
+name = "slider_vx"
+path = "bodies.slider.velocity.x"
+
+[[observables]]
+name = "pin_ex"
+path = "joints.piston_pin.eccentricity_global.x"
+
+[[observables]]
+name = "pin_ey"
+path = "joints.piston_pin.eccentricity_global.y"
+
+[[sections]]
+name = "dead_point"
+terms = { slider_vx = 1.0 }
+direction = "down"
+
+[[figures]]
+kind = "phase"
+x = "slider_x"
+y = "slider_vx"
+
+[[figures]]
+kind = "poincare"
+x = "slider_x"
+y = "slider_vx"
+section = "dead_point"
+
+[[figures]]
+kind = "orbit"
+x = "pin_ex"
+y = "pin_ey"
+circle = 5e-4
+"#;
+
+#[test]
+fn an_analysis_study_of_a_mechanism_writes_sections_and_plot_redraws_its_figures() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = run_study(
+        dir.path(),
+        "slider.toml",
+        "slider-crank-clearance.toml",
+        SLIDER_ANALYSIS,
+    );
+    let (so, se) = text(&out);
+    assert!(out.status.success(), "{so}\n{se}");
+    let file = hdf5::File::open(dir.path().join("slider-sections.h5")).unwrap();
+    assert_eq!(
+        file.attr("complete").unwrap().read_scalar::<u8>().unwrap(),
+        1
+    );
+    let period = file.attr("period").unwrap().read_scalar::<f64>().unwrap();
+    // 5000 rpm.
+    assert!((period - 60.0 / 5000.0).abs() < 1e-15);
+    let t = file
+        .dataset("sections/strobe/time")
+        .unwrap()
+        .read_raw::<f64>()
+        .unwrap();
+    assert_eq!(t.len(), 4);
+    for (i, tk) in t.iter().enumerate() {
+        assert_eq!(*tk, (3 + i) as f64 * period, "strobe times are t0 + k T");
+    }
+    // The slider's velocity vanishes at the located dead points (the root-finder's precision on
+    // the dense output; velocities are of order 10 m/s), at least one per kept period.
+    let v = file
+        .dataset("sections/dead_point/slider_vx")
+        .unwrap()
+        .read_raw::<f64>()
+        .unwrap();
+    assert!(v.len() >= 4, "{} dead points", v.len());
+    assert!(v.iter().all(|x| x.abs() < 1e-6), "{v:?}");
+    let hist = file
+        .dataset("history/slider_x")
+        .unwrap()
+        .read_raw::<f64>()
+        .unwrap();
+    assert_eq!(hist.len(), 4 * 50 + 1);
+    let unit: String = file
+        .dataset("history/slider_vx")
+        .unwrap()
+        .attr("unit")
+        .unwrap()
+        .read_scalar::<hdf5::types::VarLenUnicode>()
+        .unwrap()
+        .to_string();
+    assert_eq!(unit, "m/s");
+    for stem in [
+        "slider-sections-phase-slider_x-slider_vx",
+        "slider-sections-poincare-slider_x-slider_vx",
+        "slider-sections-orbit-pin_ex-pin_ey",
+    ] {
+        for ext in ["png", "svg"] {
+            assert!(
+                dir.path().join(format!("{stem}.{ext}")).exists(),
+                "{stem}.{ext}"
+            );
+        }
+    }
+    // Redraw from the file alone, into another directory.
+    let again = dir.path().join("again");
+    let out = bin()
+        .arg("plot")
+        .arg(dir.path().join("slider-sections.h5"))
+        .args(["--format", "svg", "--out"])
+        .arg(&again)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{:?}", text(&out));
+    let a = std::fs::read(dir.path().join("slider-sections-orbit-pin_ex-pin_ey.svg")).unwrap();
+    let b = std::fs::read(again.join("slider-sections-orbit-pin_ex-pin_ey.svg")).unwrap();
+    assert_eq!(a, b, "plot redraws the same figure");
+    assert!(
+        !again
+            .join("slider-sections-orbit-pin_ex-pin_ey.png")
+            .exists()
+    );
+}
+
+const DUFFING_SWEEP: &str = r#"
+[study]
+name = "duffing-small"
+system = { kind = "duffing", gamma = 0.2, initial = [1.0, 0.0] }
+[analysis]
+periods = 30
+transient = 20
+samples_per_period = 20
+[[observables]]
+name = "x"
+path = "x"
+[sweep]
+parameter = "gamma"
+values = [0.2, 0.25, 0.28, 0.3]
+"#;
+
+#[test]
+fn a_sweep_stopped_early_is_marked_incomplete_and_resume_completes_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let study = write_scene(dir.path(), "duffing.toml", DUFFING_SWEEP);
+    let run = |extra: &[&str]| {
+        bin()
+            .arg("run")
+            .arg(&study)
+            .arg("--out")
+            .arg(dir.path())
+            .arg("-q")
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let out = run(&["--max-jobs", "2"]);
+    let (so, se) = text(&out);
+    assert!(out.status.success(), "{so}\n{se}");
+    assert!(so.contains("incomplete"), "{so}");
+    let h5 = dir.path().join("duffing-small.h5");
+    {
+        let f = hdf5::File::open(&h5).unwrap();
+        assert_eq!(f.attr("complete").unwrap().read_scalar::<u8>().unwrap(), 0);
+    }
+    let out = run(&["--resume"]);
+    let (so, se) = text(&out);
+    assert!(out.status.success(), "{so}\n{se}");
+    assert!(
+        so.contains("2 run now") && !so.contains("incomplete"),
+        "{so}"
+    );
+    let f = hdf5::File::open(&h5).unwrap();
+    assert_eq!(f.attr("complete").unwrap().read_scalar::<u8>().unwrap(), 1);
+    let done = f.dataset("sweep/done").unwrap().read_raw::<u8>().unwrap();
+    assert_eq!(done, vec![1, 1, 1, 1]);
+    assert!(dir.path().join("duffing-small-bifurcation-x.svg").exists());
+    // Release the file: HDF5 locks it while it is open.
+    drop(f);
+    // A changed study does not resume into the old file.
+    std::fs::write(
+        &study,
+        DUFFING_SWEEP.replace("periods = 30", "periods = 31"),
+    )
+    .unwrap();
+    let out = run(&["--resume"]);
+    let (_, se) = text(&out);
+    assert_eq!(out.status.code(), Some(1));
+    assert!(
+        se.contains("--resume") && se.contains("duffing-small.h5"),
+        "{se}"
+    );
+}
+
+#[test]
+fn bad_analysis_studies_name_the_file_and_the_field() {
+    let cases = [
+        (
+            "path = \"x\"",
+            "path = \"q\"",
+            "observables[0].path",
+            "unknown observable 'q'",
+        ),
+        (
+            "kind = \"duffing\"",
+            "kind = \"vanderpol\"",
+            "study.system.kind",
+            "vanderpol",
+        ),
+        (
+            "transient = 20",
+            "transient = 30",
+            "analysis.transient",
+            "less than",
+        ),
+        (
+            "parameter = \"gamma\"",
+            "parameter = \"gama\"",
+            "sweep.parameter",
+            "gama",
+        ),
+        (
+            "gamma = 0.2,",
+            "gamma = nan,",
+            "study.system.gamma",
+            "finite",
+        ),
+    ];
+    for (from, to, field, what) in cases {
+        let dir = tempfile::tempdir().unwrap();
+        assert!(DUFFING_SWEEP.contains(from), "test setup: {from}");
+        let study = write_scene(dir.path(), "bad.toml", &DUFFING_SWEEP.replacen(from, to, 1));
+        let out = bin()
+            .arg("run")
+            .arg(&study)
+            .arg("--out")
+            .arg(dir.path())
+            .output()
+            .unwrap();
+        let (_, se) = text(&out);
+        assert_eq!(out.status.code(), Some(1), "{to}: {se}");
+        assert!(!se.contains("panicked"), "{se}");
+        assert!(
+            se.contains("bad.toml") && se.contains(field) && se.contains(what),
+            "expected file, '{field}' and '{what}' in: {se}"
+        );
+        assert!(!dir.path().join("duffing-small.h5").exists());
+    }
+}

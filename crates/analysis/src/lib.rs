@@ -12,6 +12,7 @@
 
 pub mod figures;
 pub mod h5;
+pub mod nlfigures;
 pub mod nonlinear;
 pub mod observe;
 pub mod plot;

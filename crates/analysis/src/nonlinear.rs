@@ -89,6 +89,9 @@ pub struct AnalysisSpec {
     /// Time-history samples per period over the kept window (0: none).
     #[serde(default = "default_spp")]
     pub samples_per_period: usize,
+    /// Record time histories over only the last this many periods (default: all kept ones).
+    #[serde(default)]
+    pub history_periods: Option<usize>,
     /// The period (s); default the drive period of the scene or the system's forcing period.
     #[serde(default)]
     pub period: Option<f64>,
@@ -129,6 +132,10 @@ fn up() -> Direction {
 pub struct SweepSpec {
     /// A scene path (`joints.*.clearance.radial_clearance`) or a system parameter (`gamma`).
     pub parameter: String,
+    /// Further scene paths set to the same value (e.g. an axial clearance kept equal to the
+    /// radial one).
+    #[serde(default)]
+    pub also: Vec<String>,
     /// Unit of the parameter, for labels (default none).
     #[serde(default)]
     pub unit: String,
@@ -230,7 +237,7 @@ pub fn is_analysis(text: &str) -> bool {
         .unwrap_or(false)
 }
 
-const RESERVED: [&str; 9] = [
+const RESERVED: [&str; 10] = [
     "parameter",
     "direction",
     "done",
@@ -238,6 +245,7 @@ const RESERVED: [&str; 9] = [
     "history",
     "final_state",
     "rhs_evals",
+    "wall_time",
     "errors",
     "sections",
 ];
@@ -416,6 +424,13 @@ impl Loaded {
                 Base::Scene { path: sp, tree }
             }
             (None, Some(sys)) => {
+                if spec.sweep.as_ref().is_some_and(|s| !s.also.is_empty()) {
+                    return Err(invalid(
+                        path,
+                        "sweep.also",
+                        "applies to scenes, not to systems",
+                    ));
+                }
                 if !spec.study.set.is_empty() || !spec.study.remove.is_empty() {
                     return Err(invalid(
                         path,
@@ -423,6 +438,9 @@ impl Loaded {
                         "edits apply to scenes; give a system's parameters in study.system",
                     ));
                 }
+                // The base table must be valid even where a sweep overrides a value.
+                SystemSpec::parse(sys)
+                    .map_err(|(k, m)| invalid(path, format!("study.system.{k}"), m))?;
                 Base::System(sys.clone())
             }
             _ => {
@@ -538,6 +556,15 @@ impl Loaded {
                             format!("{m} in {}", sp.display()),
                         )
                     })?;
+                    for (i, p) in sw.also.iter().enumerate() {
+                        edit(&mut tree, p, Some(&Value::Float(v))).map_err(|m| {
+                            invalid(
+                                &self.path,
+                                format!("sweep.also[{i}] ('{p}')"),
+                                format!("{m} in {}", sp.display()),
+                            )
+                        })?;
+                    }
                 }
                 let text = toml::to_string(&tree)
                     .map_err(|e| invalid(&self.path, "study.scene", e.to_string()))?;
@@ -629,6 +656,7 @@ impl Loaded {
             periods: a.periods,
             transient: a.transient,
             samples_per_period: a.samples_per_period,
+            history_periods: a.history_periods,
             hyperplanes: self.planes.clone(),
         }
     }
@@ -758,7 +786,7 @@ impl Loaded {
                 Ok(JobResult {
                     trace: tr,
                     units: obs.iter().map(|o| o.unit.clone()).collect(),
-                    integrator: format!("{:?}", plan.method),
+                    integrator: plan.method.describe(),
                     period,
                     start: plan.start,
                     wall: t0.elapsed().as_secs_f64(),
@@ -775,7 +803,7 @@ impl Loaded {
                 Ok(JobResult {
                     trace: tr,
                     units: obs.iter().map(|o| o.unit.clone()).collect(),
-                    integrator: format!("{:?}", plan.method),
+                    integrator: plan.method.describe(),
                     period,
                     start: plan.start,
                     wall: t0.elapsed().as_secs_f64(),
@@ -1066,6 +1094,11 @@ fn write_root(file: &hdf5::File, st: &Loaded, r: &JobResult, complete: u8) -> hd
     u64_attr(file, "periods", a.periods as u64)?;
     u64_attr(file, "transient", a.transient as u64)?;
     u64_attr(file, "samples_per_period", a.samples_per_period as u64)?;
+    u64_attr(
+        file,
+        "history_periods",
+        a.history_periods.unwrap_or(a.periods - a.transient) as u64,
+    )?;
     u8_attr_set(file, "complete", complete)
 }
 
@@ -1176,7 +1209,7 @@ fn create_sweep_file(path: &Path, st: &Loaded, version: &str) -> Result<hdf5::Fi
     let probe = JobResult {
         trace: Trace::default(),
         units: units.clone(),
-        integrator: format!("{method:?}"),
+        integrator: method.describe(),
         period,
         start,
         wall: 0.0,
@@ -1266,6 +1299,17 @@ fn create_sweep_file(path: &Path, st: &Loaded, version: &str) -> Result<hdf5::Fi
             "state vector at the end time, per job",
         )?;
         g.new_dataset::<u64>().shape(n).create("rhs_evals")?;
+        let d = g
+            .new_dataset::<f64>()
+            .shape(n)
+            .fill_value(f64::NAN)
+            .create("wall_time")?;
+        str_attr(&d, "unit", "s")?;
+        str_attr(
+            &d,
+            "description",
+            "wall-clock time of each job (machine-dependent, the only dataset that is not reproducible)",
+        )?;
         if !st.planes.is_empty() {
             g.create_group("sections")?;
         }
@@ -1302,6 +1346,8 @@ fn write_job(file: &hdf5::File, st: &Loaded, j: usize, r: &JobResult) -> hdf5::R
     write_row(&g, "final_state", j, &t.final_state)?;
     g.dataset("rhs_evals")?
         .write_slice(&Array1::from(vec![t.stats.rhs_evals]), s![j..j + 1])?;
+    g.dataset("wall_time")?
+        .write_slice(&Array1::from(vec![r.wall]), s![j..j + 1])?;
     if !st.planes.is_empty() {
         let sec = g.group("sections")?;
         // A job interrupted while being written left a partial group: replace it.

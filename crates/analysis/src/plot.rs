@@ -42,6 +42,13 @@ pub struct Panel {
     /// Fixed axis ranges (default: fitted to the data).
     pub x_range: Option<(f64, f64)>,
     pub y_range: Option<(f64, f64)>,
+    /// Series drawn as dots (radius 1.5 px; section points, bifurcation diagrams) over the lines.
+    pub points: Vec<Series>,
+    /// A zoomed panel drawn in the upper right quarter of this one.
+    pub inset: Option<Box<Panel>>,
+    /// Line width and dot radius (px).
+    pub line_width: u32,
+    pub point_size: u32,
 }
 
 impl Panel {
@@ -60,6 +67,10 @@ impl Panel {
             log_y: false,
             x_range: None,
             y_range: None,
+            points: Vec::new(),
+            inset: None,
+            line_width: 2,
+            point_size: 2,
         }
     }
 }
@@ -70,6 +81,14 @@ pub enum Format {
     Png,
     Svg,
 }
+
+/// Dot colours: red first, so section points stand out over a blue trajectory.
+const POINT_COLORS: [RGBColor; 4] = [
+    RGBColor(214, 39, 40),
+    RGBColor(31, 119, 180),
+    RGBColor(44, 160, 44),
+    RGBColor(148, 103, 189),
+];
 
 const COLORS: [RGBColor; 6] = [
     RGBColor(31, 119, 180),
@@ -119,6 +138,7 @@ fn fill_chart<'a, DB, Y>(
     x_fmt: &dyn Fn(&f64) -> String,
     y_fmt: &dyn Fn(&f64) -> String,
     keep: fn(f64) -> bool,
+    small: bool,
 ) -> Result<(), String>
 where
     DB: DrawingBackend + 'a,
@@ -131,8 +151,10 @@ where
         .y_desc(&panel.y_label)
         .x_label_formatter(x_fmt)
         .y_label_formatter(y_fmt)
-        .label_style(("sans-serif", 13))
-        .axis_desc_style(("sans-serif", 15))
+        .x_labels(if small { 3 } else { 10 })
+        .y_labels(if small { 4 } else { 10 })
+        .label_style(("sans-serif", if small { 10 } else { 13 }))
+        .axis_desc_style(("sans-serif", if small { 11 } else { 15 }))
         .draw()
         .map_err(|e| e.to_string())?;
     for (i, s) in panel.series.iter().enumerate() {
@@ -143,13 +165,27 @@ where
                     .zip(&s.y)
                     .filter(|(_, y)| keep(**y))
                     .map(|(x, y)| (*x, *y)),
-                c.stroke_width(2),
+                c.stroke_width(panel.line_width),
             ))
             .map_err(|e| e.to_string())?
             .label(&s.label)
             .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));
     }
-    if panel.series.len() > 1 {
+    for (i, s) in panel.points.iter().enumerate() {
+        let c = POINT_COLORS[i % POINT_COLORS.len()];
+        let r = if small { 1 } else { panel.point_size as i32 };
+        chart
+            .draw_series(
+                s.x.iter()
+                    .zip(&s.y)
+                    .filter(|(_, y)| keep(**y))
+                    .map(move |(x, y)| Circle::new((*x, *y), r, c.filled())),
+            )
+            .map_err(|e| e.to_string())?
+            .label(&s.label)
+            .legend(move |(x, y)| Circle::new((x + 10, y), 3, c.filled()));
+    }
+    if panel.series.len() + panel.points.len() > 1 && !small {
         chart
             .configure_series_labels()
             .background_style(WHITE.mix(0.8))
@@ -159,6 +195,63 @@ where
             .map_err(|e| e.to_string())?;
     }
     Ok(())
+}
+
+/// One panel in `area`; `small` for an inset (smaller fonts, no legend).
+fn draw_panel<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    panel: &Panel,
+    small: bool,
+) -> Result<(), String>
+where
+    DB::ErrorType: 'static,
+{
+    let all = || panel.series.iter().chain(&panel.points);
+    let (x0, x1) = panel
+        .x_range
+        .unwrap_or_else(|| range(all().flat_map(|s| s.x.iter().copied())));
+    let ys = || {
+        all()
+            .flat_map(|s| s.y.iter().copied())
+            .filter(|v| !panel.log_y || *v > 0.0)
+    };
+    let (y0, y1) = panel.y_range.unwrap_or_else(|| range(ys()));
+    let mut builder = ChartBuilder::on(area);
+    builder
+        .caption(&panel.title, ("sans-serif", if small { 12 } else { 20 }))
+        .margin(if small { 4 } else { 10 })
+        .x_label_area_size(if small { 22 } else { 40 })
+        .y_label_area_size(if small { 55 } else { 80 });
+    let xs = x1 - x0;
+    let x_fmt = |v: &f64| tick(*v, xs);
+    if panel.log_y {
+        let lo = ys().fold(f64::INFINITY, f64::min).max(1e-300);
+        let hi = ys().fold(0.0, f64::max).max(lo * 10.0);
+        let mut chart = builder
+            .build_cartesian_2d(x0..x1, (lo / 2.0..hi * 2.0).log_scale())
+            .map_err(|e| e.to_string())?;
+        fill_chart(
+            &mut chart,
+            panel,
+            &x_fmt,
+            &|v| format!("{v:.0e}"),
+            |y| y > 0.0,
+            small,
+        )
+    } else {
+        let mut chart = builder
+            .build_cartesian_2d(x0..x1, y0..y1)
+            .map_err(|e| e.to_string())?;
+        let yspan = y1 - y0;
+        fill_chart(
+            &mut chart,
+            panel,
+            &x_fmt,
+            &|v| tick(*v, yspan),
+            |_| true,
+            small,
+        )
+    }
 }
 
 fn draw<DB: DrawingBackend>(
@@ -173,40 +266,20 @@ where
     let rows = panels.len().div_ceil(cols);
     let areas = root.split_evenly((rows, cols));
     for (panel, area) in panels.iter().zip(areas) {
-        let (x0, x1) = panel
-            .x_range
-            .unwrap_or_else(|| range(panel.series.iter().flat_map(|s| s.x.iter().copied())));
-        let ys = || {
-            panel
-                .series
-                .iter()
-                .flat_map(|s| s.y.iter().copied())
-                .filter(|v| !panel.log_y || *v > 0.0)
-        };
-        let (y0, y1) = panel.y_range.unwrap_or_else(|| range(ys()));
-        let mut builder = ChartBuilder::on(&area);
-        builder
-            .caption(&panel.title, ("sans-serif", 20))
-            .margin(10)
-            .x_label_area_size(40)
-            .y_label_area_size(80);
-        let xs = x1 - x0;
-        let x_fmt = |v: &f64| tick(*v, xs);
-        if panel.log_y {
-            let lo = ys().fold(f64::INFINITY, f64::min).max(1e-300);
-            let hi = ys().fold(0.0, f64::max).max(lo * 10.0);
-            let mut chart = builder
-                .build_cartesian_2d(x0..x1, (lo / 2.0..hi * 2.0).log_scale())
-                .map_err(|e| e.to_string())?;
-            fill_chart(&mut chart, panel, &x_fmt, &|v| format!("{v:.0e}"), |y| {
-                y > 0.0
-            })?;
-        } else {
-            let mut chart = builder
-                .build_cartesian_2d(x0..x1, y0..y1)
-                .map_err(|e| e.to_string())?;
-            let yspan = y1 - y0;
-            fill_chart(&mut chart, panel, &x_fmt, &|v| tick(*v, yspan), |_| true)?;
+        draw_panel(&area, panel, false)?;
+        if let Some(inset) = &panel.inset {
+            // Upper right quarter of the plotting area, on white with a frame.
+            let (w, h) = area.dim_in_pixel();
+            let (w, h) = (w as i32, h as i32);
+            let sub = area.shrink((w * 52 / 100, h * 10 / 100), (w * 45 / 100, h * 45 / 100));
+            sub.fill(&WHITE).map_err(|e| e.to_string())?;
+            let (sw, sh) = sub.dim_in_pixel();
+            sub.draw(&Rectangle::new(
+                [(0, 0), (sw as i32 - 1, sh as i32 - 1)],
+                BLACK.stroke_width(1),
+            ))
+            .map_err(|e| e.to_string())?;
+            draw_panel(&sub, inset, true)?;
         }
     }
     root.present().map_err(|e| e.to_string())?;

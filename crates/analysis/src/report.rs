@@ -390,7 +390,7 @@ pub fn compute(path: &Path) -> Result<Report> {
 }
 
 /// Four significant digits, plain or scientific as fits.
-fn num(v: f64) -> String {
+pub fn num(v: f64) -> String {
     if v.is_nan() {
         return "-".into();
     }

@@ -74,6 +74,8 @@ pub struct Plan {
     pub transient: usize,
     /// Time-history samples per period in the kept window (0: none).
     pub samples_per_period: usize,
+    /// Record time histories over only the last this many periods (default: all kept).
+    pub history_periods: Option<usize>,
     pub hyperplanes: Vec<Hyperplane>,
 }
 
@@ -117,35 +119,45 @@ impl Plan {
         self.periods - self.transient
     }
 
+    /// Periods covered by the time histories.
+    pub fn history_span(&self) -> usize {
+        self.history_periods.unwrap_or(self.kept()).min(self.kept())
+    }
+
     /// Number of time-history samples kept.
     pub fn history_len(&self) -> usize {
         if self.samples_per_period == 0 {
             0
         } else {
-            self.kept() * self.samples_per_period + 1
+            self.history_span() * self.samples_per_period + 1
         }
     }
 
-    /// The sample times: history samples, or the strobe times alone; and whether each is a
-    /// strobe time.
-    fn samples(&self) -> Vec<(f64, bool)> {
+    /// The sample times, each with (is a strobe time, is a history sample).
+    fn samples(&self) -> Vec<(f64, bool, bool)> {
         let base = self.start + self.phase;
         let n = self.samples_per_period;
-        if n == 0 {
-            (self.transient + 1..=self.periods)
-                .map(|k| (base + k as f64 * self.period, true))
-                .collect()
+        let first_history = if n == 0 {
+            usize::MAX
         } else {
-            // (k n) / n is exactly k in floating point, so strobe samples are base + k T exactly.
-            (self.transient * n..=self.periods * n)
-                .map(|i| {
-                    (
-                        base + (i as f64 / n as f64) * self.period,
-                        i % n == 0 && i > self.transient * n,
-                    )
-                })
-                .collect()
+            (self.periods - self.history_span()) * n
+        };
+        let mut v = Vec::new();
+        for k in self.transient + 1..=self.periods {
+            if n > 0 && k * n >= first_history {
+                break;
+            }
+            v.push((base + k as f64 * self.period, true, false));
         }
+        if n > 0 {
+            // (k n) / n is exactly k in floating point, so history samples at whole periods are
+            // base + k T exactly, the strobe times.
+            for i in first_history..=self.periods * n {
+                let strobe = i % n == 0 && i > self.transient * n;
+                v.push((base + (i as f64 / n as f64) * self.period, strobe, true));
+            }
+        }
+        v
     }
 }
 
@@ -175,14 +187,13 @@ pub fn trace<S: Observed>(
     let mut obs = vec![0.0; no];
     let mut next = 0usize;
     let mut fail = None;
-    let keep_history = plan.samples_per_period > 0;
     let observer = |sys: &mut S, t: f64, y: &[f64]| {
         sys.observe(t, y, &mut obs);
         if let Some(i) = obs.iter().position(|v| !v.is_finite()) {
             fail = Some(nonfinite(sys, i, t));
             return Flow::Stop;
         }
-        if keep_history {
+        if samples[next].2 {
             history_time.push(t);
             for (h, v) in history.iter_mut().zip(&obs) {
                 h.push(*v);

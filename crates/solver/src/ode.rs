@@ -48,6 +48,27 @@ pub enum Method {
     Dopri5Fixed { step: f64 },
 }
 
+impl Method {
+    /// Human-readable settings, e.g. "rk4, fixed step 1e-4 s".
+    pub fn describe(&self) -> String {
+        match self {
+            Method::Rk4 { step } => format!("rk4, fixed step {step:e} s"),
+            Method::Dopri5 {
+                rtol,
+                atol,
+                max_step,
+            } => {
+                let mut s = format!("dopri5, rtol {rtol:e}, atol {atol:e}");
+                if max_step.is_finite() {
+                    s += &format!(", max step {max_step:e} s");
+                }
+                s
+            }
+            Method::Dopri5Fixed { step } => format!("dopri5 (fixed step {step:e} s)"),
+        }
+    }
+}
+
 /// Counters of one integration run.
 #[derive(Debug, Clone, Copy, Default, PartialEq)]
 pub struct Stats {

@@ -1,0 +1,474 @@
+//! Figures of a nonlinear-analysis file, drawn from the HDF5 file alone (so `jointplay plot`
+//! redraws exactly what `jointplay run` drew, without simulating again).
+//!
+//! Kinds (the `[[figures]]` of the study; see [`crate::nonlinear::FigureKind`]): time histories,
+//! phase portraits with the stroboscopic points, Poincare maps (section points over the faint
+//! trajectory, with a zoomed inset when the points cluster within a tenth of the trajectory's
+//! extent), orbits inside a clearance circle, and bifurcation diagrams (section points against
+//! the swept parameter; a continuation sweep draws the way up and the way down in two colours).
+//! For a sweep, per-value figures draw one panel per selected value (`values`, default the
+//! first six done). Without `[[figures]]`, every observable gets a time history and, in a sweep,
+//! a bifurcation diagram.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+use hdf5::types::VarLenUnicode;
+
+use crate::nonlinear::{AnalysisStudy, FigureKind, FigureSpec};
+use crate::plot::{Format, Panel, Series, figure};
+use crate::{Error, Result};
+
+/// The recorded data of one run (or one sweep job).
+#[derive(Debug, Clone, Default)]
+struct Job {
+    /// Panel title suffix, e.g. "gamma = 0.28".
+    label: String,
+    parameter: f64,
+    up: bool,
+    history_time: Vec<f64>,
+    history: BTreeMap<String, Vec<f64>>,
+    /// Section name ("strobe" or a hyperplane) to observable to points.
+    sections: BTreeMap<String, BTreeMap<String, Vec<f64>>>,
+}
+
+struct Data {
+    spec: AnalysisStudy,
+    name: String,
+    units: BTreeMap<String, String>,
+    sweep: Option<(String, String)>,
+    jobs: Vec<Job>,
+}
+
+fn read_str(loc: &hdf5::Location, name: &str) -> hdf5::Result<String> {
+    Ok(loc.attr(name)?.read_scalar::<VarLenUnicode>()?.to_string())
+}
+
+fn read_rows(g: &hdf5::Group, name: &str) -> hdf5::Result<Vec<Vec<f64>>> {
+    let ds = g.dataset(name)?;
+    let cols = ds.shape().get(1).copied().unwrap_or(1).max(1);
+    let raw = ds.read_raw::<f64>()?;
+    Ok(raw.chunks(cols).map(<[f64]>::to_vec).collect())
+}
+
+fn read_group(g: &hdf5::Group, spec: &AnalysisStudy) -> hdf5::Result<BTreeMap<String, Vec<f64>>> {
+    let mut m = BTreeMap::new();
+    for o in &spec.observables {
+        m.insert(o.name.clone(), g.dataset(&o.name)?.read_raw::<f64>()?);
+    }
+    Ok(m)
+}
+
+fn read(path: &Path) -> Result<Data> {
+    let e = crate::h5::h5err(path);
+    let file = hdf5::File::open(path).map_err(&e)?;
+    let kind = read_str(&file, "kind").unwrap_or_default();
+    if kind != "analysis" {
+        return Err(Error::Io {
+            file: path.to_path_buf(),
+            message: "not a nonlinear-analysis file (no kind = \"analysis\" attribute): `jointplay plot` redraws the figures of analysis studies; `jointplay run` draws those of scenes and comparison studies".into(),
+        });
+    }
+    let text = read_str(&file, "study").map_err(&e)?;
+    let spec = AnalysisStudy::parse_spec(&text, path)?;
+    let name = read_str(&file, "study_name").map_err(&e)?;
+    let mut units = BTreeMap::new();
+    let mut jobs = Vec::new();
+    let mut sweep = None;
+    if let Ok(g) = file.group("sweep") {
+        let pds = g.dataset("parameter").map_err(&e)?;
+        let params = pds.read_raw::<f64>().map_err(&e)?;
+        let pname = read_str(&pds, "path").map_err(&e)?;
+        let punit = read_str(&pds, "unit").unwrap_or_default();
+        let dirs = g
+            .dataset("direction")
+            .and_then(|d| d.read_raw::<i8>())
+            .map_err(&e)?;
+        let done = g
+            .dataset("done")
+            .and_then(|d| d.read_raw::<u8>())
+            .map_err(&e)?;
+        let mut strobe = BTreeMap::new();
+        let mut hist = BTreeMap::new();
+        for o in &spec.observables {
+            let ds = g.dataset(&o.name).map_err(&e)?;
+            units.insert(o.name.clone(), read_str(&ds, "unit").unwrap_or_default());
+            strobe.insert(o.name.clone(), read_rows(&g, &o.name).map_err(&e)?);
+        }
+        let hg = g.group("history").ok();
+        let htime = match &hg {
+            Some(h) => {
+                for o in &spec.observables {
+                    hist.insert(o.name.clone(), read_rows(h, &o.name).map_err(&e)?);
+                }
+                read_rows(h, "time").map_err(&e)?
+            }
+            None => Vec::new(),
+        };
+        for (j, p) in params.iter().enumerate() {
+            if done[j] != 1 {
+                continue;
+            }
+            let mut sections = BTreeMap::new();
+            sections.insert(
+                "strobe".to_string(),
+                strobe
+                    .iter()
+                    .map(|(k, v)| (k.clone(), v[j].clone()))
+                    .collect(),
+            );
+            if let Ok(sj) = g.group(&format!("sections/{j}")) {
+                for s in &spec.sections {
+                    let gs = sj.group(&s.name).map_err(&e)?;
+                    sections.insert(s.name.clone(), read_group(&gs, &spec).map_err(&e)?);
+                }
+            }
+            jobs.push(Job {
+                label: format!(
+                    "{} = {}{}",
+                    short(&pname),
+                    crate::report::num(*p),
+                    if dirs[j] < 0 { " (down)" } else { "" }
+                ),
+                parameter: *p,
+                up: dirs[j] >= 0,
+                history_time: htime.get(j).cloned().unwrap_or_default(),
+                history: hist
+                    .iter()
+                    .map(|(k, v)| (k.clone(), v[j].clone()))
+                    .collect(),
+                sections,
+            });
+        }
+        sweep = Some((pname, punit));
+    } else {
+        let mut job = Job {
+            up: true,
+            ..Default::default()
+        };
+        if let Ok(h) = file.group("history") {
+            job.history_time = h.dataset("time").and_then(|d| d.read_raw()).map_err(&e)?;
+            job.history = read_group(&h, &spec).map_err(&e)?;
+        }
+        let sg = file.group("sections").map_err(&e)?;
+        let strobe = sg.group("strobe").map_err(&e)?;
+        for o in &spec.observables {
+            let ds = strobe.dataset(&o.name).map_err(&e)?;
+            units.insert(o.name.clone(), read_str(&ds, "unit").unwrap_or_default());
+        }
+        job.sections
+            .insert("strobe".into(), read_group(&strobe, &spec).map_err(&e)?);
+        for s in &spec.sections {
+            let g = sg.group(&s.name).map_err(&e)?;
+            job.sections
+                .insert(s.name.clone(), read_group(&g, &spec).map_err(&e)?);
+        }
+        jobs.push(job);
+    }
+    Ok(Data {
+        spec,
+        name,
+        units,
+        sweep,
+        jobs,
+    })
+}
+
+/// Last segment of a parameter path that is not a wildcard or a number.
+fn short(path: &str) -> &str {
+    path.rsplit('.').next().unwrap_or(path)
+}
+
+fn default_figures(d: &Data) -> Vec<FigureSpec> {
+    let mut v = Vec::new();
+    let has_history = d.jobs.iter().any(|j| !j.history_time.is_empty());
+    for o in &d.spec.observables {
+        let base = FigureSpec {
+            kind: FigureKind::Time,
+            name: None,
+            x: None,
+            y: o.name.clone(),
+            title: None,
+            section: None,
+            values: Vec::new(),
+            circle: None,
+            circle_from_parameter: false,
+            scale: None,
+            unit: None,
+        };
+        if has_history {
+            v.push(base.clone());
+        }
+        if d.sweep.is_some() {
+            v.push(FigureSpec {
+                kind: FigureKind::Bifurcation,
+                ..base
+            });
+        }
+    }
+    v
+}
+
+fn scaled(v: &[f64], s: f64) -> Vec<f64> {
+    v.iter().map(|x| x * s).collect()
+}
+
+/// Bounding box (x0, x1, y0, y1) of points.
+fn bbox(x: &[f64], y: &[f64]) -> Option<(f64, f64, f64, f64)> {
+    let fin = |v: &[f64]| {
+        let it = v.iter().copied().filter(|a| a.is_finite());
+        let lo = it.clone().fold(f64::INFINITY, f64::min);
+        let hi = it.fold(f64::NEG_INFINITY, f64::max);
+        (lo.is_finite()).then_some((lo, hi))
+    };
+    let (x0, x1) = fin(x)?;
+    let (y0, y1) = fin(y)?;
+    Some((x0, x1, y0, y1))
+}
+
+fn panels_for(d: &Data, f: &FigureSpec) -> Result<Vec<Panel>> {
+    let s = f.scale.unwrap_or(1.0);
+    let unit = |n: &str| {
+        f.unit
+            .clone()
+            .unwrap_or_else(|| d.units.get(n).cloned().unwrap_or_default())
+    };
+    let label = |n: &str| {
+        let u = unit(n);
+        if u.is_empty() || u == "1" {
+            n.to_string()
+        } else {
+            format!("{n} ({u})")
+        }
+    };
+    let y = f.y.as_str();
+    let x = f.x.as_deref().unwrap_or("");
+    let section = f.section.clone().unwrap_or_else(|| "strobe".into());
+    let sec_label = if section == "strobe" {
+        "strobe points".to_string()
+    } else {
+        format!("section '{section}'")
+    };
+    let title = |what: String, job: &Job| {
+        let t = f.title.clone().unwrap_or(what);
+        if job.label.is_empty() {
+            t
+        } else {
+            format!("{t}, {}", job.label)
+        }
+    };
+    if f.kind == FigureKind::Bifurcation {
+        let (pname, punit) = d.sweep.clone().unwrap_or_default();
+        let mut up = Series {
+            label: "way up".into(),
+            x: Vec::new(),
+            y: Vec::new(),
+        };
+        let mut down = Series {
+            label: "way down".into(),
+            x: Vec::new(),
+            y: Vec::new(),
+        };
+        for j in &d.jobs {
+            let pts = &j.sections[&section][y];
+            let s_ = if j.up { &mut up } else { &mut down };
+            s_.x.extend(std::iter::repeat_n(j.parameter, pts.len()));
+            s_.y.extend(pts.iter().map(|v| v * s));
+        }
+        let mut p = Panel::new(
+            f.title
+                .clone()
+                .unwrap_or(format!("Bifurcation diagram of {y} ({sec_label})")),
+            if punit.is_empty() {
+                short(&pname).to_string()
+            } else {
+                format!("{} ({punit})", short(&pname))
+            },
+            label(y),
+            Vec::new(),
+        );
+        p.point_size = 1;
+        if down.x.is_empty() {
+            up.label = sec_label.clone();
+            p.points = vec![up];
+        } else {
+            p.points = vec![up, down];
+        }
+        return Ok(vec![p]);
+    }
+    let jobs: Vec<&Job> = if f.values.is_empty() {
+        d.jobs.iter().take(6).collect()
+    } else {
+        f.values
+            .iter()
+            .filter_map(|v| {
+                d.jobs
+                    .iter()
+                    .find(|j| (j.parameter - v).abs() <= 1e-9 * v.abs().max(1e-300))
+            })
+            .collect()
+    };
+    let mut panels = Vec::new();
+    for j in jobs {
+        let hx = j.history.get(x).map(|v| scaled(v, s)).unwrap_or_default();
+        let hy = j.history.get(y).map(|v| scaled(v, s)).unwrap_or_default();
+        let pts = j.sections.get(&section);
+        let px = pts
+            .and_then(|m| m.get(x))
+            .map(|v| scaled(v, s))
+            .unwrap_or_default();
+        let py = pts
+            .and_then(|m| m.get(y))
+            .map(|v| scaled(v, s))
+            .unwrap_or_default();
+        let p = match f.kind {
+            FigureKind::Time => Panel::new(
+                title(format!("{y} against time"), j),
+                "time (s)",
+                label(y),
+                vec![Series {
+                    label: y.into(),
+                    x: j.history_time.clone(),
+                    y: hy,
+                }],
+            ),
+            FigureKind::Phase => {
+                let mut p = Panel::new(
+                    title(format!("Phase portrait {y} against {x}"), j),
+                    label(x),
+                    label(y),
+                    vec![Series {
+                        label: "trajectory (kept periods)".into(),
+                        x: hx,
+                        y: hy,
+                    }],
+                );
+                p.points = vec![Series {
+                    label: sec_label.clone(),
+                    x: px,
+                    y: py,
+                }];
+                p
+            }
+            FigureKind::Poincare => {
+                let traj = bbox(&hx, &hy);
+                let mut p = Panel::new(
+                    title(format!("Poincare map {y} against {x}"), j),
+                    label(x),
+                    label(y),
+                    if hx.is_empty() {
+                        Vec::new()
+                    } else {
+                        vec![Series {
+                            label: "trajectory".into(),
+                            x: hx,
+                            y: hy,
+                        }]
+                    },
+                );
+                let pts = Series {
+                    label: sec_label.clone(),
+                    x: px.clone(),
+                    y: py.clone(),
+                };
+                if let (Some(t), Some(b)) = (traj, bbox(&px, &py)) {
+                    let (tw, th) = (t.1 - t.0, t.3 - t.2);
+                    let (bw, bh) = (b.1 - b.0, b.3 - b.2);
+                    if bw < 0.1 * tw && bh < 0.1 * th {
+                        let pad = |lo: f64, hi: f64, span: f64| {
+                            let w = (hi - lo).max(1e-6 * span).max(f64::MIN_POSITIVE);
+                            (lo - 0.25 * w, hi + 0.25 * w)
+                        };
+                        let mut inset = Panel::new("zoom", "", "", Vec::new());
+                        inset.points = vec![pts.clone()];
+                        inset.x_range = Some(pad(b.0, b.1, tw));
+                        inset.y_range = Some(pad(b.2, b.3, th));
+                        p.inset = Some(Box::new(inset));
+                    }
+                }
+                p.points = vec![pts];
+                p
+            }
+            FigureKind::Orbit => {
+                let r = if f.circle_from_parameter {
+                    Some(j.parameter * s)
+                } else {
+                    f.circle.map(|c| c * s)
+                };
+                let mut series = vec![Series {
+                    label: "centre".into(),
+                    x: hx.clone(),
+                    y: hy.clone(),
+                }];
+                let mut lim = hx.iter().chain(&hy).fold(0.0f64, |m, v| {
+                    if v.is_finite() { m.max(v.abs()) } else { m }
+                });
+                if let Some(r) = r {
+                    let a = (0..=360).map(|k| (k as f64).to_radians());
+                    series.push(Series {
+                        label: format!("clearance {}", crate::report::num(r)),
+                        x: a.clone().map(|t| r * t.cos()).collect(),
+                        y: a.map(|t| r * t.sin()).collect(),
+                    });
+                    lim = lim.max(r);
+                }
+                let lim = 1.1 * lim.max(f64::MIN_POSITIVE);
+                let mut p = Panel::new(
+                    title(format!("Orbit {y} against {x}"), j),
+                    label(x),
+                    label(y),
+                    series,
+                );
+                p.x_range = Some((-lim, lim));
+                p.y_range = Some((-lim, lim));
+                p
+            }
+            FigureKind::Bifurcation => unreachable!("handled above"),
+        };
+        let mut p = p;
+        // Thin lines: long trajectories drawn 2 px wide show stroke artifacts.
+        p.line_width = 1;
+        panels.push(p);
+    }
+    Ok(panels)
+}
+
+fn stem(d: &Data, f: &FigureSpec) -> String {
+    if let Some(n) = &f.name {
+        return n.clone();
+    }
+    let kind = format!("{:?}", f.kind).to_lowercase();
+    match &f.x {
+        Some(x) if f.kind != FigureKind::Time && f.kind != FigureKind::Bifurcation => {
+            format!("{}-{kind}-{x}-{}", d.name, f.y)
+        }
+        _ => format!("{}-{kind}-{}", d.name, f.y),
+    }
+}
+
+/// Draws every figure of the analysis file `path` into `out` in the given formats; returns the
+/// files written.
+pub fn render(path: &Path, out: &Path, formats: &[Format]) -> Result<Vec<PathBuf>> {
+    let d = read(path)?;
+    std::fs::create_dir_all(out).map_err(|e| Error::Io {
+        file: out.to_path_buf(),
+        message: format!("cannot create output directory: {e}"),
+    })?;
+    let specs = if d.spec.figures.is_empty() {
+        default_figures(&d)
+    } else {
+        d.spec.figures.clone()
+    };
+    let mut files = Vec::new();
+    for f in &specs {
+        let panels = panels_for(&d, f)?;
+        if panels.is_empty() {
+            continue;
+        }
+        let cols = if panels.len() >= 3 { 3 } else { panels.len() };
+        for fmt in formats {
+            files.push(figure(&out.join(stem(&d, f)), *fmt, &panels, cols)?);
+        }
+    }
+    Ok(files)
+}
