@@ -812,3 +812,38 @@ fn bad_analysis_studies_name_the_file_and_the_field() {
         assert!(!dir.path().join("duffing-small.h5").exists());
     }
 }
+
+#[test]
+fn a_sweep_gives_bit_identical_datasets_on_one_and_two_threads() {
+    let dir = tempfile::tempdir().unwrap();
+    let study = write_scene(dir.path(), "duffing.toml", DUFFING_SWEEP);
+    let mut files = Vec::new();
+    for threads in ["1", "2"] {
+        let out_dir = dir.path().join(format!("t{threads}"));
+        let out = bin()
+            .env("RAYON_NUM_THREADS", threads)
+            .arg("run")
+            .arg(&study)
+            .arg("--out")
+            .arg(&out_dir)
+            .args(["-q", "--no-plots"])
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{:?}", text(&out));
+        files.push(hdf5::File::open(out_dir.join("duffing-small.h5")).unwrap());
+    }
+    for name in [
+        "sweep/x",
+        "sweep/strobe_time",
+        "sweep/history/x",
+        "sweep/history/time",
+        "sweep/final_state",
+    ] {
+        let a = files[0].dataset(name).unwrap().read_raw::<f64>().unwrap();
+        let b = files[1].dataset(name).unwrap().read_raw::<f64>().unwrap();
+        assert!(
+            a.len() == b.len() && a.iter().zip(&b).all(|(x, y)| x.to_bits() == y.to_bits()),
+            "{name} differs between thread counts"
+        );
+    }
+}
