@@ -709,6 +709,7 @@ fn figures(out: &Path, name: &str, run: &RunResult) -> Result<Vec<PathBuf>> {
             inset: None,
             line_width: 2,
             point_size: 2,
+            inset_corner: (true, true),
         })
         .collect();
     sets.push((format!("{name}-positions"), body_panels));
@@ -740,6 +741,7 @@ fn figures(out: &Path, name: &str, run: &RunResult) -> Result<Vec<PathBuf>> {
                 inset: None,
                 line_width: 2,
                 point_size: 2,
+                inset_corner: (true, true),
             }],
         ));
     }
@@ -767,6 +769,7 @@ fn figures(out: &Path, name: &str, run: &RunResult) -> Result<Vec<PathBuf>> {
             inset: None,
             line_width: 2,
             point_size: 2,
+            inset_corner: (true, true),
         }];
         if !d.energy.is_empty() {
             panels.push(Panel {
@@ -788,6 +791,7 @@ fn figures(out: &Path, name: &str, run: &RunResult) -> Result<Vec<PathBuf>> {
                 inset: None,
                 line_width: 2,
                 point_size: 2,
+                inset_corner: (true, true),
             });
         }
         sets.push((format!("{name}-diagnostics"), panels));
@@ -802,6 +806,7 @@ fn figures(out: &Path, name: &str, run: &RunResult) -> Result<Vec<PathBuf>> {
             inset: None,
             line_width: 2,
             point_size: 2,
+            inset_corner: (true, true),
             ..Panel::new(
                 format!("{}: journal-centre orbit", c.name),
                 "eccentricity along u (mm)",

@@ -191,6 +191,7 @@ pub fn study_figures(
                 inset: None,
                 line_width: 2,
                 point_size: 2,
+                inset_corner: (true, true),
                 ..Panel::new(format!("{j}: journal {end} orbit"), xl, yl, series)
             });
         }

@@ -384,6 +384,9 @@ fn panels_for(d: &Data, f: &FigureSpec) -> Result<Vec<Panel>> {
                         inset.x_range = Some(pad(b.0, b.1, tw));
                         inset.y_range = Some(pad(b.2, b.3, th));
                         p.inset = Some(Box::new(inset));
+                        // Put the inset in the quarter away from the points.
+                        let (cx, cy) = (0.5 * (b.0 + b.1), 0.5 * (b.2 + b.3));
+                        p.inset_corner = (cx < 0.5 * (t.0 + t.1), cy < 0.5 * (t.2 + t.3));
                     }
                 }
                 p.points = vec![pts];

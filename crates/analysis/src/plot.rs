@@ -44,8 +44,10 @@ pub struct Panel {
     pub y_range: Option<(f64, f64)>,
     /// Series drawn as dots (radius 1.5 px; section points, bifurcation diagrams) over the lines.
     pub points: Vec<Series>,
-    /// A zoomed panel drawn in the upper right quarter of this one.
+    /// A zoomed panel drawn in a quarter of this one ...
     pub inset: Option<Box<Panel>>,
+    /// ... the (right, top) quarter when (true, true).
+    pub inset_corner: (bool, bool),
     /// Line width and dot radius (px).
     pub line_width: u32,
     pub point_size: u32,
@@ -69,6 +71,7 @@ impl Panel {
             y_range: None,
             points: Vec::new(),
             inset: None,
+            inset_corner: (true, true),
             line_width: 2,
             point_size: 2,
         }
@@ -268,10 +271,13 @@ where
     for (panel, area) in panels.iter().zip(areas) {
         draw_panel(&area, panel, false)?;
         if let Some(inset) = &panel.inset {
-            // Upper right quarter of the plotting area, on white with a frame.
+            // A quarter of the plotting area, on white with a frame.
             let (w, h) = area.dim_in_pixel();
             let (w, h) = (w as i32, h as i32);
-            let sub = area.shrink((w * 52 / 100, h * 10 / 100), (w * 45 / 100, h * 45 / 100));
+            let (right, top) = panel.inset_corner;
+            let x0 = if right { w * 52 / 100 } else { w * 17 / 100 };
+            let y0 = if top { h * 10 / 100 } else { h * 42 / 100 };
+            let sub = area.shrink((x0, y0), (w * 45 / 100, h * 42 / 100));
             sub.fill(&WHITE).map_err(|e| e.to_string())?;
             let (sw, sh) = sub.dim_in_pixel();
             sub.draw(&Rectangle::new(
