@@ -327,24 +327,27 @@ fn meta_of<'a>(model: &'a Model, file: &'a Path, text: &'a str) -> Meta<'a> {
     }
 }
 
+/// A hidden progress bar of `len` steps drawn with `template` (shown by the caller on stderr).
+fn progress_bar(len: u64, template: &str) -> ProgressBar {
+    let bar = ProgressBar::with_draw_target(Some(len), ProgressDrawTarget::hidden());
+    // The templates are literals of this file; a bad one falls back to the default style.
+    if let Ok(style) = ProgressStyle::with_template(template) {
+        bar.set_style(style);
+    }
+    bar
+}
+
 fn run_study(path: &Path, out: &Path, plots: bool, quiet: bool) -> Result<()> {
     let study = Study::load(path)?;
     let start = Instant::now();
     let n = study.cases.len();
-    let bar = ProgressBar::with_draw_target(
-        Some(n as u64),
-        if quiet {
-            ProgressDrawTarget::hidden()
-        } else {
-            ProgressDrawTarget::stderr()
-        },
+    let bar = progress_bar(
+        n as u64,
+        "[{elapsed_precise}] {bar:40} {pos}/{len} cases (eta {eta}) {msg}",
     );
-    bar.set_style(
-        ProgressStyle::with_template(
-            "[{elapsed_precise}] {bar:40} {pos}/{len} cases (eta {eta}) {msg}",
-        )
-        .expect("static template"),
-    );
+    if !quiet {
+        bar.set_draw_target(ProgressDrawTarget::stderr());
+    }
     bar.tick();
     let done = |label: &str| {
         bar.inc(1);
@@ -460,12 +463,9 @@ fn run(path: &Path, out: &Path, plots: bool, quiet: bool, opts: Options) -> Resu
     let scene = SceneSpec::load(path)?;
     let (model, state) = Model::compile(&scene)?;
     let start = Instant::now();
-    let bar = ProgressBar::with_draw_target(Some(1000), ProgressDrawTarget::hidden());
-    bar.set_style(
-        ProgressStyle::with_template(
-            "{spinner} [{elapsed_precise}] {bar:40} {percent:>3}% (eta {eta})",
-        )
-        .expect("static template"),
+    let bar = progress_bar(
+        1000,
+        "{spinner} [{elapsed_precise}] {bar:40} {percent:>3}% (eta {eta})",
     );
     let mut shown = false;
     let mut progress = |f: f64| {
@@ -546,10 +546,9 @@ fn run_analysis(path: &Path, out: &Path, plots: bool, quiet: bool, opts: Options
             path.display()
         );
     }
-    let bar = ProgressBar::with_draw_target(Some(1000), ProgressDrawTarget::hidden());
-    bar.set_style(
-        ProgressStyle::with_template("{spinner} [{elapsed_precise}] {bar:40} {msg} (eta {eta})")
-            .expect("static template"),
+    let bar = progress_bar(
+        1000,
+        "{spinner} [{elapsed_precise}] {bar:40} {msg} (eta {eta})",
     );
     let start = Instant::now();
     // Per-job fraction done, the jobs finished, and how many run now.
@@ -702,14 +701,7 @@ fn figures(out: &Path, name: &str, run: &RunResult) -> Result<Vec<PathBuf>> {
                     y: comp(&b.position, k),
                 })
                 .collect(),
-            log_y: false,
-            x_range: None,
-            y_range: None,
-            points: Vec::new(),
-            inset: None,
-            line_width: 2,
-            point_size: 2,
-            inset_corner: (true, true),
+            ..Panel::default()
         })
         .collect();
     sets.push((format!("{name}-positions"), body_panels));
@@ -734,14 +726,7 @@ fn figures(out: &Path, name: &str, run: &RunResult) -> Result<Vec<PathBuf>> {
                         y: d.force.clone(),
                     })
                     .collect(),
-                log_y: false,
-                x_range: None,
-                y_range: None,
-                points: Vec::new(),
-                inset: None,
-                line_width: 2,
-                point_size: 2,
-                inset_corner: (true, true),
+                ..Panel::default()
             }],
         ));
     }
@@ -763,13 +748,7 @@ fn figures(out: &Path, name: &str, run: &RunResult) -> Result<Vec<PathBuf>> {
                 },
             ],
             log_y: true,
-            x_range: None,
-            y_range: None,
-            points: Vec::new(),
-            inset: None,
-            line_width: 2,
-            point_size: 2,
-            inset_corner: (true, true),
+            ..Panel::default()
         }];
         if !d.energy.is_empty() {
             panels.push(Panel {
@@ -784,14 +763,7 @@ fn figures(out: &Path, name: &str, run: &RunResult) -> Result<Vec<PathBuf>> {
                     x: t.clone(),
                     y: d.energy.iter().map(|e| e - d.energy[0]).collect(),
                 }],
-                log_y: false,
-                x_range: None,
-                y_range: None,
-                points: Vec::new(),
-                inset: None,
-                line_width: 2,
-                point_size: 2,
-                inset_corner: (true, true),
+                ..Panel::default()
             });
         }
         sets.push((format!("{name}-diagnostics"), panels));
@@ -802,11 +774,6 @@ fn figures(out: &Path, name: &str, run: &RunResult) -> Result<Vec<PathBuf>> {
         let orbit = Panel {
             x_range: Some((-lim, lim)),
             y_range: Some((-lim, lim)),
-            points: Vec::new(),
-            inset: None,
-            line_width: 2,
-            point_size: 2,
-            inset_corner: (true, true),
             ..Panel::new(
                 format!("{}: journal-centre orbit", c.name),
                 "eccentricity along u (mm)",

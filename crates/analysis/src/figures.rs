@@ -187,11 +187,6 @@ pub fn study_figures(
             orbit_panels.push(Panel {
                 x_range: Some((-lim, lim)),
                 y_range: Some((-lim, lim)),
-                points: Vec::new(),
-                inset: None,
-                line_width: 2,
-                point_size: 2,
-                inset_corner: (true, true),
                 ..Panel::new(format!("{j}: journal {end} orbit"), xl, yl, series)
             });
         }

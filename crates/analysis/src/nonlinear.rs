@@ -35,7 +35,7 @@ use toml::{Table, Value};
 use crate::h5::{f64_attr, h5err, str_attr, u64_attr, write_atomically, write1};
 use crate::observe::Observable;
 use crate::sections::{Direction, Hyperplane, Observed, Plan, Trace, trace};
-use crate::study::edit;
+use crate::study::{edit, edited_scene, invalid};
 use crate::systems::{Builtin, SystemSpec};
 use crate::{Error, Result};
 
@@ -222,14 +222,6 @@ enum Base {
     System(Table),
 }
 
-fn invalid(file: &Path, field: impl Into<String>, message: impl Into<String>) -> Error {
-    Error::Study {
-        file: file.to_path_buf(),
-        field: field.into(),
-        message: message.into(),
-    }
-}
-
 /// True when the study text is a nonlinear-analysis study (has an `[analysis]` table).
 pub fn is_analysis(text: &str) -> bool {
     text.parse::<Table>()
@@ -392,35 +384,12 @@ impl Loaded {
         let base = match (&spec.study.scene, &spec.study.system) {
             (Some(scene), None) => {
                 let sp = dir.join(scene);
-                let st = std::fs::read_to_string(&sp).map_err(|e| {
-                    invalid(
-                        path,
-                        "study.scene",
-                        format!("cannot read {}: {e}", sp.display()),
-                    )
-                })?;
-                let mut tree: Table = st.parse().map_err(|e: toml::de::Error| Error::Io {
-                    file: sp.clone(),
-                    message: e.to_string().trim_end().to_string(),
-                })?;
-                for (p, v) in &spec.study.set {
-                    edit(&mut tree, p, Some(v)).map_err(|m| {
-                        invalid(
-                            path,
-                            format!("study.set.\"{p}\""),
-                            format!("{m} in {}", sp.display()),
-                        )
-                    })?;
-                }
-                for p in &spec.study.remove {
-                    edit(&mut tree, p, None).map_err(|m| {
-                        invalid(
-                            path,
-                            "study.remove",
-                            format!("'{p}': {m} in {}", sp.display()),
-                        )
-                    })?;
-                }
+                let (_, tree) = edited_scene(
+                    path,
+                    &sp,
+                    "study.scene",
+                    &[("study", &spec.study.set, &spec.study.remove)],
+                )?;
                 Base::Scene { path: sp, tree }
             }
             (None, Some(sys)) => {
@@ -713,6 +682,19 @@ impl Observed for MechFlow<'_> {
     fn obs_name(&self, i: usize) -> String {
         self.obs[i].path.clone()
     }
+    fn observe_only(&mut self, t: f64, y: &[f64], which: &[usize], out: &mut [f64]) {
+        // A full model evaluation only when one of these observables needs it: a section on
+        // positions or velocities costs the kinematics alone.
+        let m = self.mech.model;
+        if which.iter().any(|&i| self.obs[i].needs_dynamics()) {
+            m.accelerations(t, y, &mut self.mech.ws);
+        } else {
+            m.kinematics(y, &mut self.mech.ws);
+        }
+        for &i in which {
+            out[i] = self.obs[i].eval_model(m, &self.mech.ws, t, y);
+        }
+    }
 }
 
 struct SysFlow<'a> {
@@ -834,6 +816,17 @@ pub enum Progress {
     Done { job: usize, ok: bool },
 }
 
+/// Reports of one job's fraction done, at most one per thousandth of its span.
+fn throttled(job: usize, progress: &(dyn Fn(Progress) + Sync)) -> impl FnMut(f64) + '_ {
+    let mut last = 0.0;
+    move |fraction| {
+        if fraction - last >= 1e-3 {
+            last = fraction;
+            progress(Progress::Fraction { job, fraction });
+        }
+    }
+}
+
 /// Summary of an executed study.
 #[derive(Debug, Clone)]
 pub struct Outcome {
@@ -845,10 +838,6 @@ pub struct Outcome {
     pub failed: Vec<(usize, String)>,
     pub wall: f64,
     pub rhs_evals: u64,
-}
-
-fn h5e(path: &Path) -> impl Fn(hdf5::Error) -> Error + '_ {
-    h5err(path)
 }
 
 /// How [`execute`] treats an existing file and how much it runs.
@@ -871,21 +860,12 @@ pub fn execute(
 ) -> Result<Outcome> {
     let start = Instant::now();
     let name = &st.spec.study.name;
-    if st.spec.sweep.is_none() {
+    let Some(sw) = &st.spec.sweep else {
         progress(Progress::Start {
             total: 1,
             pending: 1,
         });
-        let mut last = 0.0;
-        let r = st.run_single(&mut |f| {
-            if f - last >= 1e-3 {
-                last = f;
-                progress(Progress::Fraction {
-                    job: 0,
-                    fraction: f,
-                });
-            }
-        })?;
+        let r = st.run_single(&mut throttled(0, progress))?;
         progress(Progress::Done { job: 0, ok: true });
         let file = write_atomically(dir, name, version, |file| {
             write_root(file, st, &r, 1)?;
@@ -900,13 +880,13 @@ pub fn execute(
             wall: start.elapsed().as_secs_f64(),
             rhs_evals: r.trace.stats.rhs_evals,
         });
-    }
+    };
     std::fs::create_dir_all(dir).map_err(|e| Error::Io {
         file: dir.to_path_buf(),
         message: format!("cannot create output directory: {e}"),
     })?;
     let path = dir.join(format!("{name}.h5"));
-    let e = h5e(&path);
+    let e = h5err(&path);
     let n = st.jobs.len();
     let (file, mut done) = if opts.resume && path.exists() {
         let file = hdf5::File::open_rw(&path).map_err(&e)?;
@@ -931,7 +911,7 @@ pub fn execute(
         (file, done)
     } else {
         let _ = std::fs::remove_file(&path);
-        (create_sweep_file(&path, st, version)?, vec![0u8; n])
+        (create_sweep_file(&path, st, sw, version)?, vec![0u8; n])
     };
     let pending: Vec<usize> = (0..n).filter(|&j| done[j] == 0).collect();
     progress(Progress::Start {
@@ -969,8 +949,7 @@ pub fn execute(
         }
         file.flush().map_err(&e)
     };
-    let continuation = st.spec.sweep.as_ref().is_some_and(|s| s.continuation);
-    if continuation {
+    if sw.continuation {
         // In order; each job starts from the previous job's final state (read back from the file
         // when resuming, so a resumed run continues from exactly the same state).
         let mut prev: Option<Vec<f64>> = None;
@@ -986,16 +965,11 @@ pub fn execute(
                 };
                 continue;
             }
-            let mut last = 0.0;
-            let res = st.run_job(Some(st.jobs[j].0), prev.as_deref(), &mut |f| {
-                if f - last >= 1e-3 {
-                    last = f;
-                    progress(Progress::Fraction {
-                        job: j,
-                        fraction: f,
-                    });
-                }
-            });
+            let res = st.run_job(
+                Some(st.jobs[j].0),
+                prev.as_deref(),
+                &mut throttled(j, progress),
+            );
             prev = res.as_ref().ok().map(|r| r.trace.final_state.clone());
             write(j, res, &mut done)?;
         }
@@ -1009,16 +983,7 @@ pub fn execute(
                     if stop.load(Ordering::SeqCst) {
                         return;
                     }
-                    let mut last = 0.0;
-                    let r = st.run_job(Some(st.jobs[j].0), None, &mut |f| {
-                        if f - last >= 1e-3 {
-                            last = f;
-                            progress(Progress::Fraction {
-                                job: j,
-                                fraction: f,
-                            });
-                        }
-                    });
+                    let r = st.run_job(Some(st.jobs[j].0), None, &mut throttled(j, progress));
                     // The receiver lives until every sender is gone.
                     let _ = tx.send((j, r));
                 });
@@ -1177,8 +1142,13 @@ fn matrix(
     str_attr(&ds, "description", desc)
 }
 
-fn create_sweep_file(path: &Path, st: &Loaded, version: &str) -> Result<hdf5::File> {
-    let e = h5e(path);
+fn create_sweep_file(
+    path: &Path,
+    st: &Loaded,
+    sw: &SweepSpec,
+    version: &str,
+) -> Result<hdf5::File> {
+    let e = h5err(path);
     // Probe run to learn the units, period and state size without simulating: build job 0.
     let target = st.target(Some(st.jobs[0].0))?;
     let (units, dim, method, period, start): (Vec<String>, usize, _, f64, f64) = match &target {
@@ -1202,7 +1172,6 @@ fn create_sweep_file(path: &Path, st: &Loaded, version: &str) -> Result<hdf5::Fi
             sys.start_time,
         ),
     };
-    let sw = st.spec.sweep.as_ref().expect("sweep");
     let n = st.jobs.len();
     let plan = st.plan(method, start, period);
     let (kept, hl) = (plan.kept(), plan.history_len());

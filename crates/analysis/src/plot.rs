@@ -53,6 +53,26 @@ pub struct Panel {
     pub point_size: u32,
 }
 
+impl Default for Panel {
+    /// Untitled, linear fitted axes, 2 px lines and dots, an inset at the upper right.
+    fn default() -> Panel {
+        Panel {
+            title: String::new(),
+            x_label: String::new(),
+            y_label: String::new(),
+            series: Vec::new(),
+            log_y: false,
+            x_range: None,
+            y_range: None,
+            points: Vec::new(),
+            inset: None,
+            inset_corner: (true, true),
+            line_width: 2,
+            point_size: 2,
+        }
+    }
+}
+
 impl Panel {
     /// A panel with fitted linear axes.
     pub fn new(
@@ -66,14 +86,7 @@ impl Panel {
             x_label: x_label.into(),
             y_label: y_label.into(),
             series,
-            log_y: false,
-            x_range: None,
-            y_range: None,
-            points: Vec::new(),
-            inset: None,
-            inset_corner: (true, true),
-            line_width: 2,
-            point_size: 2,
+            ..Panel::default()
         }
     }
 }

@@ -31,6 +31,11 @@ pub trait Observed: OdeSystem {
     fn observe(&mut self, t: f64, y: &[f64], out: &mut [f64]);
     /// Name of observable `i`, for error messages.
     fn obs_name(&self, i: usize) -> String;
+    /// Writes only the observables `which` (indices into `out`) at `(t, y)`: what locating a
+    /// section needs after every step. The default evaluates them all.
+    fn observe_only(&mut self, t: f64, y: &[f64], _which: &[usize], out: &mut [f64]) {
+        self.observe(t, y, out);
+    }
 }
 
 /// Crossing direction of a hyperplane section.
@@ -220,8 +225,19 @@ pub fn trace<S: Observed>(
     ];
     let (tw, t_end) = (plan.window_start(), plan.end_time());
     let span = t_end - plan.start;
-    let mut g_prev: Option<(f64, Vec<f64>)> = None;
+    // The observables the section functions read, evaluated at every step end; g at the
+    // previous step end is kept so each step costs one evaluation.
+    let mut used: Vec<usize> = planes
+        .iter()
+        .flat_map(|p| p.terms.iter().map(|t| t.0))
+        .collect();
+    used.sort_unstable();
+    used.dedup();
+    let mut g_prev: Option<f64> = None;
+    let mut g0 = vec![0.0; planes.len()];
+    let mut g1 = vec![0.0; planes.len()];
     let mut o1 = vec![0.0; no];
+    let mut o = vec![0.0; no];
     let mut ys = vec![0.0; y.len()];
     let mut step_fail = None;
     let mut on_step = |sys: &mut S, st: &Step| -> Flow {
@@ -229,19 +245,20 @@ pub fn trace<S: Observed>(
         if planes.is_empty() || st.t1 <= tw {
             return Flow::Continue;
         }
-        let g0: Vec<f64> = match g_prev.take() {
-            Some((t, g)) if t == st.t0 => g,
-            _ => {
-                sys.observe(st.t0, st.y0, &mut o1);
-                planes.iter().map(|p| p.g(&o1)).collect()
+        if g_prev != Some(st.t0) {
+            sys.observe_only(st.t0, st.y0, &used, &mut o1);
+            for (g, p) in g0.iter_mut().zip(planes) {
+                *g = p.g(&o1);
             }
-        };
-        sys.observe(st.t1, st.y1, &mut o1);
-        if let Some(i) = o1.iter().position(|v| !v.is_finite()) {
+        }
+        sys.observe_only(st.t1, st.y1, &used, &mut o1);
+        if let Some(&i) = used.iter().find(|&&i| !o1[i].is_finite()) {
             step_fail = Some(nonfinite(sys, i, st.t1));
             return Flow::Stop;
         }
-        let g1: Vec<f64> = planes.iter().map(|p| p.g(&o1)).collect();
+        for (g, p) in g1.iter_mut().zip(planes) {
+            *g = p.g(&o1);
+        }
         for (k, p) in planes.iter().enumerate() {
             let (a, b) = (g0[k], g1[k]);
             let hit = match p.direction {
@@ -257,14 +274,13 @@ pub fn trace<S: Observed>(
             let mut side = 0i8;
             let tol = 1e-13 * (st.t1 - st.t0).max(f64::MIN_POSITIVE);
             let mut tc = tb;
-            let mut o = vec![0.0; no];
             for _ in 0..100 {
                 tc = (ta * gb - tb * ga) / (gb - ga);
                 if !(tc > ta && tc < tb) {
                     tc = 0.5 * (ta + tb);
                 }
                 st.eval(tc, &mut ys);
-                sys.observe(tc, &ys, &mut o);
+                sys.observe_only(tc, &ys, &used, &mut o);
                 let gc = p.g(&o);
                 if gc == 0.0 || tb - ta < tol {
                     break;
@@ -296,7 +312,8 @@ pub fn trace<S: Observed>(
                 v.push(*x);
             }
         }
-        g_prev = Some((st.t1, g1));
+        std::mem::swap(&mut g0, &mut g1);
+        g_prev = Some(st.t1);
         Flow::Continue
     };
     let stats = integrate_steps(

@@ -127,7 +127,7 @@ pub struct Case {
     pub scene: SceneFile,
 }
 
-fn invalid(file: &Path, field: impl Into<String>, message: impl Into<String>) -> Error {
+pub(crate) fn invalid(file: &Path, field: impl Into<String>, message: impl Into<String>) -> Error {
     Error::Study {
         file: file.to_path_buf(),
         field: field.into(),
@@ -265,45 +265,20 @@ impl Study {
         let mut cases = Vec::new();
         for (i, c) in spec.cases.iter().enumerate() {
             let scene_path = dir.join(c.scene.as_ref().unwrap_or(&spec.study.scene));
-            let text = std::fs::read_to_string(&scene_path).map_err(|e| {
-                invalid(
-                    path,
-                    if c.scene.is_some() {
-                        format!("cases[{i}].scene")
-                    } else {
-                        "study.scene".into()
-                    },
-                    format!("cannot read {}: {e}", scene_path.display()),
-                )
-            })?;
-            let mut tree: Table = text.parse().map_err(|e: toml::de::Error| Error::Io {
-                file: scene_path.clone(),
-                message: e.to_string().trim_end().to_string(),
-            })?;
-            let edits = [
-                ("study", &spec.study.set, &spec.study.remove),
-                (&*format!("cases[{i}]"), &c.set, &c.remove),
-            ];
-            for (at, set, remove) in edits {
-                for (p, v) in set {
-                    edit(&mut tree, p, Some(v)).map_err(|m| {
-                        invalid(
-                            path,
-                            format!("{at}.set.\"{p}\""),
-                            format!("{m} in {}", scene_path.display()),
-                        )
-                    })?;
-                }
-                for p in remove {
-                    edit(&mut tree, p, None).map_err(|m| {
-                        invalid(
-                            path,
-                            format!("{at}.remove"),
-                            format!("'{p}': {m} in {}", scene_path.display()),
-                        )
-                    })?;
-                }
-            }
+            let read_field = if c.scene.is_some() {
+                format!("cases[{i}].scene")
+            } else {
+                "study.scene".into()
+            };
+            let (text, tree) = edited_scene(
+                path,
+                &scene_path,
+                &read_field,
+                &[
+                    ("study", &spec.study.set, &spec.study.remove),
+                    (&format!("cases[{i}]"), &c.set, &c.remove),
+                ],
+            )?;
             let edited = if c.set.is_empty()
                 && c.remove.is_empty()
                 && spec.study.set.is_empty()
@@ -375,6 +350,53 @@ impl Study {
             })
             .collect())
     }
+}
+
+/// One group of scene edits: the study field it comes from (`study`, `cases[2]`), its `set` and its
+/// `remove`.
+pub(crate) type Edits<'a> = (&'a str, &'a BTreeMap<String, Value>, &'a [String]);
+
+/// Reads the scene `scene_path` named by a study `study` (`read_field` is the study field naming
+/// it) and applies `edits` in order. Returns the scene text as read and the edited tree; errors
+/// name the study file and the field of the failing edit.
+pub(crate) fn edited_scene(
+    study: &Path,
+    scene_path: &Path,
+    read_field: &str,
+    edits: &[Edits],
+) -> Result<(String, Table)> {
+    let text = std::fs::read_to_string(scene_path).map_err(|e| {
+        invalid(
+            study,
+            read_field,
+            format!("cannot read {}: {e}", scene_path.display()),
+        )
+    })?;
+    let mut tree: Table = text.parse().map_err(|e: toml::de::Error| Error::Io {
+        file: scene_path.to_path_buf(),
+        message: e.to_string().trim_end().to_string(),
+    })?;
+    for (at, set, remove) in edits {
+        for (p, v) in *set {
+            edit(&mut tree, p, Some(v)).map_err(|m| {
+                invalid(
+                    study,
+                    format!("{at}.set.\"{p}\""),
+                    format!("{m} in {}", scene_path.display()),
+                )
+            })?;
+        }
+        for p in *remove {
+            edit(&mut tree, p, None).map_err(|m| {
+                invalid(
+                    study,
+                    format!("{at}.remove"),
+                    format!("'{p}': {m} in {}", scene_path.display()),
+                )
+            })?;
+        }
+    }
+    Ok((text, tree))
 }
 
 /// Sets (`Some`) or removes (`None`) the value at `path` in `tree`; errors when nothing matched.
