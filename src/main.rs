@@ -169,6 +169,9 @@ fn profile_text(p: &Profile) -> String {
 fn check(path: &Path) -> Result<()> {
     let scene = SceneSpec::load(path)?;
     let (model, mut state) = Model::compile(&scene)?;
+    for w in &model.warnings {
+        eprintln!("warning: {w}");
+    }
     let report = model.assemble(&mut state)?;
     let st = model.structure(state.t, &state.y);
     println!("scene        {} ({})", model.name, path.display());
@@ -324,6 +327,7 @@ fn meta_of<'a>(model: &'a Model, file: &'a Path, text: &'a str) -> Meta<'a> {
         baumgarte_alpha: model.settings.alpha,
         baumgarte_beta: model.settings.beta,
         drive_period: model.settings.period,
+        scene_warnings: &model.warnings,
     }
 }
 
@@ -362,7 +366,15 @@ fn run_study(path: &Path, out: &Path, plots: bool, quiet: bool) -> Result<()> {
     let mut failed = Vec::new();
     for (r, c) in results.into_iter().zip(&study.cases) {
         match r {
-            Ok(run) => runs.push((run, c)),
+            Ok(run) => {
+                for w in run.model.warnings.iter() {
+                    eprintln!("warning: case {}: {w}", c.label);
+                }
+                for w in &run.result.warnings {
+                    eprintln!("warning: case {}: {}", c.label, w.message);
+                }
+                runs.push((run, c))
+            }
             // The error names the case.
             Err(e) => failed.push((c.label.clone(), e.to_string())),
         }
@@ -462,6 +474,9 @@ fn run(path: &Path, out: &Path, plots: bool, quiet: bool, opts: Options) -> Resu
     }
     let scene = SceneSpec::load(path)?;
     let (model, state) = Model::compile(&scene)?;
+    for w in &model.warnings {
+        eprintln!("warning: {w}");
+    }
     let start = Instant::now();
     let bar = progress_bar(
         1000,
@@ -478,8 +493,20 @@ fn run(path: &Path, out: &Path, plots: bool, quiet: bool, opts: Options) -> Resu
     let result = simulate(&model, state, &mut progress)
         .with_context(|| format!("simulating {}", path.display()))?;
     bar.finish_and_clear();
+    for w in &result.warnings {
+        eprintln!("warning: {}: {}", path.display(), w.message);
+    }
     let meta = meta_of(&model, path, &scene.text);
     let file = write_run(out, &meta, &result)?;
+    if let Some(s) = &result.stopped {
+        anyhow::bail!(
+            "simulating {}: {}\nwrote {} with the {} samples recorded before the failure, marked incomplete (attribute complete = 0)",
+            path.display(),
+            s,
+            file.display(),
+            result.recording.time.len()
+        );
+    }
     let st = &result.stats;
     let wall = st.wall.as_secs_f64();
     println!("scene        {} ({})", model.name, path.display());

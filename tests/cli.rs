@@ -500,10 +500,15 @@ reference = "fine"
 "#,
     );
     let (_, err) = text(&out);
-    // RK4 with a 3 s step on a 1 m pendulum is far past its stability limit.
+    // RK4 with a 3 s step on a 1 m pendulum is far past its stability limit: the divergence
+    // guard stops it at the first runaway constraint residual, naming the joint and the time.
     assert!(!out.status.success());
     assert!(
-        err.contains("1 of 2 cases") && err.contains("diverges") && err.contains("non-finite"),
+        err.contains("1 of 2 cases")
+            && err.contains("diverges")
+            && err.contains("integration stopped at t = ")
+            && err.contains("joint 'pivot'")
+            && err.matches("integration stopped").count() == 1,
         "{err}"
     );
     let file = hdf5::File::open(dir.path().join("fail.h5")).unwrap();
@@ -846,4 +851,71 @@ fn a_sweep_gives_bit_identical_datasets_on_one_and_two_threads() {
             "{name} differs between thread counts"
         );
     }
+}
+
+#[test]
+fn a_diverging_run_keeps_its_samples_in_a_file_marked_incomplete() {
+    // The mixed-clearance 4-UPS/RPU at 0.7 mm with the paper's RK4 (h = 1e-4 s) runs away at
+    // t = 1.5075 s: R1 is thrown through its bushing after S2, S5 and R1 were flagged by the
+    // step-size guard.
+    let dir = tempfile::tempdir().unwrap();
+    let src = std::fs::read_to_string(scenes().join("4ups-rpu-mixed.toml")).unwrap();
+    assert_eq!(src.matches("= 0.0003").count(), 4);
+    let scene = dir.path().join("wide.toml");
+    std::fs::write(&scene, src.replace("= 0.0003", "= 0.0007")).unwrap();
+    let out = bin()
+        .args(["run", "-q", "--no-plots", "--out"])
+        .arg(dir.path())
+        .arg(&scene)
+        .output()
+        .unwrap();
+    let (_, err) = text(&out);
+    assert!(!out.status.success());
+    assert!(
+        err.contains("wide.toml")
+            && err.contains("integration stopped at t = 1.5075 s")
+            && err.contains("clearance joint 'R1'")
+            && err.contains("penetration")
+            && err.contains("marked incomplete"),
+        "{err}"
+    );
+    assert!(
+        err.contains("warning:")
+            && err.contains("clearance joint 'S2'")
+            && err.contains("use step ="),
+        "{err}"
+    );
+    let file = hdf5::File::open(dir.path().join("4ups-rpu-mixed.h5")).unwrap();
+    let complete: u8 = file.attr("complete").unwrap().read_scalar().unwrap();
+    assert_eq!(complete, 0);
+    let stopped: f64 = file.attr("stopped_at").unwrap().read_scalar().unwrap();
+    assert_eq!(stopped, 1.5075);
+    assert!(file.attr("error").is_ok() && file.attr("warnings").is_ok());
+    // Everything before the failure is there, finite and aligned.
+    let time: Vec<f64> = file.dataset("time").unwrap().read_raw().unwrap();
+    assert_eq!(time.len(), 1508);
+    assert!(*time.last().unwrap() < 1.5075);
+    let pos = read2(&file, "bodies/platform/position");
+    assert_eq!(pos.len(), time.len());
+    assert!(pos.iter().flatten().all(|x| x.is_finite()));
+    let fn_: Vec<f64> = file
+        .dataset("joints/R1/normal_force")
+        .unwrap()
+        .read_raw()
+        .unwrap();
+    assert_eq!(fn_.len(), 4 * time.len());
+    assert!(fn_.iter().all(|x| x.is_finite()));
+    drop(file);
+    // A run that finishes says so.
+    let out = bin()
+        .args(["run", "-q", "--no-plots", "--out"])
+        .arg(dir.path())
+        .arg(scenes().join("pendulum.toml"))
+        .output()
+        .unwrap();
+    assert!(out.status.success());
+    let file = hdf5::File::open(dir.path().join("pendulum.h5")).unwrap();
+    let complete: u8 = file.attr("complete").unwrap().read_scalar().unwrap();
+    assert_eq!(complete, 1);
+    assert!(file.attr("error").is_err());
 }

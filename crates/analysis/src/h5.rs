@@ -25,6 +25,8 @@ pub struct Meta<'a> {
     pub baumgarte_beta: f64,
     /// The drives' common period (s), when they have one.
     pub drive_period: Option<f64>,
+    /// Warnings found while compiling the scene.
+    pub scene_warnings: &'a [String],
 }
 
 pub(crate) fn h5err(file: &Path) -> impl Fn(hdf5::Error) -> Error + '_ {
@@ -47,6 +49,14 @@ pub(crate) fn str_attr(loc: &hdf5::Location, name: &str, value: &str) -> hdf5::R
 
 pub(crate) fn f64_attr(loc: &hdf5::Location, name: &str, value: f64) -> hdf5::Result<()> {
     loc.new_attr::<f64>().create(name)?.write_scalar(&value)
+}
+
+/// Writes a u8 attribute, creating it or overwriting its value.
+pub(crate) fn u8_attr_set(loc: &hdf5::Location, name: &str, v: u8) -> hdf5::Result<()> {
+    match loc.attr(name) {
+        Ok(a) => a.write_scalar(&v),
+        Err(_) => loc.new_attr::<u8>().create(name)?.write_scalar(&v),
+    }
 }
 
 pub(crate) fn u64_attr(loc: &hdf5::Location, name: &str, value: u64) -> hdf5::Result<()> {
@@ -200,6 +210,21 @@ fn write_group(file: &hdf5::Group, meta: &Meta, run: &RunResult) -> hdf5::Result
         u64_attr(file, "rhs_evaluations", run.stats.rhs_evals)?;
         f64_attr(file, "wall_time_s", run.stats.wall.as_secs_f64())?;
         f64_attr(file, "assembly_residual", run.assembly.final_residual)?;
+        // A run that stopped keeps its samples up to the failure and says so.
+        u8_attr_set(file, "complete", u8::from(run.stopped.is_none()))?;
+        if let Some(s) = &run.stopped {
+            str_attr(file, "error", &s.to_string())?;
+            f64_attr(file, "stopped_at", s.time)?;
+        }
+        let warnings: Vec<String> = meta
+            .scene_warnings
+            .iter()
+            .cloned()
+            .chain(run.warnings.iter().map(|w| w.message.clone()))
+            .collect();
+        if !warnings.is_empty() {
+            str_attr(file, "warnings", &warnings.join("\n"))?;
+        }
 
         write1(file, "time", &rec.time, "s", "sample times")?;
         let bodies = file.create_group("bodies")?;

@@ -32,7 +32,7 @@ use rayon::prelude::*;
 use serde::Deserialize;
 use toml::{Table, Value};
 
-use crate::h5::{f64_attr, h5err, str_attr, u64_attr, write_atomically, write1};
+use crate::h5::{f64_attr, h5err, str_attr, u8_attr_set, u64_attr, write_atomically, write1};
 use crate::observe::Observable;
 use crate::sections::{Direction, Hyperplane, Observed, Plan, Trace, trace};
 use crate::study::{edit, edited_scene, invalid};
@@ -1022,13 +1022,6 @@ fn read_row(file: &hdf5::File, ds: &str, row: usize) -> hdf5::Result<Vec<f64>> {
     let d = file.dataset(ds)?;
     let a: Array2<f64> = d.read_slice(s![row..row + 1, ..])?;
     Ok(a.iter().copied().collect())
-}
-
-fn u8_attr_set(loc: &hdf5::Location, name: &str, v: u8) -> hdf5::Result<()> {
-    match loc.attr(name) {
-        Ok(a) => a.write_scalar(&v),
-        Err(_) => loc.new_attr::<u8>().create(name)?.write_scalar(&v),
-    }
 }
 
 fn set_f64_attr(loc: &hdf5::Location, name: &str, v: f64) -> hdf5::Result<()> {

@@ -5,11 +5,16 @@
 //! `t0 + k * interval`), evaluates the model once more to record accelerations, joint reactions,
 //! actuator forces and the diagnostics. A non-finite recorded value stops the run with an error
 //! naming the time and the quantity: nothing non-finite is ever recorded.
+//!
+//! A run that diverges (the guards of [`jointplay_solver::guard`], a non-finite state, a
+//! non-finite recorded value) keeps every sample recorded before the failure:
+//! [`RunResult::stopped`] says where and why, and the file written from it is marked incomplete.
 
 use jointplay_solver::clearance::Geometry;
 use jointplay_solver::dynamics::{AssemblyReport, Mechanism};
+use jointplay_solver::guard::Warning;
 use jointplay_solver::model::{Model, State};
-use jointplay_solver::ode::{Flow, Stats, integrate};
+use jointplay_solver::ode::{Flow, Stats, integrate_partial};
 use jointplay_solver::scene::DriveCoordinate;
 
 use crate::Result;
@@ -111,13 +116,113 @@ pub struct Recording {
     pub diagnostics: Option<Diagnostics>,
 }
 
-/// A finished run.
+impl Recording {
+    /// Keeps the first `n` samples of every series (per-contact series keep `n` times their
+    /// number of contacts).
+    fn truncate(&mut self, n: usize) {
+        self.time.truncate(n);
+        for b in &mut self.bodies {
+            b.position.truncate(n);
+            b.orientation.truncate(n);
+            b.velocity.truncate(n);
+            b.angular_velocity.truncate(n);
+            b.acceleration.truncate(n);
+            b.angular_acceleration.truncate(n);
+        }
+        for j in &mut self.joints {
+            j.force.truncate(n);
+            j.torque.truncate(n);
+        }
+        for d in &mut self.drives {
+            d.coordinate.truncate(n);
+            d.force.truncate(n);
+        }
+        for c in &mut self.clearances {
+            let k = n * c.contacts.len();
+            c.eccentricity.truncate(n);
+            c.eccentricity_global.truncate(n);
+            c.radial_eccentricity.truncate(n);
+            c.end_eccentricity.truncate(n);
+            c.penetration.truncate(k);
+            c.penetration_rate.truncate(k);
+            c.normal_force.truncate(k);
+            c.friction_force.truncate(k);
+            c.state.truncate(k);
+            c.force_journal.truncate(n);
+            c.moment_journal.truncate(n);
+            c.force_housing.truncate(n);
+            c.moment_housing.truncate(n);
+        }
+        if let Some(d) = &mut self.diagnostics {
+            d.constraint_drift.truncate(n);
+            d.velocity_drift.truncate(n);
+            d.energy.truncate(n);
+        }
+    }
+}
+
+/// Where and why a run stopped before its end time.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Stopped {
+    /// Simulated time of the failure (s).
+    pub time: f64,
+    /// What failed (the joint or quantity, and its value).
+    pub message: String,
+}
+
+impl std::fmt::Display for Stopped {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "integration stopped at t = {} s: {}",
+            self.time, self.message
+        )
+    }
+}
+
+impl Stopped {
+    fn from_error(e: &jointplay_solver::Error, fallback_time: f64) -> Stopped {
+        match e {
+            jointplay_solver::Error::Diverged { time, message } => Stopped {
+                time: *time,
+                message: message.clone(),
+            },
+            other => Stopped {
+                time: fallback_time,
+                message: other.to_string(),
+            },
+        }
+    }
+}
+
+/// A run, finished or stopped by a failure after the initial assembly.
 #[derive(Debug, Clone)]
 pub struct RunResult {
+    /// Every sample recorded (up to the failure, when the run stopped).
     pub recording: Recording,
     pub stats: Stats,
     pub assembly: AssemblyReport,
+    /// The state at the end time; for a run that stopped, the last accepted state at or before
+    /// the failure, with `t` the failure time.
     pub final_state: State,
+    /// Warnings of the step-size guard.
+    pub warnings: Vec<Warning>,
+    /// Set when the run stopped before its end time.
+    pub stopped: Option<Stopped>,
+}
+
+impl RunResult {
+    /// The run as a `Result`: an error when it stopped before its end time.
+    pub fn finished(self) -> Result<RunResult> {
+        match &self.stopped {
+            None => Ok(self),
+            Some(s) => Err(jointplay_solver::Error::Diverged {
+                time: s.time,
+                message: s.message.clone(),
+            }
+            .into()),
+        }
+    }
 }
 
 fn finite3(v: &[f64; 3], what: &str, t: f64) -> Result<()> {
@@ -133,7 +238,9 @@ fn finite3(v: &[f64; 3], what: &str, t: f64) -> Result<()> {
 }
 
 /// Simulates `model` from `state` (assembled first) and records its outputs.
-/// `progress` receives the fraction of the span done after every sample.
+/// `progress` receives the fraction of the span done after every sample. Errors only when the
+/// initial state cannot be assembled; a failure later returns what was recorded, with
+/// [`RunResult::stopped`] set.
 pub fn simulate(
     model: &Model,
     mut state: State,
@@ -309,29 +416,49 @@ pub fn simulate(
         Ok(())
     };
     let mut sys = Mechanism::new(model);
-    let stats = integrate(
-        &mut sys,
-        model.settings.method,
-        t0,
-        &mut state.y,
-        t1,
-        &samples,
-        |sys, t, y| match observe(sys, t, y) {
-            Ok(()) => Flow::Continue,
-            Err(e) => {
-                failure = Some(e);
-                Flow::Stop
-            }
-        },
-    )?;
-    if let Some(e) = failure {
-        return Err(e);
-    }
-    state.t = t1;
+    let (stats, res) = match sys.check_initial(t0, &state.y) {
+        Err(e) => (Stats::default(), Err(e)),
+        Ok(()) => integrate_partial(
+            &mut sys,
+            model.settings.method,
+            t0,
+            &mut state.y,
+            t1,
+            &samples,
+            |sys, t, y| match observe(sys, t, y) {
+                Ok(()) => Flow::Continue,
+                Err(e) => {
+                    failure = Some(e);
+                    Flow::Stop
+                }
+            },
+            None,
+        ),
+    };
+    let stopped = match (failure, res) {
+        (Some(e), _) => {
+            // The failed sample may be partly recorded: keep only the complete ones.
+            let t_fail = rec.time.last().copied().unwrap_or(t0);
+            let n = rec.time.len().saturating_sub(1);
+            rec.truncate(n);
+            Some(match &e {
+                crate::Error::Solver(se) => Stopped::from_error(se, t_fail),
+                other => Stopped {
+                    time: t_fail,
+                    message: other.to_string(),
+                },
+            })
+        }
+        (None, Err(e)) => Some(Stopped::from_error(&e, t0)),
+        (None, Ok(())) => None,
+    };
+    state.t = stopped.as_ref().map_or(t1, |s| s.time);
     Ok(RunResult {
         recording: rec,
         stats,
         assembly,
         final_state: state,
+        warnings: sys.warnings,
+        stopped,
     })
 }

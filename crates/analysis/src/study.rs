@@ -337,10 +337,12 @@ impl Study {
             .into_par_iter()
             .zip(&self.cases)
             .map(|((model, state), c)| {
-                let result = simulate(&model, state, &mut |_| {}).map_err(|e| Error::Case {
-                    label: c.label.clone(),
-                    inner: Box::new(e),
-                })?;
+                let result = simulate(&model, state, &mut |_| {})
+                    .and_then(RunResult::finished)
+                    .map_err(|e| Error::Case {
+                        label: c.label.clone(),
+                        inner: Box::new(e),
+                    })?;
                 done(&c.label);
                 Ok(CaseRun {
                     label: c.label.clone(),

@@ -84,6 +84,19 @@ impl Geometry {
         }
     }
 
+    /// The divergence guard's default limit on penetration (m): one tenth of the journal (ball)
+    /// radius. Elastic contact of metal parts penetrates micrometres; a penetration of this size
+    /// means the contact law is far outside its validity and the integration is running away.
+    pub fn runaway_penetration(&self) -> f64 {
+        let r = match *self {
+            Geometry::Spherical { ball_radius, .. } => ball_radius,
+            Geometry::Planar { journal_radius, .. } | Geometry::Revolute { journal_radius, .. } => {
+                journal_radius
+            }
+        };
+        0.1 * r
+    }
+
     /// The radial clearance (m).
     pub fn radial_clearance(&self) -> f64 {
         match *self {

@@ -146,6 +146,20 @@ impl Elastic {
         }
     }
 
+    /// Tangent stiffness dF/d(delta) (N/m) at penetration delta > 0.
+    pub fn stiffness(&self, delta: f64) -> f64 {
+        match *self {
+            Elastic::Power { k, n } => n * k * delta.powf(n - 1.0),
+            Elastic::CylinderLine { c, dr } => {
+                // d(delta)/dx = ln(4 dR / x) - 2 (see `line_x`), so dF/d(delta) = c / that.
+                let a = 4.0 * dr;
+                let x_lim = 0.9 * a / std::f64::consts::E.powi(2);
+                let x = line_x(delta, dr).min(x_lim);
+                c / ((a / x).ln() - 2.0)
+            }
+        }
+    }
+
     pub fn describe(&self) -> String {
         match *self {
             Elastic::Power { k, n } => format!("K = {k:.4e} N/m^{n}"),
@@ -237,6 +251,29 @@ impl NormalLaw {
             }
         };
         f.max(0.0)
+    }
+
+    /// The law linearised about a contact state: the stiffness dF/d(delta) (N/m) and the damping
+    /// dF/d(delta_dot) (N s/m) at penetration `delta` > 0, rate `delta_dot` and onset velocity
+    /// `v_on`. Zero when the law gives no force there.
+    pub fn linearised(&self, delta: f64, delta_dot: f64, v_on: f64) -> (f64, f64) {
+        if self.force(delta, delta_dot, v_on) <= 0.0 {
+            return (0.0, 0.0);
+        }
+        match *self {
+            NormalLaw::Hertz { el } => (el.stiffness(delta), 0.0),
+            NormalLaw::Hysteresis { el, d, v_floor, .. } => {
+                let v = v_on.abs().max(v_floor);
+                (
+                    el.stiffness(delta) * (1.0 + d * delta_dot / v).max(0.0),
+                    el.force(delta) * d / v,
+                )
+            }
+            NormalLaw::Impact { k, n, c_max, d_max } => (
+                Elastic::Power { k, n }.stiffness(delta),
+                step(delta, 0.0, 0.0, d_max, c_max),
+            ),
+        }
     }
 
     /// Elastic energy stored at penetration delta (J); zero out of contact.
@@ -332,6 +369,29 @@ impl FrictionLaw {
 
     pub fn is_none(&self) -> bool {
         matches!(self, FrictionLaw::None)
+    }
+
+    /// d(coefficient)/d(speed) at sliding speed `v` (s/m): the friction force `c(v) F_N` acts as
+    /// a viscous damper of coefficient `F_N` times this in the tangent plane.
+    pub fn slope(&self, v: f64) -> f64 {
+        match *self {
+            FrictionLaw::None => 0.0,
+            FrictionLaw::Coulomb { mu, v_reg } => {
+                if v < v_reg {
+                    mu / v_reg
+                } else {
+                    0.0
+                }
+            }
+            FrictionLaw::Ambrosio { mu, v0, v1 } => {
+                if v > v0 && v < v1 {
+                    mu / (v1 - v0)
+                } else {
+                    0.0
+                }
+            }
+            FrictionLaw::Threlfall { mu, v0 } => mu * 3.0 / v0 * (-3.0 * v / v0).exp(),
+        }
     }
 
     pub fn describe(&self) -> String {

@@ -20,6 +20,7 @@ use nalgebra::{DMatrix, Matrix3, Quaternion, UnitQuaternion, Vector3};
 
 use crate::clearance::{ContactEval, Resultant};
 use crate::error::{Error, Result};
+use crate::guard::{StepGuard, Warning};
 use crate::linalg::PsdSolver;
 use crate::model::{GROUND, Model, Prim, State};
 use crate::ode::OdeSystem;
@@ -93,10 +94,16 @@ pub struct Workspace {
     /// history, updated only on accepted steps ([`Model::update_onsets`]).
     pub onset: Vec<f64>,
     /// Contact geometry at the start of the last accepted step (scratch for onset location).
-    contacts0: Vec<ContactEval>,
+    pub(crate) contacts0: Vec<ContactEval>,
 }
 
 impl Workspace {
+    /// Solves `S x = b` in place with the reduced matrix S = G M^-1 G^T factored by the last
+    /// evaluation of the accelerations (minimum-norm when constraints are redundant).
+    pub(crate) fn solve_reduced(&mut self, b: &mut [f64]) {
+        self.solver.solve(b);
+    }
+
     pub fn new(m: &Model) -> Self {
         let nb = m.nb();
         let nr = m.n_rows;
@@ -854,7 +861,7 @@ fn row_dot(ri: &Row, rj: &Row) -> f64 {
     s
 }
 
-fn minv_block(m: &Model, ws: &Workspace, b: usize, j: &[f64; 6]) -> [f64; 6] {
+pub(crate) fn minv_block(m: &Model, ws: &Workspace, b: usize, j: &[f64; 6]) -> [f64; 6] {
     if b == GROUND {
         return [0.0; 6];
     }
@@ -884,18 +891,55 @@ fn add_force(ws: &mut Workspace, b: usize, f: &Vector3<f64>, p: &Vector3<f64>) {
     }
 }
 
-/// A model and its workspace as an [`OdeSystem`].
+/// A model and its workspace as an [`OdeSystem`], with the guards of [`crate::guard`].
 pub struct Mechanism<'m> {
     pub model: &'m Model,
     pub ws: Workspace,
+    /// Warnings of the step-size guard so far.
+    pub warnings: Vec<Warning>,
+    guard: StepGuard,
+    /// Fixed-step methods: the deepest state of each contact over the stages of the current
+    /// step (a step that overshoots into a contact may leave it again before its end, where
+    /// the step-size guard looks).
+    deepest: Option<Vec<ContactEval>>,
 }
 
 impl<'m> Mechanism<'m> {
     pub fn new(model: &'m Model) -> Self {
+        let fixed = model.settings.method.fixed_step().is_some() && model.effects.clearance;
         Mechanism {
             model,
             ws: Workspace::new(model),
+            warnings: Vec::new(),
+            guard: StepGuard::default(),
+            deepest: fixed.then(|| vec![untouched(); model.n_contacts]),
         }
+    }
+
+    /// Runs the guards on the initial state `(t, y)` (before the first step): the step-size
+    /// guard's warnings go to [`Mechanism::warnings`]; a runaway quantity is returned as an error.
+    pub fn check_initial(&mut self, t: f64, y: &[f64]) -> Result<()> {
+        self.model.accelerations(t, y, &mut self.ws);
+        if let Some(message) = self.model.runaway(&self.ws) {
+            return Err(Error::Diverged { time: t, message });
+        }
+        let contacts = self.ws.contacts.clone();
+        self.model.step_guard(
+            t,
+            (&contacts, &contacts),
+            &mut self.ws,
+            &mut self.guard,
+            &mut self.warnings,
+        );
+        Ok(())
+    }
+}
+
+/// A contact state deeper than none.
+fn untouched() -> ContactEval {
+    ContactEval {
+        delta: f64::NEG_INFINITY,
+        ..Default::default()
     }
 }
 
@@ -905,9 +949,36 @@ impl OdeSystem for Mechanism<'_> {
     }
     fn rhs(&mut self, t: f64, y: &[f64], dydt: &mut [f64]) {
         self.model.rhs(t, y, &mut self.ws, dydt);
+        if let Some(deepest) = self.deepest.as_mut() {
+            for (d, c) in deepest.iter_mut().zip(&self.ws.contacts) {
+                if c.delta > d.delta {
+                    *d = *c;
+                }
+            }
+        }
     }
     fn step_accepted(&mut self, t0: f64, y0: &[f64], t1: f64, y1: &[f64]) -> bool {
         self.model.update_onsets(t0, y0, t1, y1, &mut self.ws)
+    }
+    /// The workspace holds the evaluation at the accepted state (the method's last stage, with
+    /// the contact geometry refreshed by `step_accepted`).
+    fn check_step(&mut self, t: f64, _y: &[f64]) -> Option<String> {
+        if let Some(mut deepest) = self.deepest.take() {
+            let starts = self.ws.contacts0.clone();
+            self.model.step_guard(
+                t,
+                (&starts, &deepest),
+                &mut self.ws,
+                &mut self.guard,
+                &mut self.warnings,
+            );
+            deepest.fill(untouched());
+            self.deepest = Some(deepest);
+        }
+        self.model.runaway(&self.ws)
+    }
+    fn explain_non_finite(&mut self, t: f64, y: &[f64], component: usize) -> String {
+        self.model.explain_non_finite(t, y, component, &mut self.ws)
     }
 }
 

@@ -18,6 +18,7 @@ pub mod contact;
 pub mod disable;
 pub mod dynamics;
 pub mod error;
+pub mod guard;
 pub mod linalg;
 pub mod model;
 pub mod ode;

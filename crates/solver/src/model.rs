@@ -32,7 +32,9 @@ use std::path::{Path, PathBuf};
 use nalgebra::{Matrix3, SymmetricEigen, UnitQuaternion, Vector3};
 
 use crate::clearance::{Clearance, Geometry};
-use crate::contact::{Damping, Elastic, FrictionLaw, NormalLaw, point_contact_stiffness};
+use crate::contact::{
+    Damping, Elastic, FrictionLaw, NormalLaw, hunt_crossley_restitution, point_contact_stiffness,
+};
 use crate::error::{Error, Result};
 use crate::ode::Method;
 use crate::profile::{Profile, Spline};
@@ -238,6 +240,11 @@ pub struct Settings {
     pub end_time: f64,
     /// The drive period (s) when the drives share one.
     pub period: Option<f64>,
+    /// Divergence guard: largest penetration (m) of any contact, when set in the scene; else
+    /// one tenth of each joint's journal radius ([`crate::clearance::Geometry::runaway_penetration`]).
+    pub max_penetration: Option<f64>,
+    /// Divergence guard: largest constraint residual |Phi_i| (m or rad).
+    pub max_drift: f64,
 }
 
 /// What to record, resolved to indices.
@@ -279,6 +286,9 @@ pub struct Model {
     pub disabled: Vec<String>,
     pub settings: Settings,
     pub outputs: Outputs,
+    /// Warnings about the scene found while compiling it, each naming the file and the field
+    /// (a law used outside its range, for instance). The run goes ahead.
+    pub warnings: Vec<String>,
 }
 
 /// The mutable state: time and y = [r_0, q_0, r_1, q_1, ..., v_0, w_0, v_1, w_1, ...] with r the
@@ -292,9 +302,16 @@ pub struct State {
 
 struct Ctx<'a> {
     file: &'a Path,
+    warnings: std::cell::RefCell<Vec<String>>,
 }
 
 impl Ctx<'_> {
+    fn warn(&self, field: impl std::fmt::Display, message: impl std::fmt::Display) {
+        self.warnings
+            .borrow_mut()
+            .push(format!("{}: {field}: {message}", self.file.display()));
+    }
+
     fn err(&self, field: impl Into<String>, message: impl Into<String>) -> Error {
         Error::Invalid {
             file: self.file.to_path_buf(),
@@ -591,6 +608,14 @@ fn compile_clearance(
     f: &str,
     cx: &Ctx,
 ) -> Result<(Geometry, NormalLaw, FrictionLaw)> {
+    // A joint without play is the ideal joint; the contact laws have no meaning there (the
+    // point-contact stiffness grows without bound as the clearance closes).
+    if c.radial_clearance == Some(0.0) {
+        return Err(cx.err(
+            format!("{f}.radial_clearance"),
+            "zero clearance is the ideal joint: remove the clearance block (or give a positive clearance)",
+        ));
+    }
     let geometry = match kind {
         JointKind::Spherical => {
             if c.model.is_some() {
@@ -881,6 +906,35 @@ fn compile_clearance(
             None => 1e-3,
             Some(v) => positive(Some(v), format!("{nf}.onset_velocity_floor"), "", cx)?,
         };
+        // Each law of the family restitutes a definite e(c_e) in an isolated impact; warn
+        // when it misses the requested c_e by more than 0.05 and name laws that meet it.
+        let got = hunt_crossley_restitution(kind.factor(ce));
+        if (got - ce).abs() > 0.05 {
+            let better: Vec<String> = [
+                (Damping::CarvalhoMartins, "carvalho_martins"),
+                (Damping::Flores, "flores"),
+                (Damping::Gonthier, "gonthier"),
+            ]
+            .iter()
+            .filter(|(k, _)| *k != kind)
+            .map(|&(k, name)| (name, hunt_crossley_restitution(k.factor(ce))))
+            .filter(|(_, e)| (e - ce).abs() <= 0.05)
+            .map(|(name, e)| format!("law = \"{name}\" (restitutes {e:.3})"))
+            .collect();
+            cx.warn(
+                format!("{nf}.restitution"),
+                format!(
+                    "the {} law is outside its range at c_e = {ce}: it was derived for c_e near 1, \
+                     and an isolated impact restitutes {got:.3}, not {ce}; use {}",
+                    kind.name(),
+                    if better.is_empty() {
+                        "a law fitted to low restitution".to_string()
+                    } else {
+                        better.join(" or ")
+                    }
+                ),
+            );
+        }
         Ok(NormalLaw::Hysteresis {
             el,
             kind,
@@ -997,7 +1051,10 @@ impl Model {
     /// Validates and compiles a scene; returns the model and the initial state as declared
     /// (not yet assembled onto the constraints: see [`Model::assemble`]).
     pub fn compile(scene: &SceneFile) -> Result<(Model, State)> {
-        let cx = Ctx { file: &scene.path };
+        let cx = Ctx {
+            file: &scene.path,
+            warnings: Default::default(),
+        };
         // Disabled effects are removed from the scene before anything is compiled.
         let (spec, disabled) = crate::disable::apply(&scene.spec)
             .map_err(|(field, message)| cx.err(field, message))?;
@@ -1578,6 +1635,14 @@ impl Model {
                 format!("must be after start_time = {} s", sv.start_time),
             ));
         }
+        let max_penetration = match sv.max_penetration {
+            None => None,
+            Some(v) => Some(positive(Some(v), "solver.max_penetration".into(), "", &cx)?),
+        };
+        let max_drift = match sv.max_constraint_drift {
+            None => 0.1,
+            Some(v) => positive(Some(v), "solver.max_constraint_drift".into(), "", &cx)?,
+        };
         let settings = Settings {
             method,
             alpha: sv.baumgarte_alpha,
@@ -1585,6 +1650,8 @@ impl Model {
             start_time: sv.start_time,
             end_time,
             period,
+            max_penetration,
+            max_drift,
         };
 
         // Outputs.
@@ -1671,6 +1738,7 @@ impl Model {
             disabled,
             settings,
             outputs,
+            warnings: cx.warnings.take(),
         };
         let state = State {
             t: model.settings.start_time,

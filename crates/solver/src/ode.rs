@@ -34,6 +34,20 @@ pub trait OdeSystem {
     fn step_accepted(&mut self, _t0: f64, _y0: &[f64], _t1: f64, _y1: &[f64]) -> bool {
         false
     }
+
+    /// The divergence guard, called after every accepted step (after
+    /// [`OdeSystem::step_accepted`]) with the new state: returns a description of a quantity that
+    /// has run away (the run then stops with [`Error::Diverged`] at `t`). The default checks
+    /// nothing beyond the integrator's own test for a non-finite state.
+    fn check_step(&mut self, _t: f64, _y: &[f64]) -> Option<String> {
+        None
+    }
+
+    /// Explains a non-finite state: component `component` became non-finite in the step from
+    /// `(t, y)`, the last state accepted. The default names the component.
+    fn explain_non_finite(&mut self, _t: f64, _y: &[f64], component: usize) -> String {
+        format!("state component {component} became non-finite")
+    }
 }
 
 /// Integration method and its accuracy settings.
@@ -66,6 +80,59 @@ impl Method {
             }
             Method::Dopri5Fixed { step } => format!("dopri5 (fixed step {step:e} s)"),
         }
+    }
+
+    /// The fixed step (s) of a fixed-step method; None for adaptive methods.
+    pub fn fixed_step(&self) -> Option<f64> {
+        match *self {
+            Method::Rk4 { step } | Method::Dopri5Fixed { step } => Some(step),
+            Method::Dopri5 { .. } => None,
+        }
+    }
+
+    /// |R(z)|, the modulus of the stability function of a fixed-step method at z = h lambda
+    /// (given as real and imaginary part): the factor by which one step multiplies the mode
+    /// `exp(lambda t)` of a linear system. RK4: R(z) = sum_{k<=4} z^k / k!. The propagated 5th-
+    /// order solution of Dormand-Prince: R(z) = sum_{k<=5} z^k / k! + z^6 / 600 (the last
+    /// coefficient is b^T A^5 1 of the tableau). None for adaptive methods, whose error control
+    /// keeps them stable.
+    pub fn amplification(&self, re: f64, im: f64) -> Option<f64> {
+        let coeffs: &[f64] = match self {
+            Method::Rk4 { .. } => &[1.0, 1.0, 0.5, 1.0 / 6.0, 1.0 / 24.0],
+            Method::Dopri5Fixed { .. } => &[
+                1.0,
+                1.0,
+                0.5,
+                1.0 / 6.0,
+                1.0 / 24.0,
+                1.0 / 120.0,
+                1.0 / 600.0,
+            ],
+            Method::Dopri5 { .. } => return None,
+        };
+        // Horner's scheme in complex arithmetic.
+        let (mut pr, mut pi) = (0.0, 0.0);
+        for &c in coeffs.iter().rev() {
+            let r = pr * re - pi * im + c;
+            pi = pr * im + pi * re;
+            pr = r;
+        }
+        Some(pr.hypot(pi))
+    }
+
+    /// The largest fixed step (s) at which the mode with eigenvalue `lambda = (re, im)` (1/s) is
+    /// stable (|R(h lambda)| <= 1), found by bisection from `h_max`; None for adaptive methods.
+    pub fn stable_step(&self, re: f64, im: f64, h_max: f64) -> Option<f64> {
+        let stable = |h: f64| self.amplification(h * re, h * im).map(|a| a <= 1.0 + 1e-12);
+        if stable(h_max)? {
+            return Some(h_max);
+        }
+        let (mut lo, mut hi) = (0.0, h_max);
+        for _ in 0..60 {
+            let mid = 0.5 * (lo + hi);
+            if stable(mid)? { lo = mid } else { hi = mid }
+        }
+        Some(lo)
     }
 }
 
@@ -374,17 +441,53 @@ pub fn integrate_steps<S: OdeSystem>(
     y: &mut [f64],
     t_end: f64,
     samples: &[f64],
+    observer: impl FnMut(&mut S, f64, &[f64]) -> Flow,
+    on_step: Option<StepObserver<S>>,
+) -> Result<Stats> {
+    let (stats, res) = integrate_partial(sys, method, t0, y, t_end, samples, observer, on_step);
+    res.map(|()| stats)
+}
+
+/// [`integrate_steps`] that returns its counters also when the run fails, for callers that keep
+/// what was computed before the failure. On failure `y` holds the last accepted state.
+#[allow(clippy::too_many_arguments)]
+pub fn integrate_partial<S: OdeSystem>(
+    sys: &mut S,
+    method: Method,
+    t0: f64,
+    y: &mut [f64],
+    t_end: f64,
+    samples: &[f64],
+    observer: impl FnMut(&mut S, f64, &[f64]) -> Flow,
+    on_step: Option<StepObserver<S>>,
+) -> (Stats, Result<()>) {
+    let start = Instant::now();
+    let mut stats = Stats::default();
+    let res = run_steps(
+        sys, method, t0, y, t_end, samples, observer, on_step, &mut stats,
+    );
+    stats.wall = start.elapsed();
+    (stats, res)
+}
+
+#[allow(clippy::too_many_arguments)]
+fn run_steps<S: OdeSystem>(
+    sys: &mut S,
+    method: Method,
+    t0: f64,
+    y: &mut [f64],
+    t_end: f64,
+    samples: &[f64],
     mut observer: impl FnMut(&mut S, f64, &[f64]) -> Flow,
     mut on_step: Option<StepObserver<S>>,
-) -> Result<Stats> {
-    let start = Instant::now();
+    stats: &mut Stats,
+) -> Result<()> {
     let n = sys.dim();
     assert_eq!(
         y.len(),
         n,
         "state length does not match the system dimension"
     );
-    let mut stats = Stats::default();
     let mut w = Work::new(n);
     let mut ys = vec![0.0; n];
     let mut t = t0;
@@ -392,14 +495,12 @@ pub fn integrate_steps<S: OdeSystem>(
     // Samples at t0 itself.
     while next_sample < samples.len() && samples[next_sample] <= t0 {
         if observer(sys, t0, y) == Flow::Stop {
-            stats.wall = start.elapsed();
-            return Ok(stats);
+            return Ok(());
         }
         next_sample += 1;
     }
     if t_end <= t0 {
-        stats.wall = start.elapsed();
-        return Ok(stats);
+        return Ok(());
     }
     sys.rhs(t, y, &mut w.k[0]);
     stats.rhs_evals += 1;
@@ -411,7 +512,7 @@ pub fn integrate_steps<S: OdeSystem>(
             atol,
             max_step,
         } => {
-            let h = initial_step(sys, t, y, &w.k[0], (rtol, atol, max_step), &mut stats);
+            let h = initial_step(sys, t, y, &w.k[0], (rtol, atol, max_step), stats);
             (h, true, rtol, atol, max_step)
         }
     };
@@ -478,12 +579,19 @@ pub fn integrate_steps<S: OdeSystem>(
         if let Some(i) = w.y_new.iter().position(|v| !v.is_finite()) {
             return Err(Error::Diverged {
                 time: t_new,
-                message: format!("state component {i} became non-finite"),
+                message: sys.explain_non_finite(t, y, i),
             });
         }
         stats.accepted += 1;
         k_step += 1;
         let history_changed = sys.step_accepted(t, y, t_new, &w.y_new);
+        if let Some(message) = sys.check_step(t_new, &w.y_new) {
+            y.copy_from_slice(&w.y_new);
+            return Err(Error::Diverged {
+                time: t_new,
+                message,
+            });
+        }
         let has_dense_sample = next_sample < samples.len() && samples[next_sample] < t_new;
         if (has_dense_sample || on_step.is_some()) && !is_rk4 {
             dopri5_dense(y, h_try, &mut w);
@@ -505,8 +613,7 @@ pub fn integrate_steps<S: OdeSystem>(
             next_sample += 1;
             if flow == Flow::Stop {
                 y.copy_from_slice(&w.y_new);
-                stats.wall = start.elapsed();
-                return Ok(stats);
+                return Ok(());
             }
         }
         if let Some(f) = on_step.as_mut() {
@@ -520,8 +627,7 @@ pub fn integrate_steps<S: OdeSystem>(
             };
             if f(sys, &step) == Flow::Stop {
                 y.copy_from_slice(&w.y_new);
-                stats.wall = start.elapsed();
-                return Ok(stats);
+                return Ok(());
             }
         }
         y.copy_from_slice(&w.y_new);
@@ -535,8 +641,7 @@ pub fn integrate_steps<S: OdeSystem>(
             stats.rhs_evals += 1;
         }
     }
-    stats.wall = start.elapsed();
-    Ok(stats)
+    Ok(())
 }
 
 #[cfg(test)]
@@ -653,6 +758,66 @@ mod tests {
         .unwrap();
         assert_eq!(last, 1.0);
         assert_eq!(s.accepted, 4);
+    }
+
+    /// One step of `method` on the harmonic oscillator y'' = -w^2 y: the growth of the
+    /// oscillator's amplitude per step equals |R(i h w)|, so [`Method::amplification`] is checked
+    /// against the steppers themselves. Both methods are stable up to the known imaginary-axis
+    /// limits: 2 sqrt(2) for RK4; about 0.9 for the 5th-order Dormand-Prince solution (its region
+    /// reaches the imaginary axis only tangentially).
+    #[test]
+    fn stability_function_matches_the_steppers() {
+        struct Osc(f64);
+        impl OdeSystem for Osc {
+            fn dim(&self) -> usize {
+                2
+            }
+            fn rhs(&mut self, _t: f64, y: &[f64], d: &mut [f64]) {
+                d[0] = y[1];
+                d[1] = -self.0 * self.0 * y[0];
+            }
+        }
+        for make in [(|h| Method::Rk4 { step: h }) as fn(f64) -> Method, |h| {
+            Method::Dopri5Fixed { step: h }
+        }] {
+            for hw in [0.3, 1.0, 2.0, 2.8, 2.9, 3.3] {
+                let w = 100.0;
+                let h = hw / w;
+                let m = make(h);
+                // Many steps: the amplitude (energy norm) grows as |R|^n.
+                let n = 200;
+                let mut y = [1.0, 0.0];
+                integrate(&mut Osc(w), m, 0.0, &mut y, n as f64 * h, &[], |_, _, _| {
+                    Flow::Continue
+                })
+                .unwrap();
+                let growth = (y[0] * y[0] + (y[1] / w) * (y[1] / w))
+                    .sqrt()
+                    .powf(1.0 / n as f64);
+                let r = m.amplification(0.0, hw).unwrap();
+                // The energy norm of a rotation-with-growth is |R|^n up to a bounded factor (the
+                // numerical ellipse differs from the circle by O((h w)^4)), so per step the two
+                // agree to about 1e-3 relative after 200 steps.
+                assert!(
+                    (growth / r - 1.0).abs() < 2e-3,
+                    "{m:?}: hw {hw}: growth {growth}, |R| {r}"
+                );
+            }
+        }
+        let rk4 = Method::Rk4 { step: 1.0 };
+        let lim = rk4.stable_step(0.0, 1.0, 10.0).unwrap();
+        assert!((lim - 2.0 * 2f64.sqrt()).abs() < 1e-9, "{lim}");
+        let lim = rk4.stable_step(-1.0, 0.0, 10.0).unwrap();
+        assert!((lim - 2.785).abs() < 1e-3, "{lim}");
+        assert_eq!(
+            Method::Dopri5 {
+                rtol: 1e-6,
+                atol: 1e-9,
+                max_step: 1.0
+            }
+            .stable_step(0.0, 1.0, 1.0),
+            None
+        );
     }
 
     #[test]

@@ -479,6 +479,14 @@ pub struct SolverSpec {
     /// Number of drive periods to simulate (needs a periodic drive).
     #[serde(default)]
     pub periods: Option<f64>,
+    /// Divergence guard: the largest penetration (m) any contact may reach before the run stops
+    /// as diverged; default one tenth of the joint's journal (ball) radius.
+    #[serde(default)]
+    pub max_penetration: Option<f64>,
+    /// Divergence guard: the largest constraint residual |Phi_i| (m or rad) before the run stops
+    /// as diverged; default 0.1.
+    #[serde(default)]
+    pub max_constraint_drift: Option<f64>,
 }
 
 fn default_step() -> f64 {
@@ -507,6 +515,8 @@ impl Default for SolverSpec {
             start_time: 0.0,
             end_time: None,
             periods: None,
+            max_penetration: None,
+            max_constraint_drift: None,
         }
     }
 }

@@ -1,0 +1,393 @@
+//! Guards of a mechanism run: the divergence guard and the step-size guard.
+//!
+//! # Divergence guard
+//! After every accepted step ([`crate::ode::OdeSystem::check_step`]) the run stops with
+//! [`crate::Error::Diverged`] at the first of:
+//! * a contact whose penetration is not finite or exceeds the limit (the scene's
+//!   `solver.max_penetration`, else one tenth of the joint's journal radius,
+//!   [`crate::clearance::Geometry::runaway_penetration`]); the message names the clearance joint,
+//!   the contact and the penetration;
+//! * a constraint residual |Phi_i| beyond `solver.max_constraint_drift` (default 0.1 m or rad; a runaway grows exponentially and crosses any such level within a few steps, while a stable run without stabilisation may drift by centimetres over hundreds of periods),
+//!   naming the joint or drive that owns the row.
+//!
+//! A state that becomes non-finite is explained by [`Model::explain_non_finite`]: the body and
+//! coordinate, and the deepest contact at the last finite state.
+//!
+//! # Step-size guard
+//! An explicit method with a fixed step h is stable for a linear mode `exp(lambda t)` only while
+//! |R(h lambda)| <= 1, R its stability function ([`crate::ode::Method::amplification`]). Each
+//! active contact is linearised about its current state as one degree of freedom along its
+//! normal,
+//!
+//! ```text
+//!   m x'' + c x' + k x = 0,   k = dF/d(delta),  c = dF/d(delta_dot),
+//!   lambda = (-c -+ sqrt(c^2 - 4 m k)) / (2 m),
+//! ```
+//!
+//! with m the effective mass of the mechanism along the contact normal: with the generalised
+//! direction w of the normal (the contact point's normal velocity is w v),
+//! `1/m = w M^-1 w^T - u^T S^+ u`, `u = G M^-1 w^T`, S = G M^-1 G^T the reduced matrix of the
+//! constraints (its factorisation from the last evaluation is reused). The friction law adds a
+//! damper `c_t = F_N dc/dv` (or `F_N c(v)/v` across the sliding direction, whichever is larger)
+//! along the sliding direction, with its own effective mass. A mode outside the region triggers
+//! one warning per joint, with the time, the mode and a step: half the largest stable step,
+//! rounded down to 1, 2 or 5 times a power of ten. The guard runs on the assembled initial state
+//! ([`crate::dynamics::Mechanism::check_initial`]) and after every accepted step, on the deepest
+//! state each contact reached over the step's stages: a step that overshoots into a contact can
+//! leave it again before the step ends.
+//!
+//! Ignoring the constraints can only lower the effective mass (the subtracted term is a
+//! quadratic form of a positive semi-definite matrix), which raises the mode's frequency and
+//! damping rate; the guard first tests that cheap bound and solves with the constraints only
+//! when the bound is unstable.
+
+use nalgebra::Vector3;
+
+use crate::clearance::{Clearance, ContactEval};
+use crate::dynamics::{Kin, Workspace, minv_block};
+use crate::model::{GROUND, Model, any_normal};
+use crate::ode::Method;
+
+/// A warning raised while the run goes on.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Warning {
+    /// Simulated time (s).
+    pub time: f64,
+    pub message: String,
+}
+
+/// Per-run state of the step-size guard: which joints have been warned about.
+#[derive(Debug, Clone, Default)]
+pub struct StepGuard {
+    warned: Vec<bool>,
+}
+
+/// A largest stable step `h`, halved and rounded down to 1, 2 or 5 times a power of ten.
+fn suggested_step(h: f64) -> f64 {
+    let x = 0.5 * h;
+    let p = 10f64.powf(x.log10().floor());
+    let m = x / p;
+    let d = if m >= 5.0 {
+        5.0
+    } else if m >= 2.0 {
+        2.0
+    } else {
+        1.0
+    };
+    d * p
+}
+
+impl Model {
+    fn kin_of<'w>(&self, b: usize, ws: &'w Workspace) -> &'w Kin {
+        &ws.kin[if b == GROUND { self.nb() } else { b }]
+    }
+
+    /// The first runaway quantity at the state of the last evaluation, or None.
+    pub fn runaway(&self, ws: &Workspace) -> Option<String> {
+        if self.effects.clearance {
+            for c in &self.clearances {
+                let limit = self
+                    .settings
+                    .max_penetration
+                    .unwrap_or_else(|| c.geometry.runaway_penetration());
+                for (k, name) in c.geometry.contact_names().iter().enumerate() {
+                    let d = ws.contacts[c.first + k].delta;
+                    if !d.is_finite() || d > limit {
+                        let source = if self.settings.max_penetration.is_some() {
+                            "solver.max_penetration"
+                        } else {
+                            "one tenth of the journal radius; set solver.max_penetration to change it"
+                        };
+                        return Some(format!(
+                            "clearance joint '{}', contact '{name}': penetration {d:.4e} m exceeds \
+                             the runaway limit {limit:.4e} m ({source}): the integration is \
+                             unstable; use a smaller step or an adaptive integrator",
+                            c.name
+                        ));
+                    }
+                }
+            }
+        }
+        if self.effects.constraints {
+            let max = self.settings.max_drift;
+            if let Some(i) = (0..self.n_rows).find(|&i| ws.phi[i].is_nan() || ws.phi[i].abs() > max)
+            {
+                return Some(format!(
+                    "constraint residual of {} reached {:.4e} (m or rad), beyond \
+                     solver.max_constraint_drift = {max:e}",
+                    self.row_owner(i),
+                    ws.phi[i]
+                ));
+            }
+        }
+        None
+    }
+
+    /// Explains why component `i` of the state became non-finite in the step after `(t, y)`.
+    pub fn explain_non_finite(&self, t: f64, y: &[f64], i: usize, ws: &mut Workspace) -> String {
+        let np = self.n_pos();
+        let what = if i < np {
+            let names = [
+                "x position",
+                "y position",
+                "z position",
+                "Euler parameter w",
+                "Euler parameter x",
+                "Euler parameter y",
+                "Euler parameter z",
+            ];
+            format!("{} of body '{}'", names[i % 7], self.bodies[i / 7].name)
+        } else {
+            let j = i - np;
+            let names = [
+                "x velocity",
+                "y velocity",
+                "z velocity",
+                "x angular velocity",
+                "y angular velocity",
+                "z angular velocity",
+            ];
+            format!("{} of body '{}'", names[j % 6], self.bodies[j / 6].name)
+        };
+        let mut msg = format!("the {what} became non-finite in the step after t = {t} s");
+        if self.effects.clearance && y.iter().all(|v| v.is_finite()) {
+            self.kinematics(y, ws);
+            let mut deepest: Option<(f64, String)> = None;
+            for c in &self.clearances {
+                let slots = c.first..c.first + c.geometry.n_contacts();
+                let (kh, kj) = (*self.kin_of(c.housing, ws), *self.kin_of(c.journal, ws));
+                c.geometry(&kh, &kj, &mut ws.contacts[slots.clone()]);
+                for (k, name) in c.geometry.contact_names().iter().enumerate() {
+                    let d = ws.contacts[c.first + k].delta;
+                    if deepest.as_ref().is_none_or(|(e, _)| d > *e) {
+                        deepest =
+                            Some((d, format!("clearance joint '{}', contact '{name}'", c.name)));
+                    }
+                }
+            }
+            if let Some((d, which)) = deepest {
+                msg += &format!(
+                    "; at that last finite state the deepest contact was {which}, penetration \
+                     {d:.4e} m"
+                );
+            }
+        }
+        msg
+    }
+
+    /// Inverse effective mass (1/kg) of the mechanism for a unit force pair along `dir` at the
+    /// journal point `pj` and the housing point `ph` of clearance joint `c`: with the constraints
+    /// when `constrained`, else of the two bodies alone.
+    fn inverse_mass(
+        &self,
+        c: &Clearance,
+        dir: &Vector3<f64>,
+        (pj, ph): (&Vector3<f64>, &Vector3<f64>),
+        ws: &mut Workspace,
+        constrained: bool,
+    ) -> f64 {
+        let mut blocks = [(GROUND, [0.0; 6]); 2];
+        let mut inv = 0.0;
+        for (slot, (b, p, sign)) in [(c.journal, pj, 1.0), (c.housing, ph, -1.0)]
+            .into_iter()
+            .enumerate()
+        {
+            if b == GROUND {
+                continue;
+            }
+            let r = p - ws.kin[b].r;
+            let m = r.cross(dir);
+            let w = [
+                sign * dir.x,
+                sign * dir.y,
+                sign * dir.z,
+                sign * m.x,
+                sign * m.y,
+                sign * m.z,
+            ];
+            let mw = minv_block(self, ws, b, &w);
+            inv += (0..6).map(|k| w[k] * mw[k]).sum::<f64>();
+            blocks[slot] = (b, mw);
+        }
+        if !constrained || self.n_rows == 0 || !self.effects.constraints {
+            return inv;
+        }
+        let mut u = vec![0.0; self.n_rows];
+        for (i, row) in ws.rows.iter().enumerate() {
+            for (b, mw) in &blocks {
+                if *b == GROUND {
+                    continue;
+                }
+                for (rb, j) in [(row.a, &row.ja), (row.b, &row.jb)] {
+                    if rb == *b {
+                        u[i] += (0..6).map(|k| j[k] * mw[k]).sum::<f64>();
+                    }
+                }
+            }
+        }
+        let mut x = u.clone();
+        ws.solve_reduced(&mut x);
+        inv - u.iter().zip(&x).map(|(a, b)| a * b).sum::<f64>()
+    }
+
+    /// The fastest mode of a damper-spring (`k` N/m, `c` N s/m) on the effective mass found by
+    /// `inverse_mass` (tested first without the constraints), when unstable at step `h`: its
+    /// eigenvalue and mass, and the largest stable step.
+    #[allow(clippy::too_many_arguments)]
+    fn unstable_mode(
+        &self,
+        method: &Method,
+        h: f64,
+        (k, c): (f64, f64),
+        cl: &Clearance,
+        dir: &Vector3<f64>,
+        points: (&Vector3<f64>, &Vector3<f64>),
+        ws: &mut Workspace,
+    ) -> Option<((f64, f64), f64, f64)> {
+        let mode = |inv_m: f64| -> Option<((f64, f64), f64)> {
+            if inv_m.is_nan() || inv_m <= 0.0 {
+                return None;
+            }
+            let m = 1.0 / inv_m;
+            let disc = c * c - 4.0 * m * k;
+            let lambda = if disc < 0.0 {
+                (-c / (2.0 * m), (-disc).sqrt() / (2.0 * m))
+            } else {
+                ((-c - disc.sqrt()) / (2.0 * m), 0.0)
+            };
+            let a = method.amplification(h * lambda.0, h * lambda.1)?;
+            (a > 1.0 + 1e-12).then_some((lambda, m))
+        };
+        mode(self.inverse_mass(cl, dir, points, ws, false))?;
+        let (lambda, m) = mode(self.inverse_mass(cl, dir, points, ws, true))?;
+        let stable = method.stable_step(lambda.0, lambda.1, h)?;
+        Some((lambda, m, stable))
+    }
+
+    /// The step-size guard at time `t` for the contact states `(starts, contacts)`: at the start
+    /// of the step and the deepest of its stages, with the masses of the last evaluation. Gives
+    /// a warning for each clearance joint not yet warned about whose contact has a mode the
+    /// fixed step cannot follow stably.
+    ///
+    /// A contact that begins inside a step too long for it is overshot: its stages penetrate far
+    /// deeper than the impact would. The contact is then linearised at the penetration where the
+    /// approach at the step's start (speed v0, effective mass m) would stop, elastic energy =
+    /// m v0^2 / 2, with v0 as the onset velocity.
+    pub fn step_guard(
+        &self,
+        t: f64,
+        (starts, contacts): (&[ContactEval], &[ContactEval]),
+        ws: &mut Workspace,
+        guard: &mut StepGuard,
+        out: &mut Vec<Warning>,
+    ) {
+        let method = self.settings.method;
+        let Some(h) = method.fixed_step() else {
+            return;
+        };
+        if !self.effects.clearance {
+            return;
+        }
+        guard.warned.resize(self.clearances.len(), false);
+        for (ci, cl) in self.clearances.iter().enumerate() {
+            if guard.warned[ci] {
+                continue;
+            }
+            for (slot, name) in cl.geometry.contact_names().iter().enumerate() {
+                let s = cl.first + slot;
+                let ce = contacts[s];
+                if ce.delta.is_nan() || ce.delta <= 0.0 || ce.n.norm() == 0.0 {
+                    continue;
+                }
+                let points = (&ce.pj, &ce.ph);
+                let v0 = starts[s].delta_dot;
+                let (k, c) = if starts[s].delta <= 0.0 && v0 > 0.0 {
+                    let m = 1.0 / self.inverse_mass(cl, &ce.n, points, ws, false);
+                    let target = 0.5 * m * v0 * v0;
+                    let (mut lo, mut hi) = (0.0, ce.delta);
+                    if cl.law.elastic_energy(hi) > target {
+                        for _ in 0..100 {
+                            let mid = 0.5 * (lo + hi);
+                            if cl.law.elastic_energy(mid) > target {
+                                hi = mid
+                            } else {
+                                lo = mid
+                            }
+                        }
+                    }
+                    let onset = if ws.onset[s].is_nan() {
+                        v0
+                    } else {
+                        ws.onset[s]
+                    };
+                    cl.law.linearised(hi, 0.0, onset)
+                } else {
+                    cl.law.linearised(ce.delta, ce.delta_dot, ws.onset[s])
+                };
+                let mut found = self
+                    .unstable_mode(&method, h, (k, c), cl, &ce.n, points, ws)
+                    .map(|m| {
+                        (
+                            m,
+                            format!("normal stiffness {k:.3e} N/m, damping {c:.3e} N s/m"),
+                        )
+                    });
+                if found.is_none() && !cl.friction.is_none() && ce.fn_ > 0.0 {
+                    let (kh, kj) = (self.kin_of(cl.housing, ws), self.kin_of(cl.journal, ws));
+                    let vj = kj.v + kj.w.cross(&(ce.pj - kj.r));
+                    let vh = kh.v + kh.w.cross(&(ce.ph - kh.r));
+                    let vrel = vj - vh;
+                    let vt = vrel - ce.n * ce.n.dot(&vrel);
+                    let speed = vt.norm();
+                    let dir = if speed > 0.0 {
+                        vt / speed
+                    } else {
+                        any_normal(&ce.n)
+                    };
+                    let mut slope = cl.friction.slope(speed);
+                    if speed > 0.0 {
+                        slope = slope.max(cl.friction.coefficient(speed) / speed);
+                    }
+                    let ct = ce.fn_ * slope;
+                    found = self
+                        .unstable_mode(&method, h, (0.0, ct), cl, &dir, points, ws)
+                        .map(|m| (m, format!("friction damping {ct:.3e} N s/m (sliding speed {speed:.3e} m/s)")));
+                }
+                if let Some(((lambda, m, stable), what)) = found {
+                    guard.warned[ci] = true;
+                    let mode = if lambda.1 != 0.0 {
+                        format!("{:.3e} +- {:.3e}i 1/s", lambda.0, lambda.1)
+                    } else {
+                        format!("{:.3e} 1/s", lambda.0)
+                    };
+                    out.push(Warning {
+                        time: t,
+                        message: format!(
+                            "clearance joint '{}', contact '{name}': at t = {t} s its {what} on an \
+                             effective mass of {m:.3e} kg give the mode {mode}, unstable for {} \
+                             (largest stable step {stable:.3e} s): use step = {:e} s or smaller, \
+                             or integrator = \"dopri5\"",
+                            cl.name,
+                            method.describe(),
+                            suggested_step(stable)
+                        ),
+                    });
+                    break;
+                }
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn suggested_steps_are_round() {
+        for (h, want) in [(9.9e-5, 2e-5), (1.2e-4, 5e-5), (3e-6, 1e-6)] {
+            let got = suggested_step(h);
+            assert!((got / want - 1.0).abs() < 1e-12, "{h}: {got}");
+        }
+    }
+}
