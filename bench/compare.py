@@ -80,12 +80,15 @@ class Jointplay:
         self.exe, self.tmp, self.repeats = exe, Path(tmp), repeats
         self.n = 0
 
-    def run(self, text, stem):
-        """Writes `text` to a temporary file, runs it; returns (h5 path, min process time)."""
+    def run(self, text, stem, h5name, time_attr):
+        """Writes `text` to a temporary file and runs it. Returns the output directory, the
+        shortest process time and the shortest integration time recorded in the HDF5 file
+        (attribute `time_attr`) over the repeats."""
         self.n += 1
         src = self.tmp / f"{stem}-{self.n}.toml"
         src.write_text(text)
         out = self.tmp / f"out-{self.n}"
+        recorded = []
 
         def go():
             r = subprocess.run([self.exe, "run", str(src), "--out", str(out), "--no-plots", "-q"],
@@ -93,8 +96,21 @@ class Jointplay:
             if r.returncode != 0:
                 raise RuntimeError(f"jointplay failed on {src}:\n{r.stdout}\n{r.stderr}")
 
-        _, t = timed(go, self.repeats)
-        return out, t
+        def go_and_read():
+            t0 = time.perf_counter()
+            go()
+            dt = time.perf_counter() - t0
+            with h5py.File(out / h5name, "r") as f:
+                recorded.append(float(f.attrs[time_attr]))
+            return dt
+
+        best = math.inf
+        for _ in range(self.repeats):
+            dt = go_and_read()
+            best = min(best, dt)
+            if dt > 1.0:
+                break
+        return out, best, min(recorded)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -143,10 +159,11 @@ class DuffingProblem:
             solver = f'integrator = "dopri5", rtol = {value:.1e}, atol = {value * ATOL_FACTOR:.1e}'
         else:
             solver = f'integrator = "rk4", step = {value!r}'
-        out, t = jp.run(duffing_study("duffing-bench", self.gamma, self.periods, solver), self.key)
+        out, t, t_int = jp.run(duffing_study("duffing-bench", self.gamma, self.periods, solver),
+                               self.key, "duffing-bench.h5", "wall_time")
         with h5py.File(out / "duffing-bench.h5", "r") as f:
             y = np.stack([f["sections/strobe/x"][:], f["sections/strobe/v"][:]], axis=1)
-            return y, t, float(f.attrs["wall_time"]), int(f.attrs["rhs_evals"])
+            return y, t, t_int, int(f.attrs["rhs_evals"])
 
     def error(self, y, ref):
         return float(np.max(np.hypot(y[:, 0] - ref[:, 0], y[:, 1] - ref[:, 1])))
@@ -209,13 +226,14 @@ class SliderCrankProblem:
             solver = f'integrator = "dopri5"\nrtol = {value:.1e}\natol = {value * ATOL_FACTOR:.1e}'
         else:
             solver = f'integrator = "rk4"\nstep = {value!r}'
-        out, t = jp.run(slider_scene(solver), self.key)
+        out, t, t_int = jp.run(slider_scene(solver), self.key, "slider-crank-clearance.h5",
+                               "wall_time_s")
         with h5py.File(out / "slider-crank-clearance.h5", "r") as f:
             y = np.full((len(self.samples), 18), np.nan)
             y[:, 6] = f["bodies/slider/position"][:, 0]
             y[:, 15] = f["bodies/slider/velocity"][:, 0]
             self._last_ecc = f["joints/piston_pin/eccentricity_global"][:, :2]
-            return y, t, float(f.attrs["wall_time_s"]), int(f.attrs["rhs_evaluations"])
+            return y, t, t_int, int(f.attrs["rhs_evaluations"])
 
     def error(self, y, ref):
         return float(np.max(np.abs(y[:, 6] - ref[:, 6])))

@@ -93,6 +93,8 @@ def contact(y):
 def normal_force(delta, delta_dot, v_on, damping=D_LN):
     if delta <= 0.0:
         return 0.0
+    if math.isnan(v_on):  # onset not yet located (see onset_diagnostic.py): jointplay's rule
+        v_on = delta_dot
     f = K_CONTACT * delta**N_EXP * (1.0 + damping * delta_dot / max(abs(v_on), V_FLOOR))
     return max(f, 0.0)
 
