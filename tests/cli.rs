@@ -919,3 +919,48 @@ fn a_diverging_run_keeps_its_samples_in_a_file_marked_incomplete() {
     assert_eq!(complete, 1);
     assert!(file.attr("error").is_err());
 }
+
+/// Paths of every f64 dataset under `g` (recursively).
+fn float_datasets(g: &hdf5::Group, prefix: &str, out: &mut Vec<String>) {
+    for name in g.member_names().unwrap() {
+        let path = format!("{prefix}/{name}");
+        if let Ok(sub) = g.group(&name) {
+            float_datasets(&sub, &path, out);
+        } else if let Ok(ds) = g.dataset(&name)
+            && ds.dtype().unwrap().is::<f64>()
+        {
+            out.push(path);
+        }
+    }
+}
+
+#[test]
+fn the_same_scene_gives_bit_identical_datasets_run_after_run() {
+    // Two runs of the clearance slider-crank (impacts, onsets, dense samples): every float
+    // dataset must be equal bit for bit.
+    let dir = tempfile::tempdir().unwrap();
+    for k in ["a", "b"] {
+        let out = bin()
+            .args(["run", "-q", "--no-plots", "--out"])
+            .arg(dir.path().join(k))
+            .arg(scenes().join("slider-crank-clearance.toml"))
+            .output()
+            .unwrap();
+        assert!(out.status.success(), "{}", text(&out).1);
+    }
+    let open = |k: &str| {
+        hdf5::File::open(dir.path().join(k).join("slider-crank-clearance.h5")).unwrap()
+    };
+    let (a, b) = (open("a"), open("b"));
+    let mut names = Vec::new();
+    float_datasets(&a, "", &mut names);
+    assert!(names.len() > 20, "{names:?}");
+    for name in &names {
+        let x = a.dataset(name).unwrap().read_raw::<f64>().unwrap();
+        let y = b.dataset(name).unwrap().read_raw::<f64>().unwrap();
+        assert!(
+            x.len() == y.len() && x.iter().zip(&y).all(|(p, q)| p.to_bits() == q.to_bits()),
+            "{name} differs between runs"
+        );
+    }
+}

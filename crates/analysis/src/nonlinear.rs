@@ -422,6 +422,16 @@ impl Loaded {
         };
         let mut jobs = Vec::new();
         if let Some(sw) = &spec.sweep {
+            // Each value is a whole simulation; a million is beyond any sweep that can finish.
+            if let Some(n) = sw.count
+                && n > 1_000_000
+            {
+                return Err(invalid(
+                    path,
+                    "sweep.count",
+                    format!("{n} values; at most 1000000 are allowed"),
+                ));
+            }
             let values = match (&sw.values[..], sw.from, sw.to, sw.count) {
                 (v, None, None, None) if !v.is_empty() => v.to_vec(),
                 ([], Some(a), Some(b), Some(n)) if n >= 2 => (0..n)

@@ -1635,6 +1635,21 @@ impl Model {
                 format!("must be after start_time = {} s", sv.start_time),
             ));
         }
+        // A step so small that the run could never finish is a mistake, not a setting.
+        let span = end_time - sv.start_time;
+        let (step_field, step) = match method {
+            Method::Dopri5 { max_step, .. } => ("solver.max_step", max_step),
+            _ => ("solver.step", method.fixed_step().unwrap_or(f64::INFINITY)),
+        };
+        if span / step > 1e12 {
+            return Err(cx.err(
+                step_field,
+                format!(
+                    "{step:e} s over a span of {span} s means at least {:.3e} steps; at most 1e12 are allowed",
+                    span / step
+                ),
+            ));
+        }
         let max_penetration = match sv.max_penetration {
             None => None,
             Some(v) => Some(positive(Some(v), "solver.max_penetration".into(), "", &cx)?),
