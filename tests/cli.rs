@@ -948,9 +948,8 @@ fn the_same_scene_gives_bit_identical_datasets_run_after_run() {
             .unwrap();
         assert!(out.status.success(), "{}", text(&out).1);
     }
-    let open = |k: &str| {
-        hdf5::File::open(dir.path().join(k).join("slider-crank-clearance.h5")).unwrap()
-    };
+    let open =
+        |k: &str| hdf5::File::open(dir.path().join(k).join("slider-crank-clearance.h5")).unwrap();
     let (a, b) = (open("a"), open("b"));
     let mut names = Vec::new();
     float_datasets(&a, "", &mut names);

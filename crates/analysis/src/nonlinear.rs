@@ -273,10 +273,7 @@ fn finite(file: &Path, field: &str, v: f64) -> Result<()> {
 impl AnalysisStudy {
     /// Parses the spec alone (no scene is read): what `plot` needs.
     pub fn parse_spec(text: &str, path: &Path) -> Result<AnalysisStudy> {
-        toml::from_str(text).map_err(|e| Error::Io {
-            file: path.to_path_buf(),
-            message: e.to_string().trim_end().to_string(),
-        })
+        Ok(jointplay_solver::scene::parse_toml(text, path)?)
     }
 
     /// The observable index of `name`.

@@ -177,10 +177,7 @@ impl Study {
 
     /// Parses study text; scene paths are relative to `path`'s directory.
     pub fn parse(text: &str, path: &Path) -> Result<Study> {
-        let spec: StudySpec = toml::from_str(text).map_err(|e| Error::Io {
-            file: path.to_path_buf(),
-            message: e.to_string().trim_end().to_string(),
-        })?;
+        let spec: StudySpec = jointplay_solver::scene::parse_toml(text, path)?;
         let dir = path.parent().unwrap_or(Path::new("."));
         if spec.cases.is_empty() {
             return Err(invalid(path, "cases", "a study needs at least one case"));

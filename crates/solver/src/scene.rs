@@ -574,13 +574,29 @@ pub struct SceneFile {
     pub spec: SceneSpec,
 }
 
+/// Deserialises TOML `text` read from `file`; a schema error names the field path
+/// (`bodies[0].mass`) before the parser's own message with line, column and the offending text.
+pub fn parse_toml<T: serde::de::DeserializeOwned>(text: &str, file: &Path) -> Result<T> {
+    let err = |message: String| Error::Parse {
+        file: file.to_path_buf(),
+        message: message.trim_end().to_string(),
+    };
+    let de = toml::Deserializer::parse(text).map_err(|e| err(e.to_string()))?;
+    serde_path_to_error::deserialize(de).map_err(|e| {
+        let path = e.path().to_string();
+        let inner = e.into_inner().to_string();
+        if path.is_empty() || path == "." {
+            err(inner)
+        } else {
+            err(format!("{path}: {inner}"))
+        }
+    })
+}
+
 impl SceneSpec {
     /// Parses scene text; `file` names the source in errors.
     pub fn parse(text: &str, file: &Path) -> Result<SceneSpec> {
-        toml::from_str(text).map_err(|e| Error::Parse {
-            file: file.to_path_buf(),
-            message: e.to_string().trim_end().to_string(),
-        })
+        parse_toml(text, file)
     }
 
     /// Reads and parses a scene file.
