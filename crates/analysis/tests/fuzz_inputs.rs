@@ -137,11 +137,11 @@ fn mutate_tree(text: &str, rng: &mut Rng) -> Option<String> {
         }
         6 => {
             // Duplicate an element of the nearest enclosing array (duplicate names).
-            if let Some(p) = path.iter().rposition(|k| matches!(k, Key::Index(_))) {
-                if let (Key::Index(i), Value::Array(a)) = (&path[p], at(&mut root, &path[..p])) {
-                    let dup = a[*i].clone();
-                    a.push(dup);
-                }
+            if let Some(p) = path.iter().rposition(|k| matches!(k, Key::Index(_)))
+                && let (Key::Index(i), Value::Array(a)) = (&path[p], at(&mut root, &path[..p]))
+            {
+                let dup = a[*i].clone();
+                a.push(dup);
             }
         }
         _ => {
