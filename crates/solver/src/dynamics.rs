@@ -11,8 +11,19 @@
 //! where G is the constraint Jacobian with respect to the velocities (6 columns per body),
 //! gamma = -(dG/dt) v + s''(t) the velocity-quadratic terms, and alpha_B, beta_B the Baumgarte
 //! parameters. With the block-diagonal mass matrix the multipliers follow from the reduced system
-//! `(G M^-1 G^T) lambda = G M^-1 Q - rhs`, solved by [`PsdSolver`] (minimum-norm when constraints are
-//! redundant), and then `a = M^-1 (Q - G^T lambda)`. The rotation is carried by Euler parameters
+//! `S lambda = G M^-1 Q - rhs` with `S = G M^-1 G^T`, and then `a = M^-1 (Q - G^T lambda)`; when
+//! constraints are redundant S is singular and lambda is its minimum-norm solution `S^+ b`.
+//!
+//! Every row acts on at most two bodies, so `S_ij = sum_k G_i^k M_k^-1 G_j^k^T` over the bodies k
+//! (the ground aside) that rows i and j share, and S_ij = 0 when they share none. That pattern is
+//! fixed by the scene ([`Coupling`], built when the model is compiled): S is assembled body by body
+//! over the pairs of rows acting on each body, and factored by [`SparsePsd`] in an elimination order
+//! computed once from the pattern (for the legs of a parallel mechanism, leg rows before platform
+//! rows, without fill). Its cost grows with the rows per body rather than with the cube of the rows.
+//! The dense solve by [`PsdSolver`] remains as the reference ([`Model::accelerations_dense`]) and as
+//! the fallback for the rare evaluation where a small pivot is not clearly a redundant direction.
+//!
+//! The rotation is carried by Euler parameters
 //! with `q' = 1/2 (0, w) (x) q`, free of the singularities of Euler angles; the rotation matrix is
 //! built from q/|q|, so the slow drift of |q| under integration never distorts the body.
 
@@ -20,7 +31,7 @@ use nalgebra::{DMatrix, Matrix3, Quaternion, UnitQuaternion, Vector3};
 
 use crate::clearance::{ContactEval, Resultant};
 use crate::error::{Error, Result};
-use crate::linalg::PsdSolver;
+use crate::linalg::{PsdSolver, SparsePsd};
 use crate::model::{GROUND, Model, Prim, State};
 use crate::ode::OdeSystem;
 use crate::scene::LoadFrame;
@@ -58,6 +69,70 @@ pub struct Row {
     pub jb: [f64; 6],
 }
 
+/// Which constraint rows act on which body: fixed by the scene, it fixes the sparsity of the
+/// reduced matrix `S = G M^-1 G^T`, whose entry (i, j) is nonzero only when rows i and j act on a
+/// common body (the ground aside). Built once when the model is compiled.
+#[derive(Debug, Clone, Default)]
+pub struct Coupling {
+    /// Rows acting on body k: `inc[inc_ptr[k]..inc_ptr[k + 1]]`, ascending, each as (row, side)
+    /// with side 0 when k is the row's body a and 1 when it is its body b.
+    inc_ptr: Vec<usize>,
+    inc: Vec<(usize, u8)>,
+    /// For each body and each pair u <= v of its rows (u outer), the storage index of S_uv in
+    /// the sparse solver.
+    pairs: Vec<u32>,
+    /// The symbolic factorisation (elimination order and pattern of the factor).
+    solver: SparsePsd,
+}
+
+impl Coupling {
+    /// The coupling of the rows of `prims` (n_rows in all) among nb bodies.
+    pub fn new(nb: usize, prims: &[(Prim, usize)], n_rows: usize) -> Self {
+        let mut on_body: Vec<Vec<(usize, u8)>> = vec![Vec::new(); nb];
+        for (prim, r0) in prims {
+            let (a, b, n) = match *prim {
+                Prim::Coincident { a, b, .. } => (a, b, 3),
+                Prim::Perpendicular { a, b, .. } => (a, b, 1),
+                Prim::Distance { a, b, .. } => (a, b, 1),
+                Prim::Angle { a, b, .. } => (a, b, 1),
+            };
+            for i in *r0..*r0 + n {
+                for (k, side) in [(a, 0), (b, 1)] {
+                    if k != GROUND {
+                        on_body[k].push((i, side));
+                    }
+                }
+            }
+        }
+        for rows in &mut on_body {
+            rows.sort_unstable();
+        }
+        let cliques: Vec<Vec<usize>> = on_body
+            .iter()
+            .map(|rows| rows.iter().map(|r| r.0).collect())
+            .collect();
+        let solver = SparsePsd::new(n_rows, &cliques);
+        let mut inc_ptr = vec![0];
+        let mut inc = Vec::new();
+        let mut pairs = Vec::new();
+        for rows in &on_body {
+            for (u, ru) in rows.iter().enumerate() {
+                for rv in &rows[u..] {
+                    pairs.push(solver.index(ru.0, rv.0) as u32);
+                }
+            }
+            inc.extend_from_slice(rows);
+            inc_ptr.push(inc.len());
+        }
+        Coupling {
+            inc_ptr,
+            inc,
+            pairs,
+            solver,
+        }
+    }
+}
+
 /// Scratch memory of the right-hand side; also holds the last evaluation's results
 /// (multipliers, accelerations, constraint residuals) for the recorders.
 #[derive(Debug, Clone)]
@@ -75,10 +150,19 @@ pub struct Workspace {
     pub phi: Vec<f64>,
     pub phi_dot: Vec<f64>,
     pub rhs: Vec<f64>,
-    /// M^-1 G^T per row (blocks for a and b).
+    /// Jacobian blocks G_i^k and W_i^k = M_k^-1 G_i^k^T of the rows acting on each body, in the
+    /// order of [`Coupling`]'s incidence list.
+    inc_j: Vec<[f64; 6]>,
+    inc_w: Vec<[f64; 6]>,
+    /// The sparse factorisation of the reduced matrix.
+    sparse: SparsePsd,
+    /// The dense path (reference, and fallback near singular configurations): M^-1 G^T per row
+    /// (blocks for a and b), the dense reduced matrix (allocated on first use) and its solver.
     wrows: Vec<([f64; 6], [f64; 6])>,
     s: Vec<f64>,
     solver: PsdSolver,
+    /// Whether the last evaluation solved on the dense path.
+    dense_used: bool,
     /// Multipliers of the last evaluation.
     pub lambda: Vec<f64>,
     /// Accelerations of the last evaluation per body: a (m/s^2), alpha (rad/s^2).
@@ -115,9 +199,13 @@ impl Workspace {
             phi: vec![0.0; nr],
             phi_dot: vec![0.0; nr],
             rhs: vec![0.0; nr],
+            inc_j: vec![[0.0; 6]; m.coupling.inc.len()],
+            inc_w: vec![[0.0; 6]; m.coupling.inc.len()],
+            sparse: m.coupling.solver.clone(),
             wrows: vec![([0.0; 6], [0.0; 6]); nr],
-            s: vec![0.0; nr * nr],
+            s: Vec::new(),
             solver: PsdSolver::new(),
+            dense_used: false,
             lambda: vec![0.0; nr],
             acc: vec![[0.0; 6]; nb],
             rank: 0,
@@ -126,6 +214,14 @@ impl Workspace {
             onset: vec![f64::NAN; m.n_contacts],
             contacts0: vec![ContactEval::default(); m.n_contacts],
         }
+    }
+}
+
+impl Workspace {
+    /// Whether the last evaluation solved the reduced system on the dense path (see
+    /// [`SparsePsd::factor`] for when the sparse one defers to it).
+    pub fn solved_densely(&self) -> bool {
+        self.dense_used
     }
 }
 
@@ -448,6 +544,16 @@ impl Model {
 
     /// Accelerations and multipliers at (t, y) into the workspace.
     pub fn accelerations(&self, t: f64, y: &[f64], ws: &mut Workspace) {
+        self.accelerations_with(t, y, ws, false);
+    }
+
+    /// [`Model::accelerations`] with the reduced system assembled and factored densely, in
+    /// O(rows^3): the reference the sparse solve is verified against.
+    pub fn accelerations_dense(&self, t: f64, y: &[f64], ws: &mut Workspace) {
+        self.accelerations_with(t, y, ws, true);
+    }
+
+    fn accelerations_with(&self, t: f64, y: &[f64], ws: &mut Workspace, dense: bool) {
         self.kinematics(y, ws);
         self.applied_forces(t, ws);
         let nb = self.nb();
@@ -462,7 +568,76 @@ impl Model {
             return;
         }
         self.constraints(t, ws);
+        // b = G M^-1 Q - rhs, solved in place into the multipliers.
+        for i in 0..self.n_rows {
+            let r = &ws.rows[i];
+            let mut b = -ws.rhs[i];
+            if r.a != GROUND {
+                b += dot6(&r.ja, &ws.minv_q[r.a]);
+            }
+            if r.b != GROUND {
+                b += dot6(&r.jb, &ws.minv_q[r.b]);
+            }
+            ws.lambda[i] = b;
+        }
+        ws.dense_used = dense || !self.solve_sparse(ws);
+        if ws.dense_used {
+            self.solve_dense(ws);
+        }
+    }
+
+    /// The reduced system on the sparse path: S assembled body by body, factored by
+    /// [`SparsePsd`]; then `a -= M^-1 G^T lambda`. Returns false, with the multipliers and
+    /// accelerations untouched, when the factorisation defers to the dense path.
+    fn solve_sparse(&self, ws: &mut Workspace) -> bool {
+        let c = &self.coupling;
+        let nb = self.nb();
+        for k in 0..nb {
+            for u in c.inc_ptr[k]..c.inc_ptr[k + 1] {
+                let (i, side) = c.inc[u];
+                let r = &ws.rows[i];
+                let j = if side == 0 { &r.ja } else { &r.jb };
+                ws.inc_j[u] = *j;
+                ws.inc_w[u] = minv_block(self, ws, k, j);
+            }
+        }
+        // S_ij = sum over the bodies k that rows i and j share of G_i^k M_k^-1 G_j^k^T.
+        let s = ws.sparse.values_mut();
+        s.fill(0.0);
+        let mut p = 0;
+        for k in 0..nb {
+            let (u0, u1) = (c.inc_ptr[k], c.inc_ptr[k + 1]);
+            for u in u0..u1 {
+                let ju = &ws.inc_j[u];
+                for wv in &ws.inc_w[u..u1] {
+                    s[c.pairs[p] as usize] += dot6(ju, wv);
+                    p += 1;
+                }
+            }
+        }
+        if !ws.sparse.factor(RANK_TOL) {
+            return false;
+        }
+        ws.rank = ws.sparse.rank();
+        ws.sparse.solve(&mut ws.lambda);
+        for k in 0..nb {
+            let acc = &mut ws.acc[k];
+            for u in c.inc_ptr[k]..c.inc_ptr[k + 1] {
+                let l = ws.lambda[c.inc[u].0];
+                let w = &ws.inc_w[u];
+                for c in 0..6 {
+                    acc[c] -= l * w[c];
+                }
+            }
+        }
+        true
+    }
+
+    /// The reduced system on the dense path: S = G M^-1 G^T row pair by row pair, factored by
+    /// [`PsdSolver`]; then `a -= M^-1 G^T lambda`.
+    fn solve_dense(&self, ws: &mut Workspace) {
         let nr = self.n_rows;
+        ws.s.resize(nr * nr, 0.0);
         // W = M^-1 G^T, row by row.
         for i in 0..nr {
             let r = &ws.rows[i];
@@ -471,7 +646,7 @@ impl Model {
                 minv_block(self, ws, r.b, &r.jb),
             );
         }
-        // S = G M^-1 G^T (only bodies shared by two rows contribute) and b = G M^-1 Q - rhs.
+        // S = G M^-1 G^T (only bodies shared by two rows contribute).
         for i in 0..nr {
             let ri = ws.rows[i];
             for j in i..nr {
@@ -497,14 +672,6 @@ impl Model {
                 ws.s[i * nr + j] = s;
                 ws.s[j * nr + i] = s;
             }
-            let mut b = -ws.rhs[i];
-            if ri.a != GROUND {
-                b += dot6(&ri.ja, &ws.minv_q[ri.a]);
-            }
-            if ri.b != GROUND {
-                b += dot6(&ri.jb, &ws.minv_q[ri.b]);
-            }
-            ws.lambda[i] = b;
         }
         ws.solver.factor(&ws.s, nr, RANK_TOL);
         ws.rank = ws.solver.rank();
@@ -630,12 +797,15 @@ impl Model {
         self.accelerations(t, &state.y, &mut ws);
         report.initial_velocity_residual = max_abs(&ws.phi_dot);
         let mut mu = ws.phi_dot.clone();
-        // ws.s already holds G M^-1 G^T from the acceleration evaluation.
-        solver.factor(&ws.s, nr, RANK_TOL);
-        solver.solve(&mut mu);
+        // The acceleration evaluation left G M^-1 G^T factored.
+        if ws.dense_used {
+            ws.solver.solve(&mut mu);
+        } else {
+            ws.sparse.solve(&mut mu);
+        }
         for (i, r) in ws.rows.iter().enumerate() {
-            let (wa, wb) = &ws.wrows[i];
-            for (b, w) in [(r.a, wa), (r.b, wb)] {
+            for (b, j) in [(r.a, &r.ja), (r.b, &r.jb)] {
+                let w = minv_block(self, &ws, b, j);
                 if b != GROUND {
                     for c in 0..6 {
                         state.y[np + 6 * b + c] -= mu[i] * w[c];

@@ -33,6 +33,7 @@ use nalgebra::{Matrix3, SymmetricEigen, UnitQuaternion, Vector3};
 
 use crate::clearance::{Clearance, Geometry};
 use crate::contact::{Damping, Elastic, FrictionLaw, NormalLaw, point_contact_stiffness};
+use crate::dynamics::Coupling;
 use crate::error::{Error, Result};
 use crate::ode::Method;
 use crate::profile::{Profile, Spline};
@@ -274,6 +275,8 @@ pub struct Model {
     /// Rows of the joints (the first `joint_rows` rows) and in total (joints then drives).
     pub joint_rows: usize,
     pub n_rows: usize,
+    /// Which rows act on which body, and the sparse factorisation that follows from it.
+    pub coupling: Coupling,
     pub effects: Effects,
     /// What the scene's `disable` list removed, one line per entry (see [`crate::disable`]).
     pub disabled: Vec<String>,
@@ -1652,6 +1655,7 @@ impl Model {
                 )
             }),
         };
+        let coupling = Coupling::new(bodies.len(), &prims, n_rows);
         let model = Model {
             name: scene.name(),
             file: scene.path.clone(),
@@ -1667,6 +1671,7 @@ impl Model {
             n_contacts,
             joint_rows,
             n_rows,
+            coupling,
             effects,
             disabled,
             settings,
