@@ -238,6 +238,12 @@ pub struct SparsePsd {
     /// rows, p outer, q inner.
     upd_ptr: Vec<usize>,
     upd: Vec<u32>,
+    /// For column k and each of its below-diagonal rows p (index a, at runs[colptr[k] - k + a]):
+    /// where the targets of the pairs (p, q >= p) start, counted from colptr[k + 1], when they lie
+    /// one after another in storage (the diagonal of p, then its rows q in order), as they do
+    /// along a chain of the elimination tree; u32::MAX when they do not. Contiguous targets need
+    /// no index loads or bounds checks per update.
+    runs: Vec<u32>,
     /// The assembled matrix (lower triangle, in the storage above).
     s: Vec<f64>,
     /// The factor: 1/d_k (0 for a dropped pivot) in the diagonal slots, L below.
@@ -346,19 +352,30 @@ impl SparsePsd {
         };
         let mut upd_ptr = Vec::with_capacity(n + 1);
         let mut upd = Vec::new();
+        let mut runs = Vec::new();
         for k in 0..n {
             upd_ptr.push(upd.len());
             let pat = &me.rowidx[me.colptr[k] + 1..me.colptr[k + 1]];
             let base = me.colptr[k + 1];
             for (a, &p) in pat.iter().enumerate() {
-                for &q in &pat[a..] {
-                    upd.push(u32::try_from(me.slot(q, p) - base).expect("factor too large"));
+                let start = me.slot(p, p) - base;
+                let mut contiguous = true;
+                for (b, &q) in pat[a..].iter().enumerate() {
+                    let s = me.slot(q, p) - base;
+                    contiguous &= s == start + b;
+                    upd.push(u32::try_from(s).expect("factor too large"));
                 }
+                runs.push(if contiguous {
+                    u32::try_from(start).expect("factor too large")
+                } else {
+                    u32::MAX
+                });
             }
         }
         upd_ptr.push(upd.len());
         me.upd_ptr = upd_ptr;
         me.upd = upd;
+        me.runs = runs;
         let nnz = me.rowidx.len();
         me.s = vec![0.0; nnz];
         me.l = vec![0.0; nnz];
@@ -423,7 +440,15 @@ impl SparsePsd {
     pub fn factor(&mut self, tol: f64) -> bool {
         let n = self.n;
         let cp = &self.colptr;
-        let dmax = (0..n).map(|k| self.s[cp[k]]).fold(0.0f64, f64::max);
+        // Largest diagonal entry (NaN ignored, as by f64::max), in four independent chains.
+        let mut mx = [0.0f64; 4];
+        for (i, &c) in cp[..n].iter().enumerate() {
+            let v = self.s[c];
+            if v > mx[i % 4] {
+                mx[i % 4] = v;
+            }
+        }
+        let dmax = mx[0].max(mx[1]).max(mx[2].max(mx[3]));
         let thresh = tol * dmax.max(f64::MIN_POSITIVE);
         let l = &mut self.l;
         l.copy_from_slice(&self.s);
@@ -447,20 +472,29 @@ impl SparsePsd {
             // Entries of later columns only: the trailing part of the storage.
             let (done, trail) = l.split_at_mut(c1);
             let t = &mut self.t[..m];
-            t.copy_from_slice(&done[c0 + 1..c1]);
             let dinv = 1.0 / d;
             done[c0] = dinv;
             let lk = &mut done[c0 + 1..c1];
-            for v in lk.iter_mut() {
+            // Keep the unscaled column (L_pk d_k) while scaling it, in one pass.
+            for (v, ti) in lk.iter_mut().zip(t.iter_mut()) {
+                *ti = *v;
                 *v *= dinv;
             }
             // Schur update of the trailing entries that column k reaches:
             // S_qp -= L_qk d_k L_pk for every pair p <= q of its rows.
             let mut upd = &self.upd[self.upd_ptr[k]..self.upd_ptr[k + 1]];
-            for (a, &ta) in t.iter().enumerate() {
+            let runs = &self.runs[c0 - k..c0 - k + m];
+            for (a, (&ta, &run)) in t.iter().zip(runs).enumerate() {
                 let (now, rest) = upd.split_at(m - a);
-                for (&tg, &lq) in now.iter().zip(&lk[a..]) {
-                    trail[tg as usize] -= lq * ta;
+                if run != u32::MAX {
+                    let dst = &mut trail[run as usize..run as usize + (m - a)];
+                    for (x, &lq) in dst.iter_mut().zip(&lk[a..]) {
+                        *x -= lq * ta;
+                    }
+                } else {
+                    for (&tg, &lq) in now.iter().zip(&lk[a..]) {
+                        trail[tg as usize] -= lq * ta;
+                    }
                 }
                 upd = rest;
             }
@@ -523,22 +557,26 @@ impl SparsePsd {
         }
         Self::project(&self.null, x);
         for k in 0..n {
+            let (c0, c1) = (cp[k] + 1, cp[k + 1]);
             let xk = x[k];
-            if xk != 0.0 {
-                for idx in cp[k] + 1..cp[k + 1] {
-                    x[ri[idx]] -= l[idx] * xk;
-                }
+            for (&i, &v) in ri[c0..c1].iter().zip(&l[c0..c1]) {
+                x[i] -= v * xk;
             }
         }
         for k in 0..n {
             x[k] *= l[cp[k]];
         }
         for k in (0..n).rev() {
-            let mut s = x[k];
-            for idx in cp[k] + 1..cp[k + 1] {
-                s -= l[idx] * x[ri[idx]];
+            // Two partial sums halve the chain of dependent subtractions.
+            let (c0, c1) = (cp[k] + 1, cp[k + 1]);
+            let (rows, vals) = (&ri[c0..c1], &l[c0..c1]);
+            let mut s = [x[k], 0.0];
+            for (i2, v2) in rows.chunks(2).zip(vals.chunks(2)) {
+                for j in 0..i2.len() {
+                    s[j] -= v2[j] * x[i2[j]];
+                }
             }
-            x[k] = s;
+            x[k] = s[0] + s[1];
         }
         Self::project(&self.null, x);
         for k in 0..n {
