@@ -34,6 +34,7 @@ use crate::error::{Error, Result};
 use crate::linalg::{PsdSolver, SparsePsd};
 use crate::model::{GROUND, Model, Prim, State};
 use crate::ode::OdeSystem;
+use crate::profile::SinCos;
 use crate::scene::LoadFrame;
 
 /// Relative pivot tolerance of the reduced-matrix factorisation: pivots below it count as
@@ -301,7 +302,8 @@ impl Model {
         let nb = self.nb();
         let kin = &ws.kin;
         let idx = |b: usize| if b == GROUND { nb } else { b };
-        let drive_eval = |d: usize| self.drives[d].profile.eval(t);
+        let mut memo = SinCos::default();
+        let mut drive_eval = |d: usize| self.drives[d].profile.eval_memo(t, &mut memo);
         for (prim, r0) in &self.prims {
             let r0 = *r0;
             match prim {
@@ -363,7 +365,7 @@ impl Model {
                     let d = kb.r + sbg - ka.r - sag;
                     let dd = kb.v + kb.w.cross(&sbg) - ka.v - ka.w.cross(&sag);
                     let wu = ka.w.cross(&ug);
-                    let (s, sd, sdd) = drive.map_or((0.0, 0.0, 0.0), drive_eval);
+                    let (s, sd, sdd) = drive.map_or((0.0, 0.0, 0.0), &mut drive_eval);
                     ws.rows[r0] = Row {
                         a: *a,
                         b: *b,
