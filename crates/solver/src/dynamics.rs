@@ -82,9 +82,12 @@ pub struct Coupling {
     /// The terms G_u^k M_k^-1 G_v^k^T of S as (storage index in the sparse solver, incidence u,
     /// incidence v), one per pair u <= v of rows on a body: `first` holds the first term of each
     /// entry, in storage order, and `extra` the second one of the entries whose rows share both
-    /// bodies. Writing the first terms and adding the others fills S without clearing it.
-    first: Vec<[u32; 3]>,
-    extra: Vec<[u32; 3]>,
+    /// bodies. Writing the first terms and adding the others fills S without clearing it. Each
+    /// list comes in two parts: [0] terms with a row that constrains rotation only (a
+    /// perpendicularity or an angle: zero translational Jacobian, so only the rotational halves
+    /// contribute, with the same value), [1] the others.
+    first: [Vec<[u32; 3]>; 2],
+    extra: [Vec<[u32; 3]>; 2],
     /// The symbolic factorisation (elimination order and pattern of the factor).
     solver: SparsePsd,
 }
@@ -93,6 +96,7 @@ impl Coupling {
     /// The coupling of the rows of `prims` (n_rows in all) among nb bodies.
     pub fn new(nb: usize, prims: &[(Prim, usize)], n_rows: usize) -> Self {
         let mut on_body: Vec<Vec<(usize, u8)>> = vec![Vec::new(); nb];
+        let mut rot_only = vec![false; n_rows];
         for (prim, r0) in prims {
             let (a, b, n) = match *prim {
                 Prim::Coincident { a, b, .. } => (a, b, 3),
@@ -100,7 +104,9 @@ impl Coupling {
                 Prim::Distance { a, b, .. } => (a, b, 1),
                 Prim::Angle { a, b, .. } => (a, b, 1),
             };
+            let rot = matches!(prim, Prim::Perpendicular { .. } | Prim::Angle { .. });
             for i in *r0..*r0 + n {
+                rot_only[i] = rot;
                 for (k, side) in [(a, 0), (b, 1)] {
                     if k != GROUND {
                         on_body[k].push((i, side));
@@ -124,19 +130,23 @@ impl Coupling {
             for (u, ru) in rows.iter().enumerate() {
                 for (v, rv) in rows.iter().enumerate().skip(u) {
                     let slot = solver.index(ru.0, rv.0);
-                    terms.push([slot, u0 + u, u0 + v].map(|x| u32::try_from(x).unwrap()));
+                    let full = !(rot_only[ru.0] || rot_only[rv.0]);
+                    terms.push((
+                        [slot, u0 + u, u0 + v].map(|x| u32::try_from(x).unwrap()),
+                        full,
+                    ));
                 }
             }
             inc.extend_from_slice(rows);
             inc_ptr.push(inc.len());
         }
         terms.sort_unstable();
-        let (mut first, mut extra) = (Vec::new(), Vec::new());
-        for (i, tm) in terms.iter().enumerate() {
-            if i > 0 && terms[i - 1][0] == tm[0] {
-                extra.push(*tm);
+        let (mut first, mut extra) = ([Vec::new(), Vec::new()], [Vec::new(), Vec::new()]);
+        for (i, (tm, full)) in terms.iter().enumerate() {
+            if i > 0 && terms[i - 1].0[0] == tm[0] {
+                extra[*full as usize].push(*tm);
             } else {
-                first.push(*tm);
+                first[*full as usize].push(*tm);
             }
         }
         Coupling {
@@ -249,6 +259,13 @@ fn v3(s: &[f64]) -> Vector3<f64> {
 #[inline]
 fn dot6(a: &[f64; 6], b: &[f64; 6]) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3] + a[4] * b[4] + a[5] * b[5]
+}
+
+/// [`dot6`] of blocks one of which has a zero translational half: the rotational halves only
+/// (equal to [`dot6`] up to the sign of a zero result, since the skipped products are zeros).
+#[inline]
+fn dot3w(a: &[f64; 6], b: &[f64; 6]) -> f64 {
+    a[3] * b[3] + a[4] * b[4] + a[5] * b[5]
 }
 
 #[inline]
@@ -621,10 +638,16 @@ impl Model {
         // S_ij = sum over the bodies k that rows i and j share of G_i^k M_k^-1 G_j^k^T.
         let s = ws.sparse.values_mut();
         let (gj, gw) = (&ws.inc_j, &ws.inc_w);
-        for &[slot, u, v] in &c.first {
+        for &[slot, u, v] in &c.first[0] {
+            s[slot as usize] = dot3w(&gj[u as usize], &gw[v as usize]);
+        }
+        for &[slot, u, v] in &c.first[1] {
             s[slot as usize] = dot6(&gj[u as usize], &gw[v as usize]);
         }
-        for &[slot, u, v] in &c.extra {
+        for &[slot, u, v] in &c.extra[0] {
+            s[slot as usize] += dot3w(&gj[u as usize], &gw[v as usize]);
+        }
+        for &[slot, u, v] in &c.extra[1] {
             s[slot as usize] += dot6(&gj[u as usize], &gw[v as usize]);
         }
         if !ws.sparse.factor(RANK_TOL) {
