@@ -627,12 +627,16 @@ impl Model {
         let c = &self.coupling;
         let nb = self.nb();
         for k in 0..nb {
-            for u in c.inc_ptr[k]..c.inc_ptr[k + 1] {
-                let (i, side) = c.inc[u];
+            let (mi, inv_j) = (1.0 / self.bodies[k].mass, ws.inv_j[k]);
+            let (u0, u1) = (c.inc_ptr[k], c.inc_ptr[k + 1]);
+            let incs = c.inc[u0..u1].iter();
+            for ((&(i, side), gj), gw) in incs.zip(&mut ws.inc_j[u0..u1]).zip(&mut ws.inc_w[u0..u1])
+            {
                 let r = &ws.rows[i];
                 let j = if side == 0 { &r.ja } else { &r.jb };
-                ws.inc_j[u] = *j;
-                ws.inc_w[u] = minv_block(self, ws, k, j);
+                *gj = *j;
+                let t = inv_j * Vector3::new(j[3], j[4], j[5]);
+                *gw = [j[0] * mi, j[1] * mi, j[2] * mi, t.x, t.y, t.z];
             }
         }
         // S_ij = sum over the bodies k that rows i and j share of G_i^k M_k^-1 G_j^k^T.
@@ -656,14 +660,16 @@ impl Model {
         ws.rank = ws.sparse.rank();
         ws.sparse.solve(&mut ws.lambda);
         for k in 0..nb {
-            let acc = &mut ws.acc[k];
-            for u in c.inc_ptr[k]..c.inc_ptr[k + 1] {
-                let l = ws.lambda[c.inc[u].0];
-                let w = &ws.inc_w[u];
+            // In a local copy, which the compiler keeps in registers.
+            let mut acc = ws.acc[k];
+            let (u0, u1) = (c.inc_ptr[k], c.inc_ptr[k + 1]);
+            for (&(i, _), w) in c.inc[u0..u1].iter().zip(&ws.inc_w[u0..u1]) {
+                let l = ws.lambda[i];
                 for c in 0..6 {
                     acc[c] -= l * w[c];
                 }
             }
+            ws.acc[k] = acc;
         }
         true
     }
