@@ -244,10 +244,12 @@ pub struct SparsePsd {
     /// along a chain of the elimination tree; u32::MAX when they do not. Contiguous targets need
     /// no index loads or bounds checks per update.
     runs: Vec<u32>,
-    /// The assembled matrix (lower triangle, in the storage above).
+    /// The assembled matrix (lower triangle, in the storage above), overwritten by the factor:
+    /// 1/d_k (0 for a dropped pivot) in the diagonal slots, L below.
     s: Vec<f64>,
-    /// The factor: 1/d_k (0 for a dropped pivot) in the diagonal slots, L below.
-    l: Vec<f64>,
+    /// Slots outside the pattern of the matrix (fill of the factor, and the diagonal of an index
+    /// in no group), which the assembly leaves alone and the factorisation clears first.
+    fill: Vec<usize>,
     /// Dropped pivots, and an orthonormal basis of the null space of the factored matrix, one
     /// vector of length n after another (pivot order).
     dropped: Vec<usize>,
@@ -263,8 +265,10 @@ impl SparsePsd {
     pub fn new(n: usize, cliques: &[Vec<usize>]) -> Self {
         use std::collections::BTreeSet;
         let mut adj: Vec<BTreeSet<usize>> = vec![BTreeSet::new(); n];
+        let mut grouped = vec![false; n];
         for c in cliques {
             for &i in c {
+                grouped[i] = true;
                 for &j in c {
                     if i != j {
                         adj[i].insert(j);
@@ -272,6 +276,7 @@ impl SparsePsd {
                 }
             }
         }
+        let pattern = adj.clone();
         // Minimum degree on the elimination graph, ties to the lowest index. Eliminating v makes
         // its remaining neighbours a clique; they are the pattern of its column of L.
         let mut alive = vec![true; n];
@@ -378,7 +383,17 @@ impl SparsePsd {
         me.runs = runs;
         let nnz = me.rowidx.len();
         me.s = vec![0.0; nnz];
-        me.l = vec![0.0; nnz];
+        for k in 0..n {
+            let j = me.perm[k];
+            if !grouped[j] {
+                me.fill.push(me.colptr[k]);
+            }
+            for idx in me.colptr[k] + 1..me.colptr[k + 1] {
+                if !pattern[j].contains(&me.perm[me.rowidx[idx]]) {
+                    me.fill.push(idx);
+                }
+            }
+        }
         me.x = vec![0.0; n];
         me.t = vec![0.0; n];
         me
@@ -410,7 +425,9 @@ impl SparsePsd {
         self.rowidx.len()
     }
 
-    /// The matrix entries to assemble, indexed by [`SparsePsd::index`].
+    /// The matrix entries to assemble, indexed by [`SparsePsd::index`]. Every entry of the
+    /// pattern (diagonal included) must be written before each [`SparsePsd::factor`], which
+    /// overwrites them with the factor.
     pub fn values_mut(&mut self) -> &mut [f64] {
         &mut self.s
     }
@@ -420,7 +437,8 @@ impl SparsePsd {
         self.rank
     }
 
-    /// The assembled matrix as a dense row-major n x n matrix (original order).
+    /// The assembled matrix as a dense row-major n x n matrix (original order); before
+    /// [`SparsePsd::factor`] only.
     pub fn to_dense(&self, out: &mut [f64]) {
         let n = self.n;
         out[..n * n].fill(0.0);
@@ -438,6 +456,9 @@ impl SparsePsd {
     /// zero. Returns false, leaving no usable factor, when a dropped pivot's row is not negligible
     /// in that sense or the matrix holds NaN (see the type's documentation).
     pub fn factor(&mut self, tol: f64) -> bool {
+        for &f in &self.fill {
+            self.s[f] = 0.0;
+        }
         let n = self.n;
         let cp = &self.colptr;
         // Largest diagonal entry (NaN ignored, as by f64::max), in four independent chains.
@@ -450,8 +471,7 @@ impl SparsePsd {
         }
         let dmax = mx[0].max(mx[1]).max(mx[2].max(mx[3]));
         let thresh = tol * dmax.max(f64::MIN_POSITIVE);
-        let l = &mut self.l;
-        l.copy_from_slice(&self.s);
+        let l = &mut self.s;
         let mut rank = 0;
         self.dropped.clear();
         for k in 0..n {
@@ -518,7 +538,7 @@ impl SparsePsd {
             for j in (0..k).rev() {
                 let mut s = 0.0;
                 for idx in self.colptr[j] + 1..self.colptr[j + 1] {
-                    s -= self.l[idx] * x[self.rowidx[idx]];
+                    s -= self.s[idx] * x[self.rowidx[idx]];
                 }
                 x[j] = s;
             }
@@ -550,7 +570,7 @@ impl SparsePsd {
     /// is singular).
     pub fn solve(&mut self, b: &mut [f64]) {
         let n = self.n;
-        let (cp, ri, l) = (&self.colptr, &self.rowidx, &self.l);
+        let (cp, ri, l) = (&self.colptr, &self.rowidx, &self.s);
         let x = &mut self.x;
         for k in 0..n {
             x[k] = b[self.perm[k]];
@@ -728,9 +748,65 @@ mod tests {
         let e: f64 = 1e-12;
         let s = [e, e.sqrt(), e.sqrt(), 2.0];
         let mut f = sparse_from(&s, 2, &[vec![0, 1]]);
-        assert!(!f.factor(1e-10));
         let mut d = [0.0; 4];
         f.to_dense(&mut d);
         assert_eq!(d, s);
+        assert!(!f.factor(1e-10));
+    }
+
+    #[test]
+    fn sparse_fill_is_cleared_between_factorisations() {
+        // Rows on a ring of bodies (row i on bodies i and i + 1 mod 5, 3 coordinates each): the
+        // row graph is a cycle, whose elimination creates fill.
+        let nbody = 5;
+        let rows: Vec<Vec<f64>> = (0..nbody)
+            .map(|i| {
+                let mut g = vec![0.0; 3 * nbody];
+                for c in 0..3 {
+                    g[3 * i + c] = 1.0 + 0.1 * (i + c) as f64;
+                    g[3 * ((i + 1) % nbody) + c] = 0.5 - 0.2 * c as f64;
+                }
+                g
+            })
+            .collect();
+        let m = rows.len();
+        let s: Vec<f64> = (0..m * m)
+            .map(|k| {
+                rows[k / m]
+                    .iter()
+                    .zip(&rows[k % m])
+                    .map(|(a, b)| a * b)
+                    .sum()
+            })
+            .collect();
+        let cliques: Vec<Vec<usize>> = (0..nbody)
+            .map(|b| vec![(b + nbody - 1) % nbody, b])
+            .collect();
+        let mut f = sparse_from(&s, m, &cliques);
+        assert!(f.nnz() > m + m, "the ring should fill in");
+        let x_ref = DMatrix::from_row_slice(m, m, &s)
+            .lu()
+            .solve(&nalgebra::DVector::from_element(m, 1.0))
+            .unwrap();
+        for _ in 0..2 {
+            // Assemble again over the previous factor, as every evaluation does.
+            for i in 0..m {
+                for j in 0..=i {
+                    if s[i * m + j] != 0.0 {
+                        let k = f.index(i, j);
+                        f.values_mut()[k] = s[i * m + j];
+                    }
+                }
+            }
+            assert!(f.factor(1e-10));
+            let mut b = vec![1.0; m];
+            f.solve(&mut b);
+            for i in 0..m {
+                assert!(
+                    (b[i] - x_ref[i]).abs() < 1e-10 * x_ref.amax(),
+                    "{b:?} vs {x_ref}"
+                );
+            }
+        }
     }
 }
