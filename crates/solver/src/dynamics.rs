@@ -17,7 +17,7 @@
 //! Every row acts on at most two bodies, so `S_ij = sum_k G_i^k M_k^-1 G_j^k^T` over the bodies k
 //! (the ground aside) that rows i and j share, and S_ij = 0 when they share none. That pattern is
 //! fixed by the scene ([`Coupling`], built when the model is compiled): S is assembled body by body
-//! over the pairs of rows acting on each body, and factored by [`SparsePsd`] in an elimination order
+//! over the pairs of rows acting on each body, and factored by [`SparsePsd`](crate::linalg::SparsePsd) in an elimination order
 //! computed once from the pattern (for the legs of a parallel mechanism, leg rows before platform
 //! rows, without fill). Its cost grows with the rows per body rather than with the cube of the rows.
 //! The dense solve by [`PsdSolver`] remains as the reference ([`Model::accelerations_dense`]) and as
@@ -31,7 +31,7 @@ use nalgebra::{DMatrix, Matrix3, Quaternion, UnitQuaternion, Vector3};
 
 use crate::clearance::{ContactEval, Resultant};
 use crate::error::{Error, Result};
-use crate::linalg::{PsdSolver, SparsePsd};
+use crate::linalg::PsdSolver;
 use crate::model::{GROUND, Model, Prim, State};
 use crate::ode::OdeSystem;
 use crate::profile::SinCos;
@@ -89,7 +89,7 @@ pub struct Coupling {
     first: [Vec<[u32; 3]>; 2],
     extra: [Vec<[u32; 3]>; 2],
     /// The symbolic factorisation (elimination order and pattern of the factor).
-    solver: SparsePsd,
+    solver: crate::linalg::SparsePsd,
 }
 
 impl Coupling {
@@ -121,7 +121,7 @@ impl Coupling {
             .iter()
             .map(|rows| rows.iter().map(|r| r.0).collect())
             .collect();
-        let solver = SparsePsd::new(n_rows, &cliques);
+        let solver = crate::linalg::SparsePsd::new(n_rows, &cliques);
         let mut inc_ptr = vec![0];
         let mut inc = Vec::new();
         let mut terms = Vec::new();
@@ -181,7 +181,7 @@ pub struct Workspace {
     inc_j: Vec<[f64; 6]>,
     inc_w: Vec<[f64; 6]>,
     /// The sparse factorisation of the reduced matrix.
-    sparse: SparsePsd,
+    sparse: crate::linalg::SparsePsd,
     /// The dense path (reference, and fallback near singular configurations): M^-1 G^T per row
     /// (blocks for a and b), the dense reduced matrix (allocated on first use) and its solver.
     wrows: Vec<([f64; 6], [f64; 6])>,
@@ -245,7 +245,7 @@ impl Workspace {
 
 impl Workspace {
     /// Whether the last evaluation solved the reduced system on the dense path (see
-    /// [`SparsePsd::factor`] for when the sparse one defers to it).
+    /// [`SparsePsd::factor`](crate::linalg::SparsePsd::factor) for when the sparse one defers to it).
     pub fn solved_densely(&self) -> bool {
         self.dense_used
     }
@@ -622,7 +622,7 @@ impl Model {
     }
 
     /// The reduced system on the sparse path: S assembled body by body, factored by
-    /// [`SparsePsd`]; then `a -= M^-1 G^T lambda`. Returns false, with the multipliers and
+    /// [`SparsePsd`](crate::linalg::SparsePsd); then `a -= M^-1 G^T lambda`. Returns false, with the multipliers and
     /// accelerations untouched, when the factorisation defers to the dense path.
     fn solve_sparse(&self, ws: &mut Workspace) -> bool {
         let c = &self.coupling;

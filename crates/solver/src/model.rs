@@ -33,7 +33,6 @@ use nalgebra::{Matrix3, SymmetricEigen, UnitQuaternion, Vector3};
 
 use crate::clearance::{Clearance, Geometry};
 use crate::contact::{Damping, Elastic, FrictionLaw, NormalLaw, point_contact_stiffness};
-use crate::dynamics::Coupling;
 use crate::error::{Error, Result};
 use crate::ode::Method;
 use crate::profile::{Profile, Spline};
@@ -276,7 +275,7 @@ pub struct Model {
     pub joint_rows: usize,
     pub n_rows: usize,
     /// Which rows act on which body, and the sparse factorisation that follows from it.
-    pub coupling: Coupling,
+    pub coupling: crate::dynamics::Coupling,
     pub effects: Effects,
     /// What the scene's `disable` list removed, one line per entry (see [`crate::disable`]).
     pub disabled: Vec<String>,
@@ -1655,7 +1654,7 @@ impl Model {
                 )
             }),
         };
-        let coupling = Coupling::new(bodies.len(), &prims, n_rows);
+        let coupling = crate::dynamics::Coupling::new(bodies.len(), &prims, n_rows);
         let model = Model {
             name: scene.name(),
             file: scene.path.clone(),
