@@ -16,12 +16,14 @@
 //!
 //! Every row acts on at most two bodies, so `S_ij = sum_k G_i^k M_k^-1 G_j^k^T` over the bodies k
 //! (the ground aside) that rows i and j share, and S_ij = 0 when they share none. That pattern is
-//! fixed by the scene ([`Coupling`], built when the model is compiled): S is assembled body by body
-//! over the pairs of rows acting on each body, and factored by [`SparsePsd`](crate::linalg::SparsePsd) in an elimination order
-//! computed once from the pattern (for the legs of a parallel mechanism, leg rows before platform
-//! rows, without fill). Its cost grows with the rows per body rather than with the cube of the rows.
-//! The dense solve by [`PsdSolver`] remains as the reference ([`Model::accelerations_dense`]) and as
-//! the fallback for the rare evaluation where a small pivot is not clearly a redundant direction.
+//! fixed by the scene ([`Coupling`], built when the model is compiled). Each evaluation gathers
+//! the blocks G_i^k and M_k^-1 G_i^k^T body by body, writes every stored entry of S from its one or
+//! two terms (three products instead of six for rows that constrain rotation only), and factors S
+//! in place with [`SparsePsd`](crate::linalg::SparsePsd), in an elimination order computed once
+//! from the pattern (for the legs of a parallel mechanism, leg rows before platform rows, without
+//! fill). The cost grows with the rows per body rather than with the cube of the rows. The dense
+//! solve by [`PsdSolver`] remains as the reference ([`Model::accelerations_dense`]) and as the
+//! fallback for the rare evaluation where a small pivot is not clearly a redundant direction.
 //!
 //! The rotation is carried by Euler parameters
 //! with `q' = 1/2 (0, w) (x) q`, free of the singularities of Euler angles; the rotation matrix is
@@ -245,7 +247,8 @@ impl Workspace {
 
 impl Workspace {
     /// Whether the last evaluation solved the reduced system on the dense path (see
-    /// [`SparsePsd::factor`](crate::linalg::SparsePsd::factor) for when the sparse one defers to it).
+    /// [`SparsePsd::factor`](crate::linalg::SparsePsd::factor) for when the sparse one defers to
+    /// it).
     pub fn solved_densely(&self) -> bool {
         self.dense_used
     }
@@ -621,9 +624,10 @@ impl Model {
         }
     }
 
-    /// The reduced system on the sparse path: S assembled body by body, factored by
-    /// [`SparsePsd`](crate::linalg::SparsePsd); then `a -= M^-1 G^T lambda`. Returns false, with the multipliers and
-    /// accelerations untouched, when the factorisation defers to the dense path.
+    /// The reduced system on the sparse path: S assembled entry by entry and factored by
+    /// [`SparsePsd`](crate::linalg::SparsePsd); then `a -= M^-1 G^T lambda`. Returns false, with
+    /// the multipliers and accelerations untouched, when the factorisation defers to the dense
+    /// path.
     fn solve_sparse(&self, ws: &mut Workspace) -> bool {
         let c = &self.coupling;
         let nb = self.nb();

@@ -15,11 +15,11 @@
 //! * [`SparsePsd`]: LDL^T in an elimination order fixed once from the sparsity pattern, touching
 //!   only the entries of the factor, with rank deficiency handled by dropping rounding-level pivots
 //!   and projecting on the null space they span (the details are on the type). It defers to
-//!   [`PsdSolver`] when a small pivot is not clearly a rounding-level zero. Written here rather than
-//!   taken from a sparse crate: those (nalgebra-sparse, faer) factor positive definite matrices or
-//!   pivot for stability, neither of which gives the minimum-norm solution of a singular S, and the
-//!   per-call symbolic work of a general interface would cost more than the whole factorisation
-//!   of these small matrices (a few hundred nonzeros).
+//!   [`PsdSolver`] when a small pivot is not clearly a rounding-level zero. Written here rather
+//!   than taken from a sparse crate: nalgebra-sparse's Cholesky needs a positive definite matrix,
+//!   and neither it nor faer's sparse factorisations give the minimum-norm solution of a singular
+//!   S; the kernel here is small, specialised to a pattern fixed in advance (a few hundred
+//!   nonzeros for the 4-UPS/RPU), and adds no dependency to build.
 
 /// Reusable factorisation workspace for matrices up to size `m`.
 #[derive(Debug, Clone, Default)]
@@ -413,7 +413,8 @@ impl SparsePsd {
         self.n
     }
 
-    /// Storage index of entry (i, j) (original indices, either triangle) in [`SparsePsd::values_mut`].
+    /// Storage index of entry (i, j) (original indices, either triangle) in
+    /// [`SparsePsd::values_mut`].
     /// Panics when the pair shares no group of the pattern.
     pub fn index(&self, i: usize, j: usize) -> usize {
         let (pi, pj) = (self.iperm[i], self.iperm[j]);
