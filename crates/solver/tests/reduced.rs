@@ -11,10 +11,11 @@ use jointplay_solver::scene::SceneSpec;
 
 /// Largest difference between the two solves relative to the scale of the quantity. Both paths
 /// solve the same system by backward-stable factorisations in different elimination orders, so
-/// they differ by rounding amplified by the conditioning of S; measured at up to about 1e-12 of
-/// the scale on these scenes. 1e-9 leaves room for other compilers and FMA while staying many
-/// orders below what a wrong solve gives: another consistent choice of multipliers on the redundant
-/// 4-UPS/RPU changes the actuator forces by a sizeable fraction of themselves.
+/// they differ by rounding amplified by the conditioning of S; measured at up to 3e-12 of the
+/// scale on the redundant ideal 4-UPS/RPU (its multipliers) and about 1e-14 on the others. 1e-9
+/// leaves room for other compilers and FMA while staying many orders below what a wrong solve
+/// gives: any other consistent set of multipliers on the redundant 4-UPS/RPU (say, one redundant
+/// drive carrying nothing) differs from the minimum-norm one by a sizeable fraction of the forces.
 const TOL: f64 = 1e-9;
 
 fn max_abs<'a>(v: impl IntoIterator<Item = &'a f64>) -> f64 {
