@@ -11,8 +11,21 @@
 //! where G is the constraint Jacobian with respect to the velocities (6 columns per body),
 //! gamma = -(dG/dt) v + s''(t) the velocity-quadratic terms, and alpha_B, beta_B the Baumgarte
 //! parameters. With the block-diagonal mass matrix the multipliers follow from the reduced system
-//! `(G M^-1 G^T) lambda = G M^-1 Q - rhs`, solved by [`PsdSolver`] (minimum-norm when constraints are
-//! redundant), and then `a = M^-1 (Q - G^T lambda)`. The rotation is carried by Euler parameters
+//! `S lambda = G M^-1 Q - rhs` with `S = G M^-1 G^T`, and then `a = M^-1 (Q - G^T lambda)`; when
+//! constraints are redundant S is singular and lambda is its minimum-norm solution `S^+ b`.
+//!
+//! Every row acts on at most two bodies, so `S_ij = sum_k G_i^k M_k^-1 G_j^k^T` over the bodies k
+//! (the ground aside) that rows i and j share, and S_ij = 0 when they share none. That pattern is
+//! fixed by the scene ([`Coupling`], built when the model is compiled). Each evaluation gathers
+//! the blocks G_i^k and M_k^-1 G_i^k^T body by body, writes every stored entry of S from its one or
+//! two terms (three products instead of six for rows that constrain rotation only), and factors S
+//! in place with [`SparsePsd`](crate::linalg::SparsePsd), in an elimination order computed once
+//! from the pattern (for the legs of a parallel mechanism, leg rows before platform rows, without
+//! fill). The cost grows with the rows per body rather than with the cube of the rows. The dense
+//! solve by [`PsdSolver`] remains as the reference ([`Model::accelerations_dense`]) and as the
+//! fallback for the rare evaluation where a small pivot is not clearly a redundant direction.
+//!
+//! The rotation is carried by Euler parameters
 //! with `q' = 1/2 (0, w) (x) q`, free of the singularities of Euler angles; the rotation matrix is
 //! built from q/|q|, so the slow drift of |q| under integration never distorts the body.
 
@@ -24,6 +37,7 @@ use crate::guard::{StepGuard, Warning};
 use crate::linalg::PsdSolver;
 use crate::model::{GROUND, Model, Prim, State};
 use crate::ode::OdeSystem;
+use crate::profile::SinCos;
 use crate::scene::LoadFrame;
 
 /// Relative pivot tolerance of the reduced-matrix factorisation: pivots below it count as
@@ -59,6 +73,95 @@ pub struct Row {
     pub jb: [f64; 6],
 }
 
+/// Which constraint rows act on which body: fixed by the scene, it fixes the sparsity of the
+/// reduced matrix `S = G M^-1 G^T`, whose entry (i, j) is nonzero only when rows i and j act on a
+/// common body (the ground aside). Built once when the model is compiled.
+#[derive(Debug, Clone, Default)]
+pub struct Coupling {
+    /// Rows acting on body k: `inc[inc_ptr[k]..inc_ptr[k + 1]]`, ascending, each as (row, side)
+    /// with side 0 when k is the row's body a and 1 when it is its body b.
+    inc_ptr: Vec<usize>,
+    inc: Vec<(usize, u8)>,
+    /// The terms G_u^k M_k^-1 G_v^k^T of S as (storage index in the sparse solver, incidence u,
+    /// incidence v), one per pair u <= v of rows on a body: `first` holds the first term of each
+    /// entry, in storage order, and `extra` the second one of the entries whose rows share both
+    /// bodies. Writing the first terms and adding the others fills S without clearing it. Each
+    /// list comes in two parts: [0] terms with a row that constrains rotation only (a
+    /// perpendicularity or an angle: zero translational Jacobian, so only the rotational halves
+    /// contribute, with the same value), [1] the others.
+    first: [Vec<[u32; 3]>; 2],
+    extra: [Vec<[u32; 3]>; 2],
+    /// The symbolic factorisation (elimination order and pattern of the factor).
+    solver: crate::linalg::SparsePsd,
+}
+
+impl Coupling {
+    /// The coupling of the rows of `prims` (n_rows in all) among nb bodies.
+    pub fn new(nb: usize, prims: &[(Prim, usize)], n_rows: usize) -> Self {
+        let mut on_body: Vec<Vec<(usize, u8)>> = vec![Vec::new(); nb];
+        let mut rot_only = vec![false; n_rows];
+        for (prim, r0) in prims {
+            let (a, b, n) = match *prim {
+                Prim::Coincident { a, b, .. } => (a, b, 3),
+                Prim::Perpendicular { a, b, .. } => (a, b, 1),
+                Prim::Distance { a, b, .. } => (a, b, 1),
+                Prim::Angle { a, b, .. } => (a, b, 1),
+            };
+            let rot = matches!(prim, Prim::Perpendicular { .. } | Prim::Angle { .. });
+            for i in *r0..*r0 + n {
+                rot_only[i] = rot;
+                for (k, side) in [(a, 0), (b, 1)] {
+                    if k != GROUND {
+                        on_body[k].push((i, side));
+                    }
+                }
+            }
+        }
+        for rows in &mut on_body {
+            rows.sort_unstable();
+        }
+        let cliques: Vec<Vec<usize>> = on_body
+            .iter()
+            .map(|rows| rows.iter().map(|r| r.0).collect())
+            .collect();
+        let solver = crate::linalg::SparsePsd::new(n_rows, &cliques);
+        let mut inc_ptr = vec![0];
+        let mut inc = Vec::new();
+        let mut terms = Vec::new();
+        for rows in &on_body {
+            let u0 = inc.len();
+            for (u, ru) in rows.iter().enumerate() {
+                for (v, rv) in rows.iter().enumerate().skip(u) {
+                    let slot = solver.index(ru.0, rv.0);
+                    let full = !(rot_only[ru.0] || rot_only[rv.0]);
+                    terms.push((
+                        [slot, u0 + u, u0 + v].map(|x| u32::try_from(x).unwrap()),
+                        full,
+                    ));
+                }
+            }
+            inc.extend_from_slice(rows);
+            inc_ptr.push(inc.len());
+        }
+        terms.sort_unstable();
+        let (mut first, mut extra) = ([Vec::new(), Vec::new()], [Vec::new(), Vec::new()]);
+        for (i, (tm, full)) in terms.iter().enumerate() {
+            if i > 0 && terms[i - 1].0[0] == tm[0] {
+                extra[*full as usize].push(*tm);
+            } else {
+                first[*full as usize].push(*tm);
+            }
+        }
+        Coupling {
+            inc_ptr,
+            inc,
+            first,
+            extra,
+            solver,
+        }
+    }
+}
+
 /// Scratch memory of the right-hand side; also holds the last evaluation's results
 /// (multipliers, accelerations, constraint residuals) for the recorders.
 #[derive(Debug, Clone)]
@@ -76,10 +179,19 @@ pub struct Workspace {
     pub phi: Vec<f64>,
     pub phi_dot: Vec<f64>,
     pub rhs: Vec<f64>,
-    /// M^-1 G^T per row (blocks for a and b).
+    /// Jacobian blocks G_i^k and W_i^k = M_k^-1 G_i^k^T of the rows acting on each body, in the
+    /// order of [`Coupling`]'s incidence list.
+    inc_j: Vec<[f64; 6]>,
+    inc_w: Vec<[f64; 6]>,
+    /// The sparse factorisation of the reduced matrix.
+    sparse: crate::linalg::SparsePsd,
+    /// The dense path (reference, and fallback near singular configurations): M^-1 G^T per row
+    /// (blocks for a and b), the dense reduced matrix (allocated on first use) and its solver.
     wrows: Vec<([f64; 6], [f64; 6])>,
     s: Vec<f64>,
     solver: PsdSolver,
+    /// Whether the last evaluation solved on the dense path.
+    dense_used: bool,
     /// Multipliers of the last evaluation.
     pub lambda: Vec<f64>,
     /// Accelerations of the last evaluation per body: a (m/s^2), alpha (rad/s^2).
@@ -122,9 +234,13 @@ impl Workspace {
             phi: vec![0.0; nr],
             phi_dot: vec![0.0; nr],
             rhs: vec![0.0; nr],
+            inc_j: vec![[0.0; 6]; m.coupling.inc.len()],
+            inc_w: vec![[0.0; 6]; m.coupling.inc.len()],
+            sparse: m.coupling.solver.clone(),
             wrows: vec![([0.0; 6], [0.0; 6]); nr],
-            s: vec![0.0; nr * nr],
+            s: Vec::new(),
             solver: PsdSolver::new(),
+            dense_used: false,
             lambda: vec![0.0; nr],
             acc: vec![[0.0; 6]; nb],
             rank: 0,
@@ -133,6 +249,15 @@ impl Workspace {
             onset: vec![f64::NAN; m.n_contacts],
             contacts0: vec![ContactEval::default(); m.n_contacts],
         }
+    }
+}
+
+impl Workspace {
+    /// Whether the last evaluation solved the reduced system on the dense path (see
+    /// [`SparsePsd::factor`](crate::linalg::SparsePsd::factor) for when the sparse one defers to
+    /// it).
+    pub fn solved_densely(&self) -> bool {
+        self.dense_used
     }
 }
 
@@ -146,6 +271,13 @@ fn dot6(a: &[f64; 6], b: &[f64; 6]) -> f64 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2] + a[3] * b[3] + a[4] * b[4] + a[5] * b[5]
 }
 
+/// [`dot6`] of blocks one of which has a zero translational half: the rotational halves only
+/// (equal to [`dot6`] up to the sign of a zero result, since the skipped products are zeros).
+#[inline]
+fn dot3w(a: &[f64; 6], b: &[f64; 6]) -> f64 {
+    a[3] * b[3] + a[4] * b[4] + a[5] * b[5]
+}
+
 #[inline]
 fn block(v: &Vector3<f64>, w: &Vector3<f64>) -> [f64; 6] {
     [v.x, v.y, v.z, w.x, w.y, w.z]
@@ -154,18 +286,19 @@ fn block(v: &Vector3<f64>, w: &Vector3<f64>) -> [f64; 6] {
 /// Rotation matrix of the (not necessarily unit) quaternion (w, x, y, z).
 #[inline]
 pub fn rotation(q: &[f64]) -> Matrix3<f64> {
-    let n = (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]).sqrt();
-    let (w, x, y, z) = (q[0] / n, q[1] / n, q[2] / n, q[3] / n);
+    // 2/|q|^2 scales the products; no square root or per-component division is needed.
+    let s = 2.0 / (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+    let (w, x, y, z) = (q[0], q[1], q[2], q[3]);
     Matrix3::new(
-        1.0 - 2.0 * (y * y + z * z),
-        2.0 * (x * y - w * z),
-        2.0 * (x * z + w * y),
-        2.0 * (x * y + w * z),
-        1.0 - 2.0 * (x * x + z * z),
-        2.0 * (y * z - w * x),
-        2.0 * (x * z - w * y),
-        2.0 * (y * z + w * x),
-        1.0 - 2.0 * (x * x + y * y),
+        1.0 - s * (y * y + z * z),
+        s * (x * y - w * z),
+        s * (x * z + w * y),
+        s * (x * y + w * z),
+        1.0 - s * (x * x + z * z),
+        s * (y * z - w * x),
+        s * (x * z - w * y),
+        s * (y * z + w * x),
+        1.0 - s * (x * x + y * y),
     )
 }
 
@@ -197,7 +330,8 @@ impl Model {
         let nb = self.nb();
         let kin = &ws.kin;
         let idx = |b: usize| if b == GROUND { nb } else { b };
-        let drive_eval = |d: usize| self.drives[d].profile.eval(t);
+        let mut memo = SinCos::default();
+        let mut drive_eval = |d: usize| self.drives[d].profile.eval_memo(t, &mut memo);
         for (prim, r0) in &self.prims {
             let r0 = *r0;
             match prim {
@@ -259,7 +393,7 @@ impl Model {
                     let d = kb.r + sbg - ka.r - sag;
                     let dd = kb.v + kb.w.cross(&sbg) - ka.v - ka.w.cross(&sag);
                     let wu = ka.w.cross(&ug);
-                    let (s, sd, sdd) = drive.map_or((0.0, 0.0, 0.0), drive_eval);
+                    let (s, sd, sdd) = drive.map_or((0.0, 0.0, 0.0), &mut drive_eval);
                     ws.rows[r0] = Row {
                         a: *a,
                         b: *b,
@@ -455,6 +589,16 @@ impl Model {
 
     /// Accelerations and multipliers at (t, y) into the workspace.
     pub fn accelerations(&self, t: f64, y: &[f64], ws: &mut Workspace) {
+        self.accelerations_with(t, y, ws, false);
+    }
+
+    /// [`Model::accelerations`] with the reduced system assembled and factored densely, in
+    /// O(rows^3): the reference the sparse solve is verified against.
+    pub fn accelerations_dense(&self, t: f64, y: &[f64], ws: &mut Workspace) {
+        self.accelerations_with(t, y, ws, true);
+    }
+
+    fn accelerations_with(&self, t: f64, y: &[f64], ws: &mut Workspace, dense: bool) {
         self.kinematics(y, ws);
         self.applied_forces(t, ws);
         let nb = self.nb();
@@ -469,7 +613,84 @@ impl Model {
             return;
         }
         self.constraints(t, ws);
+        // b = G M^-1 Q - rhs, solved in place into the multipliers.
+        for i in 0..self.n_rows {
+            let r = &ws.rows[i];
+            let mut b = -ws.rhs[i];
+            if r.a != GROUND {
+                b += dot6(&r.ja, &ws.minv_q[r.a]);
+            }
+            if r.b != GROUND {
+                b += dot6(&r.jb, &ws.minv_q[r.b]);
+            }
+            ws.lambda[i] = b;
+        }
+        ws.dense_used = dense || !self.solve_sparse(ws);
+        if ws.dense_used {
+            self.solve_dense(ws);
+        }
+    }
+
+    /// The reduced system on the sparse path: S assembled entry by entry and factored by
+    /// [`SparsePsd`](crate::linalg::SparsePsd); then `a -= M^-1 G^T lambda`. Returns false, with
+    /// the multipliers and accelerations untouched, when the factorisation defers to the dense
+    /// path.
+    fn solve_sparse(&self, ws: &mut Workspace) -> bool {
+        let c = &self.coupling;
+        let nb = self.nb();
+        for k in 0..nb {
+            let (mi, inv_j) = (1.0 / self.bodies[k].mass, ws.inv_j[k]);
+            let (u0, u1) = (c.inc_ptr[k], c.inc_ptr[k + 1]);
+            let incs = c.inc[u0..u1].iter();
+            for ((&(i, side), gj), gw) in incs.zip(&mut ws.inc_j[u0..u1]).zip(&mut ws.inc_w[u0..u1])
+            {
+                let r = &ws.rows[i];
+                let j = if side == 0 { &r.ja } else { &r.jb };
+                *gj = *j;
+                let t = inv_j * Vector3::new(j[3], j[4], j[5]);
+                *gw = [j[0] * mi, j[1] * mi, j[2] * mi, t.x, t.y, t.z];
+            }
+        }
+        // S_ij = sum over the bodies k that rows i and j share of G_i^k M_k^-1 G_j^k^T.
+        let s = ws.sparse.values_mut();
+        let (gj, gw) = (&ws.inc_j, &ws.inc_w);
+        for &[slot, u, v] in &c.first[0] {
+            s[slot as usize] = dot3w(&gj[u as usize], &gw[v as usize]);
+        }
+        for &[slot, u, v] in &c.first[1] {
+            s[slot as usize] = dot6(&gj[u as usize], &gw[v as usize]);
+        }
+        for &[slot, u, v] in &c.extra[0] {
+            s[slot as usize] += dot3w(&gj[u as usize], &gw[v as usize]);
+        }
+        for &[slot, u, v] in &c.extra[1] {
+            s[slot as usize] += dot6(&gj[u as usize], &gw[v as usize]);
+        }
+        if !ws.sparse.factor(RANK_TOL) {
+            return false;
+        }
+        ws.rank = ws.sparse.rank();
+        ws.sparse.solve(&mut ws.lambda);
+        for k in 0..nb {
+            // In a local copy, which the compiler keeps in registers.
+            let mut acc = ws.acc[k];
+            let (u0, u1) = (c.inc_ptr[k], c.inc_ptr[k + 1]);
+            for (&(i, _), w) in c.inc[u0..u1].iter().zip(&ws.inc_w[u0..u1]) {
+                let l = ws.lambda[i];
+                for c in 0..6 {
+                    acc[c] -= l * w[c];
+                }
+            }
+            ws.acc[k] = acc;
+        }
+        true
+    }
+
+    /// The reduced system on the dense path: S = G M^-1 G^T row pair by row pair, factored by
+    /// [`PsdSolver`]; then `a -= M^-1 G^T lambda`.
+    fn solve_dense(&self, ws: &mut Workspace) {
         let nr = self.n_rows;
+        ws.s.resize(nr * nr, 0.0);
         // W = M^-1 G^T, row by row.
         for i in 0..nr {
             let r = &ws.rows[i];
@@ -478,7 +699,7 @@ impl Model {
                 minv_block(self, ws, r.b, &r.jb),
             );
         }
-        // S = G M^-1 G^T (only bodies shared by two rows contribute) and b = G M^-1 Q - rhs.
+        // S = G M^-1 G^T (only bodies shared by two rows contribute).
         for i in 0..nr {
             let ri = ws.rows[i];
             for j in i..nr {
@@ -504,14 +725,6 @@ impl Model {
                 ws.s[i * nr + j] = s;
                 ws.s[j * nr + i] = s;
             }
-            let mut b = -ws.rhs[i];
-            if ri.a != GROUND {
-                b += dot6(&ri.ja, &ws.minv_q[ri.a]);
-            }
-            if ri.b != GROUND {
-                b += dot6(&ri.jb, &ws.minv_q[ri.b]);
-            }
-            ws.lambda[i] = b;
         }
         ws.solver.factor(&ws.s, nr, RANK_TOL);
         ws.rank = ws.solver.rank();
@@ -637,12 +850,15 @@ impl Model {
         self.accelerations(t, &state.y, &mut ws);
         report.initial_velocity_residual = max_abs(&ws.phi_dot);
         let mut mu = ws.phi_dot.clone();
-        // ws.s already holds G M^-1 G^T from the acceleration evaluation.
-        solver.factor(&ws.s, nr, RANK_TOL);
-        solver.solve(&mut mu);
+        // The acceleration evaluation left G M^-1 G^T factored.
+        if ws.dense_used {
+            ws.solver.solve(&mut mu);
+        } else {
+            ws.sparse.solve(&mut mu);
+        }
         for (i, r) in ws.rows.iter().enumerate() {
-            let (wa, wb) = &ws.wrows[i];
-            for (b, w) in [(r.a, wa), (r.b, wb)] {
+            for (b, j) in [(r.a, &r.ja), (r.b, &r.jb)] {
+                let w = minv_block(self, &ws, b, j);
                 if b != GROUND {
                     for c in 0..6 {
                         state.y[np + 6 * b + c] -= mu[i] * w[c];

@@ -281,6 +281,8 @@ pub struct Model {
     /// Rows of the joints (the first `joint_rows` rows) and in total (joints then drives).
     pub joint_rows: usize,
     pub n_rows: usize,
+    /// Which rows act on which body, and the sparse factorisation that follows from it.
+    pub coupling: crate::dynamics::Coupling,
     pub effects: Effects,
     /// What the scene's `disable` list removed, one line per entry (see [`crate::disable`]).
     pub disabled: Vec<String>,
@@ -1734,6 +1736,7 @@ impl Model {
                 )
             }),
         };
+        let coupling = crate::dynamics::Coupling::new(bodies.len(), &prims, n_rows);
         let model = Model {
             name: scene.name(),
             file: scene.path.clone(),
@@ -1749,6 +1752,7 @@ impl Model {
             n_contacts,
             joint_rows,
             n_rows,
+            coupling,
             effects,
             disabled,
             settings,

@@ -37,6 +37,13 @@ pub enum Profile {
 impl Profile {
     /// (s, s', s'') at time t.
     pub fn eval(&self, t: f64) -> (f64, f64, f64) {
+        self.eval_memo(t, &mut SinCos::default())
+    }
+
+    /// [`Profile::eval`], taking the sine and cosine from `memo` when its last argument was the
+    /// same: the drives of a mechanism usually share one frequency, and then one `sin_cos` per
+    /// time serves them all. The results are those of [`Profile::eval`], bit for bit.
+    pub fn eval_memo(&self, t: f64, memo: &mut SinCos) -> (f64, f64, f64) {
         match self {
             Profile::ConstantRate { initial, rate } => (initial + rate * t, *rate, 0.0),
             Profile::Harmonic {
@@ -45,7 +52,7 @@ impl Profile {
                 omega,
                 phase,
             } => {
-                let (s, c) = (omega * t + phase).sin_cos();
+                let (s, c) = memo.sin_cos(omega * t + phase);
                 (
                     mean + amplitude * s,
                     amplitude * omega * c,
@@ -61,7 +68,7 @@ impl Profile {
                 omega,
                 offset,
             } => {
-                let (s, c) = (omega * t).sin_cos();
+                let (s, c) = memo.sin_cos(omega * t);
                 let p = center + cos_amp * c + sin_amp * s;
                 let pd = (-cos_amp * s + sin_amp * c) * *omega;
                 let pdd = -(cos_amp * c + sin_amp * s) * (omega * omega);
@@ -85,6 +92,36 @@ impl Profile {
             }
             _ => None,
         }
+    }
+}
+
+/// The last argument given to [`SinCos::sin_cos`] and its sine and cosine.
+#[derive(Debug, Clone, Copy)]
+pub struct SinCos {
+    x: f64,
+    sin: f64,
+    cos: f64,
+}
+
+impl Default for SinCos {
+    fn default() -> Self {
+        // NaN's own sine and cosine, so that even a NaN argument gets the right answer.
+        SinCos {
+            x: f64::NAN,
+            sin: f64::NAN,
+            cos: f64::NAN,
+        }
+    }
+}
+
+impl SinCos {
+    /// `x.sin_cos()`, computed only when x differs (bitwise) from the last argument.
+    pub fn sin_cos(&mut self, x: f64) -> (f64, f64) {
+        if x.to_bits() != self.x.to_bits() {
+            (self.sin, self.cos) = x.sin_cos();
+            self.x = x;
+        }
+        (self.sin, self.cos)
     }
 }
 
