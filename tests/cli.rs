@@ -855,14 +855,20 @@ fn a_sweep_gives_bit_identical_datasets_on_one_and_two_threads() {
 
 #[test]
 fn a_diverging_run_keeps_its_samples_in_a_file_marked_incomplete() {
-    // The mixed-clearance 4-UPS/RPU at 0.7 mm with the paper's RK4 (h = 1e-4 s) runs away at
-    // t = 1.5075 s: R1 is thrown through its bushing after S2, S5 and R1 were flagged by the
-    // step-size guard.
+    // The clearance slider-crank with RK4 at h = 1e-4 s: the piston-pin contact has a mode of
+    // 7.4e4 rad/s (h w = 7.4, beyond RK4's 2.83). The step-size guard names the joint and a step
+    // at its first contact (0.3 ms); the next step throws the journal through its bearing and
+    // the divergence guard stops the run at 0.4 ms.
     let dir = tempfile::tempdir().unwrap();
-    let src = std::fs::read_to_string(scenes().join("4ups-rpu-mixed.toml")).unwrap();
-    assert_eq!(src.matches("= 0.0003").count(), 4);
-    let scene = dir.path().join("wide.toml");
-    std::fs::write(&scene, src.replace("= 0.0003", "= 0.0007")).unwrap();
+    let src = std::fs::read_to_string(scenes().join("slider-crank-clearance.toml")).unwrap();
+    let solver = "integrator = \"dopri5\"\nrtol = 1e-9\natol = 1e-12\nmax_step = 1e-5\n";
+    assert!(src.contains(solver));
+    let scene = dir.path().join("coarse.toml");
+    std::fs::write(
+        &scene,
+        src.replace(solver, "integrator = \"rk4\"\nstep = 1e-4\n"),
+    )
+    .unwrap();
     let out = bin()
         .args(["run", "-q", "--no-plots", "--out"])
         .arg(dir.path())
@@ -872,38 +878,41 @@ fn a_diverging_run_keeps_its_samples_in_a_file_marked_incomplete() {
     let (_, err) = text(&out);
     assert!(!out.status.success());
     assert!(
-        err.contains("wide.toml")
-            && err.contains("integration stopped at t = 1.5075 s")
-            && err.contains("clearance joint 'R1'")
+        err.contains("coarse.toml")
+            && err.contains("integration stopped at t = 0.0004 s")
+            && err.contains("clearance joint 'piston_pin'")
             && err.contains("penetration")
             && err.contains("marked incomplete"),
         "{err}"
     );
+    // The guard's effective mass is that of the constrained mechanism along the contact normal
+    // (about the slider's 0.14 kg), not of the rod alone.
     assert!(
         err.contains("warning:")
-            && err.contains("clearance joint 'S2'")
-            && err.contains("use step ="),
+            && err.contains("'piston_pin'")
+            && err.contains("effective mass of 1.3")
+            && err.contains("use step = 1e-5 s"),
         "{err}"
     );
-    let file = hdf5::File::open(dir.path().join("4ups-rpu-mixed.h5")).unwrap();
+    let file = hdf5::File::open(dir.path().join("slider-crank-clearance.h5")).unwrap();
     let complete: u8 = file.attr("complete").unwrap().read_scalar().unwrap();
     assert_eq!(complete, 0);
     let stopped: f64 = file.attr("stopped_at").unwrap().read_scalar().unwrap();
-    assert_eq!(stopped, 1.5075);
+    assert!((stopped - 4e-4).abs() < 1e-12, "{stopped}");
     assert!(file.attr("error").is_ok() && file.attr("warnings").is_ok());
     // Everything before the failure is there, finite and aligned.
     let time: Vec<f64> = file.dataset("time").unwrap().read_raw().unwrap();
-    assert_eq!(time.len(), 1508);
-    assert!(*time.last().unwrap() < 1.5075);
-    let pos = read2(&file, "bodies/platform/position");
+    assert_eq!(time.len(), 31);
+    assert!(*time.last().unwrap() < 4e-4);
+    let pos = read2(&file, "bodies/slider/position");
     assert_eq!(pos.len(), time.len());
     assert!(pos.iter().flatten().all(|x| x.is_finite()));
     let fn_: Vec<f64> = file
-        .dataset("joints/R1/normal_force")
+        .dataset("joints/piston_pin/normal_force")
         .unwrap()
         .read_raw()
         .unwrap();
-    assert_eq!(fn_.len(), 4 * time.len());
+    assert_eq!(fn_.len(), time.len());
     assert!(fn_.iter().all(|x| x.is_finite()));
     drop(file);
     // A run that finishes says so.

@@ -213,7 +213,11 @@ impl Workspace {
     /// Solves `S x = b` in place with the reduced matrix S = G M^-1 G^T factored by the last
     /// evaluation of the accelerations (minimum-norm when constraints are redundant).
     pub(crate) fn solve_reduced(&mut self, b: &mut [f64]) {
-        self.solver.solve(b);
+        if self.dense_used {
+            self.solver.solve(b);
+        } else {
+            self.sparse.solve(b);
+        }
     }
 
     pub fn new(m: &Model) -> Self {
@@ -851,11 +855,7 @@ impl Model {
         report.initial_velocity_residual = max_abs(&ws.phi_dot);
         let mut mu = ws.phi_dot.clone();
         // The acceleration evaluation left G M^-1 G^T factored.
-        if ws.dense_used {
-            ws.solver.solve(&mut mu);
-        } else {
-            ws.sparse.solve(&mut mu);
-        }
+        ws.solve_reduced(&mut mu);
         for (i, r) in ws.rows.iter().enumerate() {
             for (b, j) in [(r.a, &r.ja), (r.b, &r.jb)] {
                 let w = minv_block(self, &ws, b, j);
