@@ -606,6 +606,9 @@ fn run_analysis(path: &Path, out: &Path, plots: bool, quiet: bool, opts: Options
     let res = execute(&st, out, opts, env!("CARGO_PKG_VERSION"), &progress);
     bar.finish_and_clear();
     let o = res.with_context(|| format!("running {}", path.display()))?;
+    for w in &o.warnings {
+        eprintln!("warning: {w}");
+    }
     println!("study        {} ({})", st.spec.study.name, path.display());
     if let Some(sw) = &st.spec.sweep {
         println!(
@@ -643,6 +646,14 @@ fn run_analysis(path: &Path, out: &Path, plots: bool, quiet: bool, opts: Options
         );
     }
     if !o.failed.is_empty() {
+        if st.jobs.is_empty() {
+            anyhow::bail!(
+                "{}: {}\nwrote {} with what was computed before the failure, marked incomplete (attribute complete = 0)",
+                path.display(),
+                o.failed[0].1,
+                o.file.display()
+            );
+        }
         for (j, m) in &o.failed {
             eprintln!("failed       value {} ({}): {m}", j, st.jobs[*j].0);
         }

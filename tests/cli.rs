@@ -972,3 +972,51 @@ fn the_same_scene_gives_bit_identical_datasets_run_after_run() {
         );
     }
 }
+
+#[test]
+fn a_diverging_analysis_run_keeps_what_it_computed_in_a_file_marked_incomplete() {
+    // The slider-crank analysis with RK4 at h = 1e-4 s diverges at 0.4 ms (see the scene-run
+    // test above); the study's file keeps the history sampled before, marked incomplete.
+    let dir = tempfile::tempdir().unwrap();
+    let study = SLIDER_ANALYSIS
+        .replace(
+            "scene = \"SCENE\"\n",
+            "scene = \"SCENE\"\nset = { \"solver.integrator\" = \"rk4\", \"solver.step\" = 1e-4 }\nremove = [\"solver.rtol\", \"solver.atol\", \"solver.max_step\"]\n",
+        )
+        .replace("transient = 2", "transient = 0");
+    let out = run_study(
+        dir.path(),
+        "slider.toml",
+        "slider-crank-clearance.toml",
+        &study,
+    );
+    let (_, err) = text(&out);
+    assert!(!out.status.success());
+    assert!(
+        err.contains("slider.toml")
+            && err.contains("integration stopped at t = 0.0004 s")
+            && err.contains("'piston_pin'")
+            && err.contains("marked incomplete"),
+        "{err}"
+    );
+    let file = hdf5::File::open(dir.path().join("slider-sections.h5")).unwrap();
+    assert_eq!(
+        file.attr("complete").unwrap().read_scalar::<u8>().unwrap(),
+        0
+    );
+    assert_eq!(
+        file.attr("stopped_at")
+            .unwrap()
+            .read_scalar::<f64>()
+            .unwrap(),
+        4e-4
+    );
+    assert!(file.attr("error").is_ok());
+    let t = file
+        .dataset("history/time")
+        .unwrap()
+        .read_raw::<f64>()
+        .unwrap();
+    // Samples every T/50 = 0.24 ms: t = 0 and 0.24 ms come before the failure.
+    assert_eq!(t.len(), 2, "{t:?}");
+}

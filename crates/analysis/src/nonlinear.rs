@@ -34,7 +34,7 @@ use toml::{Table, Value};
 
 use crate::h5::{f64_attr, h5err, str_attr, u8_attr_set, u64_attr, write_atomically, write1};
 use crate::observe::Observable;
-use crate::sections::{Direction, Hyperplane, Observed, Plan, Trace, trace};
+use crate::sections::{Direction, Hyperplane, Observed, Plan, Trace, trace_partial};
 use crate::study::{edit, edited_scene, invalid};
 use crate::systems::{Builtin, SystemSpec};
 use crate::{Error, Result};
@@ -669,6 +669,12 @@ impl OdeSystem for MechFlow<'_> {
     fn step_accepted(&mut self, t0: f64, y0: &[f64], t1: f64, y1: &[f64]) -> bool {
         self.mech.step_accepted(t0, y0, t1, y1)
     }
+    fn check_step(&mut self, t: f64, y: &[f64]) -> Option<String> {
+        self.mech.check_step(t, y)
+    }
+    fn explain_non_finite(&mut self, t: f64, y: &[f64], component: usize) -> String {
+        self.mech.explain_non_finite(t, y, component)
+    }
 }
 
 impl Observed for MechFlow<'_> {
@@ -736,6 +742,8 @@ impl Observed for SysFlow<'_> {
 #[derive(Debug, Clone)]
 pub struct JobResult {
     pub trace: Trace,
+    /// The scene's warnings and the step-size guard's.
+    pub warnings: Vec<String>,
     pub units: Vec<String>,
     pub integrator: String,
     pub period: f64,
@@ -752,6 +760,22 @@ impl Loaded {
         start: Option<&[f64]>,
         progress: &mut dyn FnMut(f64),
     ) -> Result<JobResult> {
+        let (r, failure) = self.run_job_partial(value, start, progress)?;
+        match failure {
+            Some(e) => Err(e),
+            None => Ok(r),
+        }
+    }
+
+    /// [`Loaded::run_job`] that keeps what a run recorded before it failed: errors before the
+    /// integration (a bad value, the assembly) are returned as such; a failure during it comes
+    /// back beside the partial result.
+    fn run_job_partial(
+        &self,
+        value: Option<f64>,
+        start: Option<&[f64]>,
+        progress: &mut dyn FnMut(f64),
+    ) -> Result<(JobResult, Option<Error>)> {
         let t0 = Instant::now();
         let target = self.target(value)?;
         match target {
@@ -771,15 +795,23 @@ impl Loaded {
                     dynamics: obs.iter().any(|o| o.needs_dynamics()),
                     obs: &obs,
                 };
-                let tr = trace(&mut flow, &plan, &mut state.y, progress)?;
-                Ok(JobResult {
+                flow.mech.check_initial(state.t, &state.y)?;
+                let (tr, res) = trace_partial(&mut flow, &plan, &mut state.y, progress);
+                let r = JobResult {
+                    warnings: model
+                        .warnings
+                        .iter()
+                        .cloned()
+                        .chain(flow.mech.warnings.iter().map(|w| w.message.clone()))
+                        .collect(),
                     trace: tr,
                     units: obs.iter().map(|o| o.unit.clone()).collect(),
                     integrator: plan.method.describe(),
                     period,
                     start: plan.start,
                     wall: t0.elapsed().as_secs_f64(),
-                })
+                };
+                Ok((r, res.err()))
             }
             Target::System { sys, obs, period } => {
                 let mut y = start.map(<[f64]>::to_vec).unwrap_or(sys.initial.clone());
@@ -788,15 +820,17 @@ impl Loaded {
                     sys: sys.builtin,
                     obs: &obs,
                 };
-                let tr = trace(&mut flow, &plan, &mut y, progress)?;
-                Ok(JobResult {
+                let (tr, res) = trace_partial(&mut flow, &plan, &mut y, progress);
+                let r = JobResult {
+                    warnings: Vec::new(),
                     trace: tr,
                     units: obs.iter().map(|o| o.unit.clone()).collect(),
                     integrator: plan.method.describe(),
                     period,
                     start: plan.start,
                     wall: t0.elapsed().as_secs_f64(),
-                })
+                };
+                Ok((r, res.err()))
             }
         }
     }
@@ -843,6 +877,8 @@ pub struct Outcome {
     /// Every job done (or failed); false when stopped by `max_jobs`.
     pub complete: bool,
     pub failed: Vec<(usize, String)>,
+    /// Warnings of a single run (the scene's and the step-size guard's).
+    pub warnings: Vec<String>,
     pub wall: f64,
     pub rhs_evals: u64,
 }
@@ -872,10 +908,23 @@ pub fn execute(
             total: 1,
             pending: 1,
         });
-        let r = st.run_single(&mut throttled(0, progress))?;
-        progress(Progress::Done { job: 0, ok: true });
+        // A run that fails keeps what it recorded, in a file marked incomplete.
+        let (r, failure) = st.run_job_partial(None, None, &mut throttled(0, progress))?;
+        progress(Progress::Done {
+            job: 0,
+            ok: failure.is_none(),
+        });
         let file = write_atomically(dir, name, version, |file| {
-            write_root(file, st, &r, 1)?;
+            write_root(file, st, &r, u8::from(failure.is_none()))?;
+            if !r.warnings.is_empty() {
+                str_attr(file, "warnings", &r.warnings.join("\n"))?;
+            }
+            if let Some(e) = &failure {
+                str_attr(file, "error", &e.to_string())?;
+                if let Error::Solver(jointplay_solver::Error::Diverged { time, .. }) = e {
+                    f64_attr(file, "stopped_at", *time)?;
+                }
+            }
             write_single(file, st, &r)
         })?;
         return Ok(Outcome {
@@ -883,7 +932,8 @@ pub fn execute(
             jobs: 1,
             ran: 1,
             complete: true,
-            failed: Vec::new(),
+            failed: failure.map(|e| (0, e.to_string())).into_iter().collect(),
+            warnings: r.warnings,
             wall: start.elapsed().as_secs_f64(),
             rhs_evals: r.trace.stats.rhs_evals,
         });
@@ -1020,6 +1070,7 @@ pub fn execute(
         ran: finished,
         complete,
         failed,
+        warnings: Vec::new(),
         wall,
         rhs_evals: rhs,
     })
@@ -1177,6 +1228,7 @@ fn create_sweep_file(
     let (kept, hl) = (plan.kept(), plan.history_len());
     let probe = JobResult {
         trace: Trace::default(),
+        warnings: Vec::new(),
         units: units.clone(),
         integrator: method.describe(),
         period,

@@ -19,7 +19,7 @@
 //! The flow only has to be an [`OdeSystem`] that can evaluate observables ([`Observed`]);
 //! nothing here knows mechanics.
 
-use jointplay_solver::ode::{Flow, Method, OdeSystem, Stats, Step, integrate_steps};
+use jointplay_solver::ode::{Flow, Method, OdeSystem, Stats, Step, integrate_partial};
 
 use crate::Result;
 
@@ -182,6 +182,18 @@ pub fn trace<S: Observed>(
     y: &mut [f64],
     progress: &mut dyn FnMut(f64),
 ) -> Result<Trace> {
+    let (tr, res) = trace_partial(sys, plan, y, progress);
+    res.map(|()| tr)
+}
+
+/// [`trace`] that returns what was recorded also when the run fails (with the error): samples,
+/// strobe points and crossings up to the failure, and the last accepted state.
+pub fn trace_partial<S: Observed>(
+    sys: &mut S,
+    plan: &Plan,
+    y: &mut [f64],
+    progress: &mut dyn FnMut(f64),
+) -> (Trace, Result<()>) {
     let no = sys.n_obs();
     let samples = plan.samples();
     let times: Vec<f64> = samples.iter().map(|s| s.0).collect();
@@ -316,7 +328,7 @@ pub fn trace<S: Observed>(
         g_prev = Some(st.t1);
         Flow::Continue
     };
-    let stats = integrate_steps(
+    let (stats, res) = integrate_partial(
         sys,
         plan.method,
         plan.start,
@@ -325,11 +337,12 @@ pub fn trace<S: Observed>(
         &times,
         observer,
         Some(&mut on_step),
-    )?;
-    if let Some(e) = fail.or(step_fail) {
-        return Err(e);
-    }
-    Ok(Trace {
+    );
+    let res = match fail.or(step_fail) {
+        Some(e) => Err(e),
+        None => res.map_err(Into::into),
+    };
+    let tr = Trace {
         history_time,
         history,
         strobe_time,
@@ -337,5 +350,6 @@ pub fn trace<S: Observed>(
         crossings,
         stats,
         final_state: y.to_vec(),
-    })
+    };
+    (tr, res)
 }
