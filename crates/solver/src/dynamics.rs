@@ -1180,7 +1180,8 @@ impl OdeSystem for Mechanism<'_> {
     /// the contact geometry refreshed by `step_accepted`).
     fn check_step(&mut self, t: f64, _y: &[f64]) -> Option<String> {
         if let Some(mut deepest) = self.deepest.take() {
-            let starts = self.ws.contacts0.clone();
+            // Moved out and back rather than cloned: no allocation per step.
+            let starts = std::mem::take(&mut self.ws.contacts0);
             self.model.step_guard(
                 t,
                 (&starts, &deepest),
@@ -1188,6 +1189,7 @@ impl OdeSystem for Mechanism<'_> {
                 &mut self.guard,
                 &mut self.warnings,
             );
+            self.ws.contacts0 = starts;
             deepest.fill(untouched());
             self.deepest = Some(deepest);
         }
