@@ -1490,6 +1490,14 @@ impl Model {
             row += 1;
         }
         let n_rows = row;
+        // The sparse factorisation indexes its entries with 32 bits; 50 000 rows keep even a full
+        // triangle (1.25e9 entries) within that, far beyond any mechanism this program is for.
+        if n_rows > 50_000 {
+            return Err(cx.err(
+                "joints",
+                format!("{n_rows} constraint rows; at most 50000 are supported"),
+            ));
+        }
 
         // Springs and loads.
         let mut springs = Vec::new();
