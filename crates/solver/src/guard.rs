@@ -60,7 +60,13 @@ pub struct Warning {
 #[derive(Debug, Clone, Default)]
 pub struct StepGuard {
     warned: Vec<bool>,
+    /// Scratch of the constrained effective mass (one entry per constraint row).
+    u: Vec<f64>,
+    x: Vec<f64>,
 }
+
+/// `M^-1 w^T` of the journal and housing bodies (ground: [`GROUND`]).
+type Blocks = [(usize, [f64; 6]); 2];
 
 /// A largest stable step `h`, halved and rounded down to 1, 2 or 5 times a power of ten.
 fn suggested_step(h: f64) -> f64 {
@@ -175,17 +181,16 @@ impl Model {
         msg
     }
 
-    /// Inverse effective mass (1/kg) of the mechanism for a unit force pair along `dir` at the
-    /// journal point `pj` and the housing point `ph` of clearance joint `c`: with the constraints
-    /// when `constrained`, else of the two bodies alone.
-    fn inverse_mass(
+    /// The two bodies' share of the inverse effective mass (1/kg) for a unit force pair along
+    /// `dir` at the journal point `pj` and the housing point `ph` of clearance joint `c`:
+    /// `w M^-1 w^T`, with the blocks `M^-1 w^T` of journal and housing for [`Model::constrained`].
+    fn free_inverse_mass(
         &self,
         c: &Clearance,
         dir: &Vector3<f64>,
         (pj, ph): (&Vector3<f64>, &Vector3<f64>),
-        ws: &mut Workspace,
-        constrained: bool,
-    ) -> f64 {
+        ws: &Workspace,
+    ) -> (f64, Blocks) {
         let mut blocks = [(GROUND, [0.0; 6]); 2];
         let mut inv = 0.0;
         for (slot, (b, p, sign)) in [(c.journal, pj, 1.0), (c.housing, ph, -1.0)]
@@ -209,12 +214,24 @@ impl Model {
             inv += (0..6).map(|k| w[k] * mw[k]).sum::<f64>();
             blocks[slot] = (b, mw);
         }
-        if !constrained || self.n_rows == 0 || !self.effects.constraints {
-            return inv;
+        (inv, blocks)
+    }
+
+    /// The inverse effective mass with the constraints: `inv0 - u^T S^+ u`, `u = G M^-1 w^T`
+    /// from the blocks of [`Model::free_inverse_mass`], in the guard's scratch vectors.
+    fn constrained(
+        &self,
+        (inv0, blocks): (f64, &Blocks),
+        ws: &mut Workspace,
+        (u, x): (&mut Vec<f64>, &mut Vec<f64>),
+    ) -> f64 {
+        if self.n_rows == 0 || !self.effects.constraints {
+            return inv0;
         }
-        let mut u = vec![0.0; self.n_rows];
+        u.clear();
+        u.resize(self.n_rows, 0.0);
         for (i, row) in ws.rows.iter().enumerate() {
-            for (b, mw) in &blocks {
+            for (b, mw) in blocks {
                 if *b == GROUND {
                     continue;
                 }
@@ -225,24 +242,22 @@ impl Model {
                 }
             }
         }
-        let mut x = u.clone();
-        ws.solve_reduced(&mut x);
-        inv - u.iter().zip(&x).map(|(a, b)| a * b).sum::<f64>()
+        x.clone_from(u);
+        ws.solve_reduced(x);
+        inv0 - u.iter().zip(x.iter()).map(|(a, b)| a * b).sum::<f64>()
     }
 
-    /// The fastest mode of a damper-spring (`k` N/m, `c` N s/m) on the effective mass found by
-    /// `inverse_mass` (tested first without the constraints), when unstable at step `h`: its
-    /// eigenvalue and mass, and the largest stable step.
-    #[allow(clippy::too_many_arguments)]
+    /// The fastest mode of a damper-spring (`k` N/m, `c` N s/m) on the effective mass, when
+    /// unstable at step `h`: tested first on the two bodies' mass `free` (from
+    /// [`Model::free_inverse_mass`]), then with the constraints. Returns its eigenvalue and mass,
+    /// and the largest stable step.
     fn unstable_mode(
         &self,
-        method: &Method,
-        h: f64,
+        (method, h): (&Method, f64),
         (k, c): (f64, f64),
-        cl: &Clearance,
-        dir: &Vector3<f64>,
-        points: (&Vector3<f64>, &Vector3<f64>),
+        free: (f64, &Blocks),
         ws: &mut Workspace,
+        scratch: (&mut Vec<f64>, &mut Vec<f64>),
     ) -> Option<((f64, f64), f64, f64)> {
         let mode = |inv_m: f64| -> Option<((f64, f64), f64)> {
             if inv_m.is_nan() || inv_m <= 0.0 {
@@ -258,8 +273,8 @@ impl Model {
             let a = method.amplification(h * lambda.0, h * lambda.1)?;
             (a > 1.0 + 1e-12).then_some((lambda, m))
         };
-        mode(self.inverse_mass(cl, dir, points, ws, false))?;
-        let (lambda, m) = mode(self.inverse_mass(cl, dir, points, ws, true))?;
+        mode(free.0)?;
+        let (lambda, m) = mode(self.constrained(free, ws, scratch))?;
         let stable = method.stable_step(lambda.0, lambda.1, h)?;
         Some((lambda, m, stable))
     }
@@ -300,9 +315,10 @@ impl Model {
                     continue;
                 }
                 let points = (&ce.pj, &ce.ph);
+                let (inv0, blocks) = self.free_inverse_mass(cl, &ce.n, points, ws);
                 let v0 = starts[s].delta_dot;
                 let (k, c) = if starts[s].delta <= 0.0 && v0 > 0.0 {
-                    let m = 1.0 / self.inverse_mass(cl, &ce.n, points, ws, false);
+                    let m = 1.0 / inv0;
                     let target = 0.5 * m * v0 * v0;
                     let (mut lo, mut hi) = (0.0, ce.delta);
                     if cl.law.elastic_energy(hi) > target {
@@ -325,7 +341,13 @@ impl Model {
                     cl.law.linearised(ce.delta, ce.delta_dot, ws.onset[s])
                 };
                 let mut found = self
-                    .unstable_mode(&method, h, (k, c), cl, &ce.n, points, ws)
+                    .unstable_mode(
+                        (&method, h),
+                        (k, c),
+                        (inv0, &blocks),
+                        ws,
+                        (&mut guard.u, &mut guard.x),
+                    )
                     .map(|m| {
                         (
                             m,
@@ -349,8 +371,15 @@ impl Model {
                         slope = slope.max(cl.friction.coefficient(speed) / speed);
                     }
                     let ct = ce.fn_ * slope;
+                    let (inv_t, blocks_t) = self.free_inverse_mass(cl, &dir, points, ws);
                     found = self
-                        .unstable_mode(&method, h, (0.0, ct), cl, &dir, points, ws)
+                        .unstable_mode(
+                            (&method, h),
+                            (0.0, ct),
+                            (inv_t, &blocks_t),
+                            ws,
+                            (&mut guard.u, &mut guard.x),
+                        )
                         .map(|m| (m, format!("friction damping {ct:.3e} N s/m (sliding speed {speed:.3e} m/s)")));
                 }
                 if let Some(((lambda, m, stable), what)) = found {

@@ -283,10 +283,12 @@ impl SparsePsd {
         let mut order = Vec::with_capacity(n);
         let mut cols: Vec<Vec<usize>> = Vec::with_capacity(n);
         for _ in 0..n {
-            let v = (0..n)
+            let Some(v) = (0..n)
                 .filter(|&v| alive[v])
                 .min_by_key(|&v| (adj[v].len(), v))
-                .unwrap();
+            else {
+                break;
+            };
             let nb: Vec<usize> = adj[v].iter().copied().collect();
             for &u in &nb {
                 adj[u].remove(&v);
