@@ -82,6 +82,42 @@ impl Method {
         }
     }
 
+    /// The family name scenes and studies use for this method ("rk4", "dopri5", ...).
+    pub fn family(&self) -> &'static str {
+        match self {
+            Method::Rk4 { .. } => "rk4",
+            Method::Dopri5 { .. } => "dopri5",
+            Method::Dopri5Fixed { .. } => "dopri5_fixed",
+        }
+    }
+
+    /// Every family name accepted by [`Method::of_family`].
+    pub const FAMILIES: &'static [&'static str] = &["rk4", "dopri5", "dopri5_fixed"];
+
+    /// The member of family `name` at accuracy `setting`: the step (s) of a fixed-step family,
+    /// the relative tolerance of an adaptive one (with absolute tolerance `atol` and no step
+    /// bound). None for an unknown family.
+    pub fn of_family(name: &str, setting: f64, atol: f64) -> Option<Method> {
+        Some(match name {
+            "rk4" => Method::Rk4 { step: setting },
+            "dopri5" => Method::Dopri5 {
+                rtol: setting,
+                atol,
+                max_step: f64::INFINITY,
+            },
+            "dopri5_fixed" => Method::Dopri5Fixed { step: setting },
+            _ => return None,
+        })
+    }
+
+    /// The accuracy setting of [`Method::of_family`]: the step or the relative tolerance.
+    pub fn setting(&self) -> f64 {
+        match *self {
+            Method::Rk4 { step } | Method::Dopri5Fixed { step } => step,
+            Method::Dopri5 { rtol, .. } => rtol,
+        }
+    }
+
     /// The fixed step (s) of a fixed-step method; None for adaptive methods.
     pub fn fixed_step(&self) -> Option<f64> {
         match *self {
