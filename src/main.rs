@@ -5,6 +5,7 @@
 //! * `jointplay run STUDY --out DIR`: run a comparison study or a nonlinear-analysis study
 //!   (N-period runs, Poincare sections, bifurcation sweeps with `--resume`).
 //! * `jointplay plot FILE.h5`: redraw an analysis file's figures without simulating.
+//! * `jointplay precision STUDY_OR_SCENE --out DIR`: work-precision of every integrator.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -19,6 +20,7 @@ use jointplay_analysis::h5::{Meta, StudyMeta, read_series, write_run, write_stud
 use jointplay_analysis::nlfigures::render;
 use jointplay_analysis::nonlinear::{Loaded, Options, Progress, execute, is_analysis};
 use jointplay_analysis::plot::{Format, Panel, Series, figure};
+use jointplay_analysis::precision;
 use jointplay_analysis::report::{self, markdown};
 use jointplay_analysis::run::Recording;
 use jointplay_analysis::run::{RunResult, simulate};
@@ -80,6 +82,23 @@ enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
     },
+    /// Work-precision: run every integrator over a range of steps or tolerances against a tight
+    /// reference; write DIR/<name>.h5, DIR/<name>.md (the table) and the figure DIR/<name>.png
+    /// and .svg (error against wall time, log-log).
+    Precision {
+        /// An analysis study (its [precision] table, or the defaults) or a scene (every body's
+        /// position and every clearance joint's contact force over the scene's span).
+        file: PathBuf,
+        /// Output directory (created if missing).
+        #[arg(long, default_value = "out")]
+        out: PathBuf,
+        /// Skip the figure.
+        #[arg(long)]
+        no_plots: bool,
+        /// No progress lines.
+        #[arg(long, short)]
+        quiet: bool,
+    },
     /// Compute a study's comparison table (markdown) from its HDF5 file.
     Report {
         /// Study file written by `jointplay run STUDY`.
@@ -122,6 +141,12 @@ fn main() {
         } => run(&scene, &out, !no_plots, quiet, Options { resume, max_jobs }),
         Command::Plot { file, format, out } => plot_cmd(&file, &format, out.as_deref()),
         Command::Report { file, out } => report_cmd(&file, out.as_deref()),
+        Command::Precision {
+            file,
+            out,
+            no_plots,
+            quiet,
+        } => precision_cmd(&file, &out, !no_plots, quiet),
         Command::Compare {
             files,
             dataset,
@@ -565,6 +590,55 @@ fn plot_cmd(file: &Path, format: &str, out: Option<&Path>) -> Result<()> {
 
 /// Runs an analysis study (a single N-period run or a sweep) with a progress bar showing the
 /// values done and the time left.
+fn precision_cmd(path: &Path, out: &Path, plots: bool, quiet: bool) -> Result<()> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let study = if is_analysis(&text) {
+        Loaded::parse(&text, path)?
+    } else if is_study(&text) {
+        anyhow::bail!(
+            "{}: a comparison study has several cases; give one scene or an analysis study",
+            path.display()
+        );
+    } else {
+        precision::scene_study(path)?
+    };
+    let start = Instant::now();
+    let mut p = precision::Precision::new(study)?;
+    let mut report = |pr: precision::Progress| {
+        if quiet {
+            return;
+        }
+        let el = start.elapsed().as_secs_f64();
+        match pr {
+            precision::Progress::Reference => eprintln!("[{el:7.1} s] reference"),
+            precision::Progress::Check => eprintln!("[{el:7.1} s] check of the reference"),
+            precision::Progress::Run { done, total, what } => {
+                eprintln!("[{el:7.1} s] run {}/{total}: {what}", done + 1)
+            }
+        }
+    };
+    let o = p
+        .execute(&mut report)
+        .with_context(|| format!("work-precision of {}", path.display()))?;
+    let file = o.write(out, p.study())?;
+    let md = out.join(format!("{}.md", o.name));
+    std::fs::write(&md, o.markdown()).with_context(|| format!("writing {}", md.display()))?;
+    let mut figs = Vec::new();
+    if plots {
+        figs = o.figures(&out.join(&o.name), &[Format::Png, Format::Svg])?;
+    }
+    print!("{}", o.markdown());
+    println!();
+    println!("wrote        {}", file.display());
+    println!("             {}", md.display());
+    for f in figs {
+        println!("             {}", f.display());
+    }
+    println!("wall time    {:.1} s", start.elapsed().as_secs_f64());
+    Ok(())
+}
+
 fn run_analysis(path: &Path, out: &Path, plots: bool, quiet: bool, opts: Options) -> Result<()> {
     let st = Loaded::load(path)?;
     if st.spec.sweep.is_none() && (opts.resume || opts.max_jobs.is_some()) {

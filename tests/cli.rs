@@ -1020,3 +1020,153 @@ fn a_diverging_analysis_run_keeps_what_it_computed_in_a_file_marked_incomplete()
     // Samples every T/50 = 0.24 ms: t = 0 and 0.24 ms come before the failure.
     assert_eq!(t.len(), 2, "{t:?}");
 }
+
+fn read_runs(file: &Path, name: &str) -> Vec<f64> {
+    let f = hdf5::File::open(file).unwrap();
+    f.dataset(&format!("runs/{name}"))
+        .unwrap()
+        .read_1d::<f64>()
+        .unwrap()
+        .to_vec()
+}
+
+const DUFFING_PRECISION: &str = r#"
+[study]
+name = "wp"
+system = { kind = "duffing", delta = 0.3, alpha = -1.0, beta = 1.0, gamma = 0.2, omega = 1.2, initial = [1.0, 0.0], solver = { integrator = "dopri5", rtol = 1e-8, atol = 1e-10 } }
+
+[analysis]
+periods = 4
+samples_per_period = 50
+
+[[observables]]
+name = "x"
+path = "x"
+
+[precision]
+restarts = 4
+min_time = 0.0
+
+[[precision.methods]]
+integrator = "rk4"
+settings = [0.05235987755982988, 0.02617993877991494, 0.01308996938995747]
+
+[[precision.methods]]
+integrator = "dopri5"
+settings = [1e-4, 1e-6, 1e-8]
+"#;
+
+#[test]
+fn work_precision_measures_rk4_at_order_four_and_writes_its_table_figure_and_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let study = dir.path().join("wp.toml");
+    std::fs::write(&study, DUFFING_PRECISION).unwrap();
+    let out = bin()
+        .args(["precision", "-q"])
+        .arg(&study)
+        .arg("--out")
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    let (so, se) = text(&out);
+    assert!(out.status.success(), "{so}\n{se}");
+    for ext in ["h5", "md", "png", "svg"] {
+        assert!(dir.path().join(format!("wp.{ext}")).exists(), "wp.{ext}");
+    }
+    let md = std::fs::read_to_string(dir.path().join("wp.md")).unwrap();
+    assert_eq!(md.matches("| rk4 |").count(), 3, "{md}");
+    assert_eq!(md.matches("| dopri5 |").count(), 3, "{md}");
+    let h5 = dir.path().join("wp.h5");
+    let restart = read_runs(&h5, "restart_error");
+    let position = read_runs(&h5, "position_error");
+    let rhs = read_runs(&h5, "rhs_evals");
+    assert_eq!(restart.len(), 6);
+    // RK4 at T/100, T/200, T/400 (h omega <= 0.063, in the asymptotic range): the one-period error
+    // falls by 2^4 = 16 per halving; the next term of the error expansion is O(h omega) relative,
+    // so 16 within 25 %.
+    for i in 0..2 {
+        let ratio = restart[i] / restart[i + 1];
+        assert!(
+            (12.0..20.0).contains(&ratio),
+            "rk4 ratio {ratio}: {restart:?} {position:?}"
+        );
+        let ratio = position[i] / position[i + 1];
+        assert!(
+            (12.0..20.0).contains(&ratio),
+            "rk4 ratio {ratio}: {position:?}"
+        );
+        // Halving the step doubles the work: 4 evaluations per step.
+        assert!((rhs[i + 1] / rhs[i] - 2.0).abs() < 0.01, "{rhs:?}");
+    }
+    // DOPRI5: a hundredfold tighter tolerance gives a smaller error.
+    assert!(
+        restart[3] > restart[4] && restart[4] > restart[5],
+        "{restart:?}"
+    );
+    // The reference is confirmed far below every tested error.
+    let f = hdf5::File::open(&h5).unwrap();
+    let floor: f64 = f
+        .group("floor")
+        .unwrap()
+        .attr("restart")
+        .unwrap()
+        .read_scalar()
+        .unwrap();
+    let smallest = restart.iter().cloned().fold(f64::INFINITY, f64::min);
+    assert!(floor < 0.01 * smallest, "floor {floor} vs {smallest}");
+}
+
+#[test]
+fn bad_work_precision_input_names_the_file_and_the_field() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |name: &str, text: &str| {
+        let p = dir.path().join(name);
+        std::fs::write(&p, text).unwrap();
+        let out = bin()
+            .args(["precision", "-q"])
+            .arg(&p)
+            .arg("--out")
+            .arg(dir.path())
+            .output()
+            .unwrap();
+        assert!(!out.status.success());
+        text_err(&out)
+    };
+    let e = run(
+        "a.toml",
+        &DUFFING_PRECISION.replace("integrator = \"rk4\"", "integrator = \"rk5\""),
+    );
+    assert!(
+        e.contains("a.toml") && e.contains("precision.methods[0].settings[0]") && e.contains("rk5"),
+        "{e}"
+    );
+    let e = run("b.toml", &DUFFING_PRECISION.replace("1e-6", "-1e-6"));
+    assert!(e.contains("precision.methods[1].settings[1]"), "{e}");
+    let e = run(
+        "c.toml",
+        &DUFFING_PRECISION.replace("restarts = 4", "position = [\"y\"]"),
+    );
+    assert!(
+        e.contains("precision.position[0]") && e.contains("'y'"),
+        "{e}"
+    );
+    // A scene without a periodic drive has no strobe times.
+    let out = bin()
+        .args(["precision", "-q"])
+        .arg(scenes().join("pendulum.toml"))
+        .arg("--out")
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let e = text_err(&out);
+    assert!(e.contains("pendulum.toml") && e.contains("drives"), "{e}");
+    assert!(std::fs::read_dir(dir.path()).unwrap().all(|f| {
+        let p = f.unwrap().path();
+        p.extension().is_none_or(|x| x != "h5")
+    }));
+}
+
+fn text_err(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}

@@ -8,7 +8,8 @@
 //! Nonlinear analysis works on any flow: [`sections`] runs N periods of an ODE and keeps the
 //! stroboscopic and hyperplane Poincare sections; [`observe`] addresses a mechanism's quantities
 //! by path; [`systems`] holds the built-in reference ODEs (Duffing, pendulum, Lorenz); and
-//! [`nonlinear`] reads analysis studies, runs their sweeps in parallel and streams them to HDF5.
+//! [`nonlinear`] reads analysis studies, runs their sweeps in parallel and streams them to HDF5;
+//! [`precision`] measures what accuracy costs: every integrator against a tight reference.
 
 pub mod figures;
 pub mod h5;
@@ -16,6 +17,7 @@ pub mod nlfigures;
 pub mod nonlinear;
 pub mod observe;
 pub mod plot;
+pub mod precision;
 pub mod report;
 pub mod run;
 pub mod sections;

@@ -52,6 +52,9 @@ pub struct AnalysisStudy {
     pub sweep: Option<SweepSpec>,
     #[serde(default)]
     pub figures: Vec<FigureSpec>,
+    /// Work-precision settings, read by `jointplay precision` (see [`crate::precision`]).
+    #[serde(default)]
+    pub precision: Option<crate::precision::PrecisionSpec>,
 }
 
 /// The `[study]` table.
@@ -516,7 +519,7 @@ impl Loaded {
     }
 
     /// The flow with the swept parameter set to `value`, ready to run.
-    fn target(&self, value: Option<f64>) -> Result<Target> {
+    pub(crate) fn target(&self, value: Option<f64>) -> Result<Target> {
         let sweep_field = || match &self.spec.sweep {
             Some(s) => format!("sweep.parameter ('{}')", s.parameter),
             None => "sweep.parameter".into(),
@@ -639,7 +642,7 @@ impl Loaded {
 }
 
 /// A compiled flow with its observables.
-enum Target {
+pub(crate) enum Target {
     Scene {
         model: Box<Model>,
         state: State,
@@ -653,10 +656,10 @@ enum Target {
     },
 }
 
-struct MechFlow<'m> {
-    mech: Mechanism<'m>,
-    obs: &'m [Observable],
-    dynamics: bool,
+pub(crate) struct MechFlow<'m> {
+    pub(crate) mech: Mechanism<'m>,
+    pub(crate) obs: &'m [Observable],
+    pub(crate) dynamics: bool,
 }
 
 impl OdeSystem for MechFlow<'_> {
@@ -710,9 +713,9 @@ impl Observed for MechFlow<'_> {
     }
 }
 
-struct SysFlow<'a> {
-    sys: Builtin,
-    obs: &'a [Observable],
+pub(crate) struct SysFlow<'a> {
+    pub(crate) sys: Builtin,
+    pub(crate) obs: &'a [Observable],
 }
 
 impl OdeSystem for SysFlow<'_> {

@@ -7,7 +7,6 @@ use std::sync::Once;
 use plotters::coord::Shift;
 use plotters::coord::cartesian::Cartesian2d;
 use plotters::coord::ranged1d::{Ranged, ValueFormatter};
-use plotters::coord::types::RangedCoordf64;
 use plotters::prelude::*;
 
 use crate::{Error, Result};
@@ -39,6 +38,8 @@ pub struct Panel {
     pub series: Vec<Series>,
     /// Logarithmic y axis (non-positive values are left out).
     pub log_y: bool,
+    /// Logarithmic x axis (non-positive values are left out).
+    pub log_x: bool,
     /// Fixed axis ranges (default: fitted to the data).
     pub x_range: Option<(f64, f64)>,
     pub y_range: Option<(f64, f64)>,
@@ -62,6 +63,7 @@ impl Default for Panel {
             y_label: String::new(),
             series: Vec::new(),
             log_y: false,
+            log_x: false,
             x_range: None,
             y_range: None,
             points: Vec::new(),
@@ -148,8 +150,8 @@ fn tick(v: f64, span: f64) -> String {
 
 /// Mesh, axis labels, lines and legend of one panel, for linear and logarithmic y axes alike.
 /// Points with y outside `keep` are left out (non-positive values on a log axis).
-fn fill_chart<'a, DB, Y>(
-    chart: &mut ChartContext<'a, DB, Cartesian2d<RangedCoordf64, Y>>,
+fn fill_chart<'a, DB, X, Y>(
+    chart: &mut ChartContext<'a, DB, Cartesian2d<X, Y>>,
     panel: &Panel,
     x_fmt: &dyn Fn(&f64) -> String,
     y_fmt: &dyn Fn(&f64) -> String,
@@ -159,6 +161,7 @@ fn fill_chart<'a, DB, Y>(
 where
     DB: DrawingBackend + 'a,
     DB::ErrorType: 'static,
+    X: Ranged<ValueType = f64> + ValueFormatter<f64>,
     Y: Ranged<ValueType = f64> + ValueFormatter<f64>,
 {
     chart
@@ -179,7 +182,7 @@ where
             .draw_series(LineSeries::new(
                 s.x.iter()
                     .zip(&s.y)
-                    .filter(|(_, y)| keep(**y))
+                    .filter(|(x, y)| keep(**y) && (!panel.log_x || **x > 0.0))
                     .map(|(x, y)| (*x, *y)),
                 c.stroke_width(panel.line_width),
             ))
@@ -194,7 +197,7 @@ where
             .draw_series(
                 s.x.iter()
                     .zip(&s.y)
-                    .filter(|(_, y)| keep(**y))
+                    .filter(|(x, y)| keep(**y) && (!panel.log_x || **x > 0.0))
                     .map(move |(x, y)| Circle::new((*x, *y), r, c.filled())),
             )
             .map_err(|e| e.to_string())?
@@ -240,33 +243,45 @@ where
         .y_label_area_size(if small { 55 } else { 80 });
     let xs = x1 - x0;
     let x_fmt = |v: &f64| tick(*v, xs);
+    let log_fmt = |v: &f64| format!("{v:.0e}");
+    let (lx0, lx1) = {
+        let pos = || {
+            all()
+                .flat_map(|s| s.x.iter().copied())
+                .filter(|v| *v > 0.0 && v.is_finite())
+        };
+        let lo = pos().fold(f64::INFINITY, f64::min).max(1e-300);
+        let hi = pos().fold(0.0, f64::max).max(lo * 10.0);
+        (lo / 1.5, hi * 1.5)
+    };
+    let y_lin = y0..y1;
+    let yspan = y1 - y0;
+    let y_fmt = |v: &f64| tick(*v, yspan);
     if panel.log_y {
         let lo = ys().fold(f64::INFINITY, f64::min).max(1e-300);
         let hi = ys().fold(0.0, f64::max).max(lo * 10.0);
+        let y_log = (lo / 2.0..hi * 2.0).log_scale();
+        if panel.log_x {
+            let mut chart = builder
+                .build_cartesian_2d((lx0..lx1).log_scale(), y_log)
+                .map_err(|e| e.to_string())?;
+            fill_chart(&mut chart, panel, &log_fmt, &log_fmt, |y| y > 0.0, small)
+        } else {
+            let mut chart = builder
+                .build_cartesian_2d(x0..x1, y_log)
+                .map_err(|e| e.to_string())?;
+            fill_chart(&mut chart, panel, &x_fmt, &log_fmt, |y| y > 0.0, small)
+        }
+    } else if panel.log_x {
         let mut chart = builder
-            .build_cartesian_2d(x0..x1, (lo / 2.0..hi * 2.0).log_scale())
+            .build_cartesian_2d((lx0..lx1).log_scale(), y_lin)
             .map_err(|e| e.to_string())?;
-        fill_chart(
-            &mut chart,
-            panel,
-            &x_fmt,
-            &|v| format!("{v:.0e}"),
-            |y| y > 0.0,
-            small,
-        )
+        fill_chart(&mut chart, panel, &log_fmt, &y_fmt, |_| true, small)
     } else {
         let mut chart = builder
-            .build_cartesian_2d(x0..x1, y0..y1)
+            .build_cartesian_2d(x0..x1, y_lin)
             .map_err(|e| e.to_string())?;
-        let yspan = y1 - y0;
-        fill_chart(
-            &mut chart,
-            panel,
-            &x_fmt,
-            &|v| tick(*v, yspan),
-            |_| true,
-            small,
-        )
+        fill_chart(&mut chart, panel, &x_fmt, &y_fmt, |_| true, small)
     }
 }
 

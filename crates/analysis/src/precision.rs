@@ -1,0 +1,1124 @@
+//! Work-precision: what accuracy costs in time, for one flow (a mechanism scene or a built-in
+//! system) and every integrator.
+//!
+//! **Reference.** The flow is integrated period by period with the reference method (by default
+//! DOP853 at a relative tolerance of 1e-12, far tighter than any setting tested), stopping exactly
+//! at every strobe time `s_k = t0 + phase + k T`, where the full state `y_k` and the contact-onset
+//! history are kept. A second method (the check, by default DOPRI5 at 1e-12) runs the same span; its
+//! distance from the reference on every error measure is reported as the reference's own
+//! uncertainty (`floor`): errors near it are not resolved.
+//!
+//! **Error measures**, for each tested run:
+//!
+//! * `position`: `max_k max_i |o_i(s_k) - o_i^ref(s_k)|` over the kept strobe times and the
+//!   position observables `o_i` (by default every observable in m or rad; in the observables'
+//!   unit). This is the measure a Poincare map needs.
+//! * `restart`: the one-period error restarted from reference strobe states: from `(s_k, y_k)`
+//!   (and the reference's contact-onset history) the tested method integrates one period and is
+//!   compared with `o_i^ref(s_{k+1})`; the largest over `restarts` evenly spread periods. In a
+//!   chaotic run the `position` error saturates at the size of the attractor once the two
+//!   trajectories have separated; the restarted error still measures the integrator.
+//! * `force`: the contact force over the last period, sampled `samples_per_period` times:
+//!   `max_s max_i |F_i(t_s) - F_i^ref(t_s)| / max_s max_i |F_i^ref(t_s)|` over the force
+//!   observables (by default every observable in N), relative (dimensionless).
+//!
+//! **Cost.** Wall time of the whole continuous run (with its samples), the right-hand-side
+//! evaluations (an implicit method's Jacobian columns included) and the steps. A run shorter
+//! than `min_time` is repeated until the repeats add up to it (at most 50 times) and the fastest
+//! repeat is kept: the fastest is the least disturbed by the other work of a shared machine.
+//! Runs are sequential so that no two share the cores.
+
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+use jointplay_solver::dynamics::Mechanism;
+use jointplay_solver::model::Model;
+use jointplay_solver::ode::{Flow, Method, Stats, integrate_partial};
+use serde::Deserialize;
+
+use hdf5::types::VarLenUnicode;
+use ndarray::Array1;
+
+use crate::h5::{f64_attr, str_attr, u64_attr, write_atomically, write1};
+use crate::nonlinear::{Loaded, MechFlow, SysFlow, Target};
+use crate::observe::Observable;
+use crate::plot::{Format, Panel, Series, figure};
+use crate::sections::Observed;
+use crate::study::invalid;
+use crate::{Error, Result};
+
+/// The `[precision]` table of an analysis study (every field optional).
+#[derive(Debug, Clone, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PrecisionSpec {
+    /// Observables compared at the strobe times (default: those in m or rad, else all).
+    #[serde(default)]
+    pub position: Vec<String>,
+    /// Observables compared over the last period (default: those in N).
+    #[serde(default)]
+    pub force: Vec<String>,
+    /// One-period restarts from reference strobe states (default: up to 10).
+    #[serde(default)]
+    pub restarts: Option<usize>,
+    /// The reference method (default dop853 at 1e-12) and the check that confirms it (default
+    /// dopri5 at 1e-12).
+    #[serde(default)]
+    pub reference: Option<MethodSpec>,
+    #[serde(default)]
+    pub check: Option<MethodSpec>,
+    /// Absolute tolerance of the adaptive runs as a multiple of their relative tolerance.
+    #[serde(default)]
+    pub atol_scale: Option<f64>,
+    /// Runs shorter than this (s) are repeated and the fastest repeat kept.
+    #[serde(default)]
+    pub min_time: Option<f64>,
+    /// The integrators and their settings (default: every family over a standard range).
+    #[serde(default)]
+    pub methods: Vec<FamilySpec>,
+}
+
+/// One method: a family and its setting (the step in s, or the relative tolerance).
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MethodSpec {
+    pub integrator: String,
+    pub setting: f64,
+}
+
+/// One family over several settings.
+#[derive(Debug, Clone, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct FamilySpec {
+    pub integrator: String,
+    pub settings: Vec<f64>,
+}
+
+/// The error measures of one run (NaN where not measured).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Errors {
+    pub position: f64,
+    pub restart: f64,
+    pub force: f64,
+}
+
+/// Reads one error measure.
+type Measure = fn(&Errors) -> f64;
+
+/// One tested run.
+#[derive(Debug, Clone)]
+pub struct RunRecord {
+    pub family: String,
+    pub setting: f64,
+    pub integrator: String,
+    pub errors: Errors,
+    /// Fastest repeat (s) and how many repeats were run.
+    pub wall: f64,
+    pub repeats: usize,
+    pub stats: Stats,
+    /// None: finished; else the failure message.
+    pub failure: Option<String>,
+    pub warnings: Vec<String>,
+}
+
+/// What a work-precision run produced.
+#[derive(Debug, Clone)]
+pub struct Outcome {
+    pub name: String,
+    pub reference: String,
+    pub check: String,
+    /// Distance of the check from the reference, per measure.
+    pub floor: Errors,
+    pub reference_wall: f64,
+    pub runs: Vec<RunRecord>,
+    pub position: Vec<String>,
+    pub force: Vec<String>,
+    pub position_unit: String,
+    pub restarts: usize,
+    pub periods: usize,
+    pub kept: usize,
+    pub period: f64,
+}
+
+/// Default settings of a family: steps as fractions of the flow's own step or period, tolerances
+/// by decades. A family not listed here is left out of the defaults.
+fn default_family(family: &str, base_step: f64) -> Option<Vec<f64>> {
+    let decades = |a: i32, b: i32| (a..=b).map(|e| 10f64.powi(-e)).collect::<Vec<_>>();
+    Some(match family {
+        "rk4" => [4.0, 2.0, 1.0, 0.5, 0.25, 0.125]
+            .iter()
+            .map(|f| f * base_step)
+            .collect(),
+        "dopri5" => decades(3, 10),
+        "dop853" => decades(4, 11),
+        "rosenbrock23" => decades(2, 6),
+        _ => return None,
+    })
+}
+
+/// A loaded flow, ready for repeated runs.
+struct Runner {
+    target: Target,
+    y0: Vec<f64>,
+    period: f64,
+}
+
+/// What one integration produced.
+struct Leg {
+    /// Observables at each sample.
+    samples: Vec<Vec<f64>>,
+    stats: Stats,
+    failure: Option<String>,
+    warnings: Vec<String>,
+    /// Final state and contact-onset history.
+    y: Vec<f64>,
+    onset: Vec<f64>,
+}
+
+fn observed_leg<F: Observed>(
+    flow: &mut F,
+    method: Method,
+    t0: f64,
+    y: &mut [f64],
+    t_end: f64,
+    samples: &[f64],
+) -> (Vec<Vec<f64>>, Stats, Option<String>) {
+    let n = flow.n_obs();
+    let mut out = Vec::with_capacity(samples.len());
+    let mut buf = vec![0.0; n];
+    let (stats, res) = integrate_partial(
+        flow,
+        method,
+        t0,
+        y,
+        t_end,
+        samples,
+        |f: &mut F, t, ys| {
+            f.observe(t, ys, &mut buf);
+            out.push(buf.clone());
+            Flow::Continue
+        },
+        None,
+    );
+    (out, stats, res.err().map(|e| e.to_string()))
+}
+
+impl Runner {
+    fn obs(&self) -> &[Observable] {
+        match &self.target {
+            Target::Scene { obs, .. } | Target::System { obs, .. } => obs,
+        }
+    }
+
+    /// Integrates from `(t0, y0)` (with contact-onset history `onset`, if any) to `t_end`.
+    fn leg(
+        &mut self,
+        method: Method,
+        t0: f64,
+        y0: &[f64],
+        onset: Option<&[f64]>,
+        t_end: f64,
+        samples: &[f64],
+    ) -> Leg {
+        let mut y = y0.to_vec();
+        match &mut self.target {
+            Target::Scene { model, obs, .. } => {
+                // The guards of a fixed-step method look at every stage: the model must know
+                // which method runs.
+                model.settings.method = method;
+                let model: &Model = model;
+                let mut flow = MechFlow {
+                    mech: Mechanism::new(model),
+                    dynamics: obs.iter().any(|o| o.needs_dynamics()),
+                    obs,
+                };
+                if let Some(o) = onset {
+                    flow.mech.ws.onset.copy_from_slice(o);
+                }
+                if let Err(e) = flow.mech.check_initial(t0, &y) {
+                    return Leg {
+                        samples: Vec::new(),
+                        stats: Stats::default(),
+                        failure: Some(e.to_string()),
+                        warnings: Vec::new(),
+                        y,
+                        onset: Vec::new(),
+                    };
+                }
+                let (samples, stats, failure) =
+                    observed_leg(&mut flow, method, t0, &mut y, t_end, samples);
+                Leg {
+                    samples,
+                    stats,
+                    failure,
+                    warnings: flow
+                        .mech
+                        .warnings
+                        .iter()
+                        .map(|w| w.message.clone())
+                        .collect(),
+                    onset: flow.mech.ws.onset.clone(),
+                    y,
+                }
+            }
+            Target::System { sys, obs, .. } => {
+                let mut flow = SysFlow {
+                    sys: sys.builtin,
+                    obs,
+                };
+                let (samples, stats, failure) =
+                    observed_leg(&mut flow, method, t0, &mut y, t_end, samples);
+                Leg {
+                    samples,
+                    stats,
+                    failure,
+                    warnings: Vec::new(),
+                    y,
+                    onset: Vec::new(),
+                }
+            }
+        }
+    }
+
+    /// The flow's own method (its step is the base of the default fixed steps).
+    fn own_method(&self) -> Method {
+        match &self.target {
+            Target::Scene { model, .. } => model.settings.method,
+            Target::System { sys, .. } => sys.method,
+        }
+    }
+}
+
+/// The times of the run: strobe times `s_0..s_periods` and the last period's samples.
+#[derive(Clone)]
+struct Times {
+    start: f64,
+    strobe: Vec<f64>,
+    transient: usize,
+    /// Samples over the last period, (s_{periods-1}, s_periods].
+    last: Vec<f64>,
+}
+
+impl Times {
+    fn end(&self) -> f64 {
+        *self.strobe.last().unwrap_or(&self.start)
+    }
+    /// The samples of a continuous run: the kept strobe times, then the last period's samples
+    /// (sorted and merged; indices of each kind into the merged list).
+    fn merged(&self) -> (Vec<f64>, Vec<usize>, Vec<usize>) {
+        let kept = &self.strobe[self.transient + 1..];
+        let mut all: Vec<(f64, u8, usize)> = kept
+            .iter()
+            .enumerate()
+            .map(|(i, t)| (*t, 0, i))
+            .chain(self.last.iter().enumerate().map(|(i, t)| (*t, 1, i)))
+            .collect();
+        all.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        let mut strobe_idx = vec![0; kept.len()];
+        let mut last_idx = vec![0; self.last.len()];
+        for (j, (_, kind, i)) in all.iter().enumerate() {
+            if *kind == 0 {
+                strobe_idx[*i] = j;
+            } else {
+                last_idx[*i] = j;
+            }
+        }
+        (all.iter().map(|a| a.0).collect(), strobe_idx, last_idx)
+    }
+}
+
+/// The reference solution: kept strobe observables, last-period observables, and the state and
+/// onset history at every strobe time.
+struct Reference {
+    strobe: Vec<Vec<f64>>,
+    last: Vec<Vec<f64>>,
+    states: Vec<(Vec<f64>, Vec<f64>)>,
+    wall: f64,
+}
+
+fn max_abs_diff(a: &[Vec<f64>], b: &[Vec<f64>], which: &[usize]) -> f64 {
+    let mut e: f64 = 0.0;
+    for (x, y) in a.iter().zip(b) {
+        for &i in which {
+            let d = (x[i] - y[i]).abs();
+            if !d.is_finite() {
+                return f64::NAN;
+            }
+            e = e.max(d);
+        }
+    }
+    e
+}
+
+/// Everything a work-precision run needs, resolved from the study.
+pub struct Precision {
+    study: Loaded,
+    spec: PrecisionSpec,
+    runner: Runner,
+    times: Times,
+    position: Vec<usize>,
+    force: Vec<usize>,
+    restart_at: Vec<usize>,
+    reference: Method,
+    check: Method,
+    families: Vec<(String, Vec<Method>)>,
+    min_time: f64,
+}
+
+/// Progress reports of [`Precision::execute`].
+pub enum Progress<'a> {
+    Reference,
+    Check,
+    Run {
+        done: usize,
+        total: usize,
+        what: &'a str,
+    },
+}
+
+impl Precision {
+    /// Reads the work-precision settings of an analysis study (its `[precision]` table, or the
+    /// defaults) and prepares the flow.
+    pub fn new(study: Loaded) -> Result<Precision> {
+        let path = study.path.clone();
+        if study.spec.sweep.is_some() {
+            return Err(invalid(
+                &path,
+                "sweep",
+                "a work-precision run integrates one flow: remove the [sweep] (or set the value in the scene or system)",
+            ));
+        }
+        let spec = study.spec.precision.clone().unwrap_or_default();
+        let target = study.target(None)?;
+        let (y0, t0, period) = match &target {
+            Target::Scene {
+                model,
+                state,
+                period,
+                ..
+            } => {
+                let mut state = state.clone();
+                model.assemble(&mut state)?;
+                (state.y, state.t, *period)
+            }
+            Target::System { sys, period, .. } => (sys.initial.clone(), sys.start_time, *period),
+        };
+        let runner = Runner { target, y0, period };
+        let a = &study.spec.analysis;
+        let strobe: Vec<f64> = (0..=a.periods)
+            .map(|k| t0 + a.phase + k as f64 * period)
+            .collect();
+        let spp = a.samples_per_period.max(1);
+        let s_last = strobe[a.periods - 1];
+        let last: Vec<f64> = (1..=spp)
+            .map(|i| s_last + period * i as f64 / spp as f64)
+            .collect();
+        let times = Times {
+            start: t0,
+            strobe,
+            transient: a.transient,
+            last,
+        };
+        let obs = runner.obs();
+        let names: Vec<&str> = study
+            .spec
+            .observables
+            .iter()
+            .map(|o| o.name.as_str())
+            .collect();
+        let pick = |field: &str, list: &[String]| -> Result<Vec<usize>> {
+            list.iter()
+                .enumerate()
+                .map(|(i, n)| {
+                    names.iter().position(|m| m == n).ok_or_else(|| {
+                        invalid(
+                            &path,
+                            format!("precision.{field}[{i}]"),
+                            format!("'{n}' is not an observable of this study"),
+                        )
+                    })
+                })
+                .collect()
+        };
+        let mut position = pick("position", &spec.position)?;
+        if position.is_empty() {
+            position = (0..obs.len())
+                .filter(|&i| obs[i].unit == "m" || obs[i].unit == "rad")
+                .collect();
+            if position.is_empty() {
+                position = (0..obs.len()).collect();
+            }
+        }
+        let units: Vec<&str> = position.iter().map(|&i| obs[i].unit.as_str()).collect();
+        if units.iter().any(|u| *u != units[0]) {
+            return Err(invalid(
+                &path,
+                "precision.position",
+                format!(
+                    "the position observables mix units ({}): their largest error has no one unit",
+                    units.join(", ")
+                ),
+            ));
+        }
+        let mut force = pick("force", &spec.force)?;
+        if spec.force.is_empty() {
+            force = (0..obs.len()).filter(|&i| obs[i].unit == "N").collect();
+        }
+        let kept = a.periods - a.transient;
+        let restarts = spec.restarts.unwrap_or(kept.min(10)).min(kept);
+        // Restart periods spread evenly over the kept window: from strobe k to k + 1.
+        let restart_at: Vec<usize> = (0..restarts)
+            .map(|j| a.transient + (j * kept) / restarts.max(1))
+            .collect();
+        let method_of = |field: &str, name: &str, setting: f64, atol_scale: f64| {
+            if !(setting.is_finite() && setting > 0.0) {
+                return Err(invalid(
+                    &path,
+                    field,
+                    format!("{setting}: a step or tolerance must be positive and finite"),
+                ));
+            }
+            // Rounded to 12 digits so that 1e-4 * 1e-3 reads 1e-7, not 1.0000000000000001e-7.
+            let atol = format!("{:.12e}", setting * atol_scale)
+                .parse()
+                .unwrap_or(setting * atol_scale);
+            Method::of_family(name, setting, atol).ok_or_else(|| {
+                invalid(
+                    &path,
+                    field,
+                    format!(
+                        "unknown integrator '{name}' (known: {})",
+                        Method::FAMILIES.join(", ")
+                    ),
+                )
+            })
+        };
+        let atol_scale = spec.atol_scale.unwrap_or(1e-3);
+        if !(atol_scale.is_finite() && atol_scale > 0.0) {
+            return Err(invalid(&path, "precision.atol_scale", "must be positive"));
+        }
+        let min_time = spec.min_time.unwrap_or(0.2);
+        if !(min_time.is_finite() && min_time >= 0.0) {
+            return Err(invalid(&path, "precision.min_time", "must not be negative"));
+        }
+        let best_adaptive = if Method::FAMILIES.contains(&"dop853") {
+            "dop853"
+        } else {
+            "dopri5"
+        };
+        let (rname, rset) = spec
+            .reference
+            .as_ref()
+            .map(|m| (m.integrator.clone(), m.setting))
+            .unwrap_or((best_adaptive.to_string(), 1e-12));
+        let reference = method_of("precision.reference", &rname, rset, atol_scale)?;
+        // The default check is a second method at the same tolerance; when the reference is
+        // that method, the same method at a tenfold looser tolerance.
+        let (cname, cset) = spec
+            .check
+            .as_ref()
+            .map(|m| (m.integrator.clone(), m.setting))
+            .unwrap_or(if reference.family() == "dopri5" {
+                ("dopri5".to_string(), rset * 10.0)
+            } else {
+                ("dopri5".to_string(), 1e-12)
+            });
+        let check = method_of("precision.check", &cname, cset, atol_scale)?;
+        if check == reference {
+            return Err(invalid(
+                &path,
+                "precision.check",
+                "must differ from the reference: it confirms it",
+            ));
+        }
+        let base_step = runner.own_method().fixed_step().unwrap_or(period / 1000.0);
+        let mut families = Vec::new();
+        if spec.methods.is_empty() {
+            for f in Method::FAMILIES {
+                if let Some(settings) = default_family(f, base_step) {
+                    let ms = settings
+                        .iter()
+                        .map(|s| method_of("precision.methods", f, *s, atol_scale))
+                        .collect::<Result<Vec<_>>>()?;
+                    families.push((f.to_string(), ms));
+                }
+            }
+        } else {
+            for (i, f) in spec.methods.iter().enumerate() {
+                if f.settings.is_empty() {
+                    return Err(invalid(
+                        &path,
+                        format!("precision.methods[{i}].settings"),
+                        "give at least one step or tolerance",
+                    ));
+                }
+                let ms = f
+                    .settings
+                    .iter()
+                    .enumerate()
+                    .map(|(j, s)| {
+                        method_of(
+                            &format!("precision.methods[{i}].settings[{j}]"),
+                            &f.integrator,
+                            *s,
+                            atol_scale,
+                        )
+                    })
+                    .collect::<Result<Vec<_>>>()?;
+                families.push((f.integrator.clone(), ms));
+            }
+        }
+        Ok(Precision {
+            study,
+            spec,
+            runner,
+            times,
+            position,
+            force,
+            restart_at,
+            reference,
+            check,
+            families,
+            min_time,
+        })
+    }
+
+    /// Number of tested runs.
+    pub fn total_runs(&self) -> usize {
+        self.families.iter().map(|f| f.1.len()).sum()
+    }
+
+    /// The reference: period by period, stopping exactly at every strobe time.
+    fn reference(&mut self) -> Result<Reference> {
+        let t = self.times.clone();
+        let method = self.reference;
+        let mut y = self.runner.y0.clone();
+        let mut onset: Option<Vec<f64>> = None;
+        let mut states = Vec::with_capacity(t.strobe.len());
+        let mut strobe = Vec::new();
+        let mut last = Vec::new();
+        let mut wall = Duration::ZERO;
+        let mut t_prev = t.start;
+        let n_periods = t.strobe.len() - 1;
+        for k in 0..t.strobe.len() {
+            let s_k = t.strobe[k];
+            let samples: &[f64] = if k == n_periods { &t.last } else { &[] };
+            if s_k > t_prev {
+                let mut cut: Vec<f64> = samples.to_vec();
+                cut.retain(|x| *x <= s_k);
+                let leg = self
+                    .runner
+                    .leg(method, t_prev, &y, onset.as_deref(), s_k, &cut);
+                wall += leg.stats.wall;
+                if let Some(f) = leg.failure {
+                    return Err(invalid(
+                        &self.study.path,
+                        "precision.reference",
+                        format!(
+                            "the reference run ({}) failed: {f}",
+                            self.reference.describe()
+                        ),
+                    ));
+                }
+                if k == n_periods {
+                    last = leg.samples;
+                }
+                y = leg.y;
+                onset = Some(leg.onset);
+            }
+            if k > t.transient {
+                let mut o = vec![0.0; self.runner.obs().len()];
+                self.observe_at(s_k, &y, onset.as_deref(), &mut o);
+                strobe.push(o);
+            }
+            states.push((y.clone(), onset.clone().unwrap_or_default()));
+            t_prev = s_k;
+        }
+        Ok(Reference {
+            strobe,
+            last,
+            states,
+            wall: wall.as_secs_f64(),
+        })
+    }
+
+    /// The observables at one state (a leg of zero length samples its start).
+    fn observe_at(&mut self, t: f64, y: &[f64], onset: Option<&[f64]>, out: &mut [f64]) {
+        let leg = self.runner.leg(self.reference, t, y, onset, t, &[t]);
+        if let Some(o) = leg.samples.first() {
+            out.copy_from_slice(o);
+        } else {
+            out.fill(f64::NAN);
+        }
+    }
+
+    /// One tested method: the continuous run (repeated while short) and the restarts.
+    fn measure(&mut self, method: Method, r: &Reference) -> RunRecord {
+        let (samples, strobe_idx, last_idx) = self.times.merged();
+        let (t0, t_end) = (self.times.start, self.times.end());
+        let y0 = self.runner.y0.clone();
+        let mut first: Option<Leg> = None;
+        let mut best = f64::INFINITY;
+        let mut total = 0.0;
+        let mut repeats = 0;
+        while repeats < 50 {
+            let leg = self.runner.leg(method, t0, &y0, None, t_end, &samples);
+            let w = leg.stats.wall.as_secs_f64();
+            best = best.min(w);
+            total += w;
+            repeats += 1;
+            let failed = leg.failure.is_some();
+            if first.is_none() {
+                first = Some(leg);
+            }
+            if failed || total >= self.min_time {
+                break;
+            }
+        }
+        let Some(leg) = first else {
+            unreachable!("at least one repeat runs")
+        };
+        let mut errors = Errors {
+            position: f64::NAN,
+            restart: f64::NAN,
+            force: f64::NAN,
+        };
+        if leg.failure.is_none() {
+            let strobe: Vec<Vec<f64>> =
+                strobe_idx.iter().map(|&j| leg.samples[j].clone()).collect();
+            errors.position = max_abs_diff(&strobe, &r.strobe, &self.position);
+            if !self.force.is_empty() {
+                let last: Vec<Vec<f64>> =
+                    last_idx.iter().map(|&j| leg.samples[j].clone()).collect();
+                let scale = max_abs_diff(
+                    &r.last,
+                    &vec![vec![0.0; self.runner.obs().len()]; r.last.len()],
+                    &self.force,
+                );
+                if scale > 0.0 {
+                    errors.force = max_abs_diff(&last, &r.last, &self.force) / scale;
+                }
+            }
+        }
+        let mut failure = leg.failure.clone();
+        let mut restart: f64 = 0.0;
+        for &k in &self.restart_at.clone() {
+            let (y, onset) = &r.states[k];
+            let onset = (!onset.is_empty()).then_some(onset.as_slice());
+            let (s0, s1) = (self.times.strobe[k], self.times.strobe[k + 1]);
+            let l = self.runner.leg(method, s0, y, onset, s1, &[s1]);
+            if let Some(f) = l.failure {
+                failure.get_or_insert(format!("restart at {s0} s: {f}"));
+                restart = f64::NAN;
+                break;
+            }
+            let target = &r.strobe[k - self.times.transient];
+            restart = restart.max(max_abs_diff(
+                &l.samples,
+                std::slice::from_ref(target),
+                &self.position,
+            ));
+        }
+        if !self.restart_at.is_empty() {
+            errors.restart = restart;
+        }
+        RunRecord {
+            family: method.family().to_string(),
+            setting: method.setting(),
+            integrator: method.describe(),
+            errors,
+            wall: best,
+            repeats,
+            stats: leg.stats,
+            failure,
+            warnings: leg.warnings,
+        }
+    }
+
+    /// Runs the reference, the check and every tested method.
+    pub fn execute(&mut self, progress: &mut dyn FnMut(Progress)) -> Result<Outcome> {
+        progress(Progress::Reference);
+        let r = self.reference()?;
+        progress(Progress::Check);
+        let check = self.measure(self.check, &r);
+        if let Some(f) = &check.failure {
+            return Err(invalid(
+                &self.study.path,
+                "precision.check",
+                format!("the check run ({}) failed: {f}", self.check.describe()),
+            ));
+        }
+        let mut runs = Vec::new();
+        let total = self.total_runs();
+        for (_, ms) in self.families.clone() {
+            for m in ms {
+                let what = m.describe();
+                progress(Progress::Run {
+                    done: runs.len(),
+                    total,
+                    what: &what,
+                });
+                runs.push(self.measure(m, &r));
+            }
+        }
+        let obs = &self.study.spec.observables;
+        let a = &self.study.spec.analysis;
+        Ok(Outcome {
+            name: self.study.spec.study.name.clone(),
+            reference: self.reference.describe(),
+            check: self.check.describe(),
+            floor: check.errors,
+            reference_wall: r.wall,
+            runs,
+            position: self.position.iter().map(|&i| obs[i].name.clone()).collect(),
+            force: self.force.iter().map(|&i| obs[i].name.clone()).collect(),
+            position_unit: self.runner.obs()[self.position[0]].unit.clone(),
+            restarts: self.restart_at.len(),
+            periods: a.periods,
+            kept: a.periods - a.transient,
+            period: self.runner.period,
+        })
+    }
+
+    /// The study this run was read from.
+    pub fn study(&self) -> &Loaded {
+        &self.study
+    }
+
+    /// The `[precision]` settings as given (defaults left unset).
+    pub fn spec(&self) -> &PrecisionSpec {
+        &self.spec
+    }
+}
+
+/// `x` in three significant digits, "-" when not measured, "failed" when NaN after a failure.
+fn sci(x: f64) -> String {
+    if x.is_nan() {
+        "-".into()
+    } else {
+        format!("{x:.2e}")
+    }
+}
+
+impl Outcome {
+    /// The markdown table: one row per run.
+    pub fn markdown(&self) -> String {
+        let mut s = format!(
+            "# Work-precision: {}\n\n\
+             Reference: {} (checked against {}; their distance is the floor below). \
+             {} periods of {:.6} s, {} kept; {} one-period restarts.\n\n\
+             * position: largest error of {} at the kept strobe times ({});\n\
+             * restart: largest one-period error from reference strobe states ({});\n\
+             * force: largest error of {} over the last period, relative to its peak.\n\n",
+            self.name,
+            self.reference,
+            self.check,
+            self.periods,
+            self.period,
+            self.kept,
+            self.restarts,
+            self.position.join(", "),
+            self.position_unit,
+            self.position_unit,
+            if self.force.is_empty() {
+                "no force observable".to_string()
+            } else {
+                self.force.join(", ")
+            },
+        );
+        s += "| integrator | setting | position error | restart error | force error | RHS evaluations | steps (rejected) | wall time (s) | RHS/s | note |\n";
+        s += "|---|---|---|---|---|---|---|---|---|---|\n";
+        s += &format!(
+            "| floor (check) | | {} | {} | {} | | | {:.3} (reference) | | |\n",
+            sci(self.floor.position),
+            sci(self.floor.restart),
+            sci(self.floor.force),
+            self.reference_wall
+        );
+        for r in &self.runs {
+            let note = match &r.failure {
+                Some(f) => format!("failed: {}", f.replace('|', "/").replace('\n', " ")),
+                None if !r.warnings.is_empty() => {
+                    format!("{} step-size warning(s)", r.warnings.len())
+                }
+                None => String::new(),
+            };
+            s += &format!(
+                "| {} | {:e} | {} | {} | {} | {} | {} ({}) | {:.4} | {:.3e} | {} |\n",
+                r.family,
+                r.setting,
+                sci(r.errors.position),
+                sci(r.errors.restart),
+                sci(r.errors.force),
+                r.stats.rhs_evals,
+                r.stats.accepted,
+                r.stats.rejected,
+                r.wall,
+                r.stats.rhs_evals as f64 / r.stats.wall.as_secs_f64().max(1e-12),
+                note
+            );
+        }
+        s
+    }
+
+    /// The work-precision figure: each error measure against wall time, log-log, one line per
+    /// integrator family, the floor as a horizontal line.
+    pub fn figures(&self, stem: &Path, formats: &[Format]) -> Result<Vec<PathBuf>> {
+        let mut families: Vec<&str> = Vec::new();
+        for r in &self.runs {
+            if !families.contains(&r.family.as_str()) {
+                families.push(&r.family);
+            }
+        }
+        let measures: [(&str, String, Measure); 3] = [
+            (
+                "Position at the strobe times",
+                format!("largest error ({})", self.position_unit),
+                |e| e.position,
+            ),
+            (
+                "One period from reference states",
+                format!("largest error ({})", self.position_unit),
+                |e| e.restart,
+            ),
+            (
+                "Contact force over the last period",
+                "largest error / peak force".into(),
+                |e| e.force,
+            ),
+        ];
+        let mut panels = Vec::new();
+        for (title, ylabel, get) in measures {
+            if get(&self.floor).is_nan() && self.runs.iter().all(|r| get(&r.errors).is_nan()) {
+                continue;
+            }
+            let mut series = Vec::new();
+            let (mut xlo, mut xhi) = (f64::INFINITY, 0.0f64);
+            for f in &families {
+                let pts: Vec<(f64, f64)> = self
+                    .runs
+                    .iter()
+                    .filter(|r| r.family == *f && r.failure.is_none())
+                    .map(|r| (r.wall, get(&r.errors)))
+                    .filter(|(x, y)| *x > 0.0 && *y > 0.0 && y.is_finite())
+                    .collect();
+                for (x, _) in &pts {
+                    xlo = xlo.min(*x);
+                    xhi = xhi.max(*x);
+                }
+                series.push(Series {
+                    label: f.to_string(),
+                    x: pts.iter().map(|p| p.0).collect(),
+                    y: pts.iter().map(|p| p.1).collect(),
+                });
+            }
+            let floor = get(&self.floor);
+            if floor > 0.0 && xhi > 0.0 {
+                series.push(Series {
+                    label: "reference floor".into(),
+                    x: vec![xlo, xhi],
+                    y: vec![floor, floor],
+                });
+            }
+            panels.push(Panel {
+                log_x: true,
+                log_y: true,
+                ..Panel::new(title, "wall time (s)", ylabel, series)
+            });
+        }
+        let mut out = Vec::new();
+        for f in formats {
+            out.push(figure(stem, *f, &panels, 2)?);
+        }
+        Ok(out)
+    }
+
+    /// Writes `dir/<name>.h5` (layout in the README, "HDF5 layout of a work-precision run").
+    pub fn write(&self, dir: &Path, study: &Loaded) -> Result<PathBuf> {
+        let file = dir.join(format!("{}.h5", self.name));
+        let n = self.runs.len();
+        let col = |f: &dyn Fn(&RunRecord) -> f64| self.runs.iter().map(f).collect::<Vec<f64>>();
+        write_atomically(dir, &self.name, env!("CARGO_PKG_VERSION"), |h| {
+            str_attr(h, "kind", "work-precision")?;
+            str_attr(h, "study_text", &study.text)?;
+            str_attr(h, "study_file", &study.path.display().to_string())?;
+            str_attr(h, "reference", &self.reference)?;
+            str_attr(h, "check", &self.check)?;
+            f64_attr(h, "reference_wall_time", self.reference_wall)?;
+            f64_attr(h, "period", self.period)?;
+            u64_attr(h, "periods", self.periods as u64)?;
+            u64_attr(h, "kept_periods", self.kept as u64)?;
+            u64_attr(h, "restarts", self.restarts as u64)?;
+            str_attr(h, "position_observables", &self.position.join(","))?;
+            str_attr(h, "force_observables", &self.force.join(","))?;
+            str_attr(h, "position_unit", &self.position_unit)?;
+            let g = h.create_group("floor")?;
+            for (k, v) in [
+                ("position", self.floor.position),
+                ("restart", self.floor.restart),
+                ("force", self.floor.force),
+            ] {
+                f64_attr(&g, k, v)?;
+            }
+            let g = h.create_group("runs")?;
+            let strs = |name: &str, v: Vec<String>, desc: &str| -> hdf5::Result<()> {
+                let data = v
+                    .iter()
+                    .map(|s| s.replace('\0', " ").parse::<VarLenUnicode>())
+                    .collect::<std::result::Result<Vec<_>, _>>()
+                    .map_err(|e| hdf5::Error::from(format!("{e:?}")))?;
+                let ds = g
+                    .new_dataset_builder()
+                    .with_data(&Array1::from(data))
+                    .create(name)?;
+                str_attr(&ds, "description", desc)
+            };
+            strs(
+                "family",
+                self.runs.iter().map(|r| r.family.clone()).collect(),
+                "integrator family",
+            )?;
+            strs(
+                "integrator",
+                self.runs.iter().map(|r| r.integrator.clone()).collect(),
+                "integrator and its settings",
+            )?;
+            strs(
+                "status",
+                self.runs
+                    .iter()
+                    .map(|r| r.failure.clone().unwrap_or_else(|| "ok".into()))
+                    .collect(),
+                "'ok' or the failure message",
+            )?;
+            strs(
+                "warnings",
+                self.runs.iter().map(|r| r.warnings.join("\n")).collect(),
+                "step-size warnings, one per line",
+            )?;
+            write1(
+                &g,
+                "setting",
+                &col(&|r| r.setting),
+                "s or 1",
+                "fixed step (s) of a fixed-step method, relative tolerance of an adaptive one",
+            )?;
+            write1(
+                &g,
+                "position_error",
+                &col(&|r| r.errors.position),
+                &self.position_unit,
+                "largest error of the position observables at the kept strobe times (NaN: failed)",
+            )?;
+            write1(
+                &g,
+                "restart_error",
+                &col(&|r| r.errors.restart),
+                &self.position_unit,
+                "largest one-period error from reference strobe states (NaN: failed or none)",
+            )?;
+            write1(
+                &g,
+                "force_error",
+                &col(&|r| r.errors.force),
+                "1",
+                "largest error of the force observables over the last period / their peak (NaN: none)",
+            )?;
+            write1(
+                &g,
+                "wall_time",
+                &col(&|r| r.wall),
+                "s",
+                "fastest repeat of the continuous run",
+            )?;
+            write1(
+                &g,
+                "rhs_evals",
+                &col(&|r| r.stats.rhs_evals as f64),
+                "1",
+                "right-hand-side evaluations of the continuous run (Jacobian columns included)",
+            )?;
+            write1(
+                &g,
+                "steps",
+                &col(&|r| r.stats.accepted as f64),
+                "1",
+                "accepted steps",
+            )?;
+            write1(
+                &g,
+                "rejected",
+                &col(&|r| r.stats.rejected as f64),
+                "1",
+                "steps rejected by the error control",
+            )?;
+            write1(
+                &g,
+                "repeats",
+                &col(&|r| r.repeats as f64),
+                "1",
+                "repeats of the continuous run",
+            )?;
+            u64_attr(&g, "count", n as u64)?;
+            Ok(())
+        })
+        .map_err(|e| match e {
+            Error::Hdf5 { message, .. } => Error::Hdf5 {
+                file: file.clone(),
+                message,
+            },
+            other => other,
+        })
+    }
+}
+
+/// The synthesised analysis study of a scene file: every body's position, every clearance
+/// joint's contact force, the scene's own span in whole periods.
+pub fn scene_study(scene: &Path) -> Result<Loaded> {
+    let file = jointplay_solver::scene::SceneSpec::load(scene)?;
+    let (model, _) = Model::compile(&file)?;
+    let Some(period) = model.settings.period else {
+        return Err(invalid(
+            scene,
+            "drives",
+            "a work-precision run strobes once per drive period: the scene has no periodic drive (write an analysis study with analysis.period)",
+        ));
+    };
+    let span = model.settings.end_time - model.settings.start_time;
+    let periods = ((span / period) - 1e-9).ceil().max(1.0) as usize;
+    let clean = |s: &str| -> String {
+        s.chars()
+            .map(|c| {
+                if c.is_ascii_alphanumeric() || "-_.".contains(c) {
+                    c
+                } else {
+                    '_'
+                }
+            })
+            .collect()
+    };
+    let mut text = format!(
+        "[study]\nname = \"{}-precision\"\nscene = {:?}\n\n[analysis]\nperiods = {periods}\nsamples_per_period = 400\n\n",
+        clean(&model.name),
+        scene
+            .file_name()
+            .map(|f| f.to_string_lossy().to_string())
+            .unwrap_or_default(),
+    );
+    for b in &model.bodies {
+        for c in ["x", "y", "z"] {
+            text += &format!(
+                "[[observables]]\nname = \"{}_{c}\"\npath = \"bodies.{}.position.{c}\"\n\n",
+                clean(&b.name),
+                b.name
+            );
+        }
+    }
+    for c in &model.clearances {
+        text += &format!(
+            "[[observables]]\nname = \"{}_force\"\npath = \"joints.{}.contact_force.magnitude\"\n\n",
+            clean(&c.name),
+            c.name
+        );
+    }
+    Loaded::parse(&text, scene)
+}
