@@ -71,7 +71,8 @@ enum Command {
         #[arg(long)]
         max_jobs: Option<usize>,
     },
-    /// Redraw every figure of a nonlinear-analysis file without simulating again.
+    /// Redraw every figure of a nonlinear-analysis or work-precision file without simulating
+    /// again.
     Plot {
         /// File written by `jointplay run STUDY` for an analysis study.
         file: PathBuf,
@@ -582,14 +583,21 @@ fn plot_cmd(file: &Path, format: &str, out: Option<&Path>) -> Result<()> {
     let dir = out
         .map(Path::to_path_buf)
         .unwrap_or_else(|| file.parent().unwrap_or(Path::new(".")).to_path_buf());
+    if precision::is_precision_file(file) {
+        let o = precision::Outcome::read(file)?;
+        for f in o.figures(&dir.join(&o.name), &formats(format)?)? {
+            println!("wrote        {}", f.display());
+        }
+        return Ok(());
+    }
     for f in render(file, &dir, &formats(format)?)? {
         println!("wrote        {}", f.display());
     }
     Ok(())
 }
 
-/// Runs an analysis study (a single N-period run or a sweep) with a progress bar showing the
-/// values done and the time left.
+/// Work-precision of a scene or an analysis study: the table on standard output and in
+/// DIR/<name>.md, the numbers in DIR/<name>.h5, the figure drawn from that file.
 fn precision_cmd(path: &Path, out: &Path, plots: bool, quiet: bool) -> Result<()> {
     let text =
         std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
@@ -626,7 +634,8 @@ fn precision_cmd(path: &Path, out: &Path, plots: bool, quiet: bool) -> Result<()
     std::fs::write(&md, o.markdown()).with_context(|| format!("writing {}", md.display()))?;
     let mut figs = Vec::new();
     if plots {
-        figs = o.figures(&out.join(&o.name), &[Format::Png, Format::Svg])?;
+        figs = precision::Outcome::read(&file)?
+            .figures(&out.join(&o.name), &[Format::Png, Format::Svg])?;
     }
     print!("{}", o.markdown());
     println!();
@@ -639,6 +648,8 @@ fn precision_cmd(path: &Path, out: &Path, plots: bool, quiet: bool) -> Result<()
     Ok(())
 }
 
+/// Runs an analysis study (a single N-period run or a sweep) with a progress bar showing the
+/// values done and the time left.
 fn run_analysis(path: &Path, out: &Path, plots: bool, quiet: bool, opts: Options) -> Result<()> {
     let st = Loaded::load(path)?;
     if st.spec.sweep.is_none() && (opts.resume || opts.max_jobs.is_some()) {

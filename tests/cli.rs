@@ -1114,6 +1114,20 @@ fn work_precision_measures_rk4_at_order_four_and_writes_its_table_figure_and_fil
         .unwrap();
     let smallest = restart.iter().cloned().fold(f64::INFINITY, f64::min);
     assert!(floor < 0.01 * smallest, "floor {floor} vs {smallest}");
+    drop(f);
+    // `plot` redraws the figure from the file alone, identical to the one `precision` drew.
+    let again = dir.path().join("again");
+    let out = bin()
+        .args(["plot", "--format", "svg", "--out"])
+        .arg(&again)
+        .arg(&h5)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{:?}", text(&out));
+    assert_eq!(
+        std::fs::read(dir.path().join("wp.svg")).unwrap(),
+        std::fs::read(again.join("wp.svg")).unwrap()
+    );
 }
 
 #[test]

@@ -39,7 +39,7 @@ use serde::Deserialize;
 use hdf5::types::VarLenUnicode;
 use ndarray::Array1;
 
-use crate::h5::{f64_attr, str_attr, u64_attr, write_atomically, write1};
+use crate::h5::{f64_attr, h5err, str_attr, u64_attr, write_atomically, write1};
 use crate::nonlinear::{Loaded, MechFlow, SysFlow, Target};
 use crate::observe::Observable;
 use crate::plot::{Format, Panel, Series, figure};
@@ -925,6 +925,12 @@ impl Outcome {
                 ..Panel::new(title, "wall time (s)", ylabel, series)
             });
         }
+        if let Some(dir) = stem.parent() {
+            std::fs::create_dir_all(dir).map_err(|e| Error::Io {
+                file: dir.to_path_buf(),
+                message: format!("cannot create output directory: {e}"),
+            })?;
+        }
         let mut out = Vec::new();
         for f in formats {
             out.push(figure(stem, *f, &panels, 2)?);
@@ -1067,6 +1073,131 @@ impl Outcome {
                 message,
             },
             other => other,
+        })
+    }
+}
+
+/// True when `path` is a file written by `jointplay precision`.
+pub fn is_precision_file(path: &Path) -> bool {
+    hdf5::File::open(path)
+        .ok()
+        .and_then(|f| f.attr("kind").ok()?.read_scalar::<VarLenUnicode>().ok())
+        .is_some_and(|k| k.as_str() == "work-precision")
+}
+
+impl Outcome {
+    /// Reads back a file written by [`Outcome::write`] (what `plot` redraws from).
+    pub fn read(path: &Path) -> Result<Outcome> {
+        let e = h5err(path);
+        let f = hdf5::File::open(path).map_err(&e)?;
+        let s = |name: &str| -> Result<String> {
+            Ok(f.attr(name)
+                .and_then(|a| a.read_scalar::<VarLenUnicode>())
+                .map_err(&e)?
+                .as_str()
+                .to_string())
+        };
+        let x = |name: &str| -> Result<f64> {
+            f.attr(name)
+                .and_then(|a| a.read_scalar::<f64>())
+                .map_err(&e)
+        };
+        let n = |name: &str| -> Result<usize> {
+            Ok(f.attr(name)
+                .and_then(|a| a.read_scalar::<u64>())
+                .map_err(&e)? as usize)
+        };
+        let list = |v: String| -> Vec<String> {
+            v.split(',')
+                .filter(|p| !p.is_empty())
+                .map(str::to_string)
+                .collect()
+        };
+        let floor = f.group("floor").map_err(&e)?;
+        let fl = |name: &str| -> Result<f64> {
+            floor
+                .attr(name)
+                .and_then(|a| a.read_scalar::<f64>())
+                .map_err(&e)
+        };
+        let g = f.group("runs").map_err(&e)?;
+        let col = |name: &str| -> Result<Vec<f64>> {
+            Ok(g.dataset(name)
+                .and_then(|d| d.read_1d::<f64>())
+                .map_err(&e)?
+                .to_vec())
+        };
+        let strs = |name: &str| -> Result<Vec<String>> {
+            Ok(g.dataset(name)
+                .and_then(|d| d.read_1d::<VarLenUnicode>())
+                .map_err(&e)?
+                .iter()
+                .map(|v| v.as_str().to_string())
+                .collect())
+        };
+        let (family, integrator, status, warnings) = (
+            strs("family")?,
+            strs("integrator")?,
+            strs("status")?,
+            strs("warnings")?,
+        );
+        let (setting, pe, re, fe) = (
+            col("setting")?,
+            col("position_error")?,
+            col("restart_error")?,
+            col("force_error")?,
+        );
+        let (wall, rhs, steps, rejected, repeats) = (
+            col("wall_time")?,
+            col("rhs_evals")?,
+            col("steps")?,
+            col("rejected")?,
+            col("repeats")?,
+        );
+        let runs = (0..family.len())
+            .map(|i| RunRecord {
+                family: family[i].clone(),
+                setting: setting[i],
+                integrator: integrator[i].clone(),
+                errors: Errors {
+                    position: pe[i],
+                    restart: re[i],
+                    force: fe[i],
+                },
+                wall: wall[i],
+                repeats: repeats[i] as usize,
+                stats: Stats {
+                    accepted: steps[i] as u64,
+                    rejected: rejected[i] as u64,
+                    rhs_evals: rhs[i] as u64,
+                    wall: Duration::from_secs_f64(wall[i].max(0.0)),
+                    ..Stats::default()
+                },
+                failure: (status[i] != "ok").then(|| status[i].clone()),
+                warnings: warnings[i].lines().map(str::to_string).collect(),
+            })
+            .collect();
+        Ok(Outcome {
+            name: path
+                .file_stem()
+                .map(|s| s.to_string_lossy().to_string())
+                .unwrap_or_default(),
+            reference: s("reference")?,
+            check: s("check")?,
+            floor: Errors {
+                position: fl("position")?,
+                restart: fl("restart")?,
+                force: fl("force")?,
+            },
+            reference_wall: x("reference_wall_time")?,
+            runs,
+            position: list(s("position_observables")?),
+            force: list(s("force_observables")?),
+            position_unit: s("position_unit")?,
+            restarts: n("restarts")?,
+            periods: n("periods")?,
+            kept: n("kept_periods")?,
+            period: x("period")?,
         })
     }
 }
