@@ -1171,7 +1171,6 @@ impl Outcome {
                     rejected: rejected[i] as u64,
                     rhs_evals: rhs[i] as u64,
                     wall: Duration::from_secs_f64(wall[i].max(0.0)),
-                    ..Stats::default()
                 },
                 failure: (status[i] != "ok").then(|| status[i].clone()),
                 warnings: warnings[i].lines().map(str::to_string).collect(),
