@@ -118,6 +118,26 @@ impl Method {
         }
     }
 
+    /// The stepper of this method.
+    fn scheme(&self) -> Scheme {
+        match self {
+            Method::Rk4 { .. } => Scheme::Rk4,
+            Method::Dopri5 { .. } | Method::Dopri5Fixed { .. } => Scheme::Dopri5,
+        }
+    }
+
+    /// (rtol, atol, max_step) of an adaptive method; None for fixed-step methods.
+    fn tolerances(&self) -> Option<(f64, f64, f64)> {
+        match *self {
+            Method::Rk4 { .. } | Method::Dopri5Fixed { .. } => None,
+            Method::Dopri5 {
+                rtol,
+                atol,
+                max_step,
+            } => Some((rtol, atol, max_step)),
+        }
+    }
+
     /// The fixed step (s) of a fixed-step method; None for adaptive methods.
     pub fn fixed_step(&self) -> Option<f64> {
         match *self {
@@ -243,21 +263,124 @@ const D7: f64 = 69997945.0 / 29380423.0;
 
 /// Scratch memory of one integrator, allocated once per run.
 struct Work {
-    k: [Vec<f64>; 7],
+    /// Stage vectors (their number and meaning depend on the scheme); `k[0]` is f(t, y).
+    k: Vec<Vec<f64>>,
     tmp: Vec<f64>,
     y_new: Vec<f64>,
-    /// Dense-output coefficients of the last step (5 vectors for DOPRI5, 4 for Hermite).
-    cont: [Vec<f64>; 5],
+    /// Dense-output coefficients of the last step (5 vectors for DOPRI5; none for the schemes
+    /// that interpolate from their stages directly).
+    cont: Vec<Vec<f64>>,
 }
 
 impl Work {
-    fn new(n: usize) -> Self {
-        let v = || vec![0.0; n];
+    fn new(n: usize, scheme: Scheme) -> Self {
+        let v = |count: usize| vec![vec![0.0; n]; count];
         Work {
-            k: [v(), v(), v(), v(), v(), v(), v()],
-            tmp: v(),
-            y_new: v(),
-            cont: [v(), v(), v(), v(), v()],
+            k: v(scheme.stages()),
+            tmp: vec![0.0; n],
+            y_new: vec![0.0; n],
+            cont: v(scheme.dense_len()),
+        }
+    }
+}
+
+/// The stepper behind a [`Method`]: its stages, error estimate and dense output.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Scheme {
+    Rk4,
+    Dopri5,
+}
+
+impl Scheme {
+    /// Stage vectors in [`Work::k`].
+    fn stages(self) -> usize {
+        match self {
+            Scheme::Rk4 => 5,
+            Scheme::Dopri5 => 7,
+        }
+    }
+
+    /// Dense-output coefficient vectors in [`Work::cont`].
+    fn dense_len(self) -> usize {
+        match self {
+            Scheme::Rk4 => 0,
+            Scheme::Dopri5 => 5,
+        }
+    }
+
+    /// The stage holding f(t + h, y_new) after a step: the next step's first stage (FSAL).
+    fn fsal(self) -> usize {
+        match self {
+            Scheme::Rk4 => 4,
+            Scheme::Dopri5 => 6,
+        }
+    }
+
+    /// The exponent q of the step-size control: the local error estimate is O(h^q), so a step
+    /// scaled by err^(-1/q) would meet the tolerance exactly.
+    fn control_order(self) -> f64 {
+        match self {
+            Scheme::Rk4 => unreachable!("RK4 runs at a fixed step"),
+            Scheme::Dopri5 => 5.0,
+        }
+    }
+
+    /// One step of size `h` from (t, y) with f(t, y) in `w.k[0]`: the new state in `w.y_new`,
+    /// f(t + h, y_new) in `w.k[self.fsal()]` (the last right-hand side evaluated, so a system's
+    /// own scratch memory holds the evaluation at the new state). `retry` is true when the
+    /// previous attempt from the same (t, y) was rejected.
+    #[allow(clippy::too_many_arguments)]
+    fn step<S: OdeSystem>(
+        self,
+        sys: &mut S,
+        t: f64,
+        y: &[f64],
+        h: f64,
+        w: &mut Work,
+        stats: &mut Stats,
+        _retry: bool,
+    ) -> Result<()> {
+        match self {
+            Scheme::Rk4 => {
+                rk4_step(sys, t, y, h, w);
+                stats.rhs_evals += 4;
+            }
+            Scheme::Dopri5 => {
+                dopri5_step(sys, t, y, h, w);
+                stats.rhs_evals += 6;
+            }
+        }
+        Ok(())
+    }
+
+    /// The scaled error norm of the step just taken (adaptive schemes).
+    fn error_norm(self, w: &Work, y: &[f64], _h: f64, rtol: f64, atol: f64) -> f64 {
+        match self {
+            Scheme::Rk4 | Scheme::Dopri5 => error_norm(&w.tmp, y, &w.y_new, rtol, atol),
+        }
+    }
+
+    /// Prepares the continuous extension of the step just taken from (t, y).
+    fn dense<S: OdeSystem>(
+        self,
+        _sys: &mut S,
+        _t: f64,
+        y: &[f64],
+        h: f64,
+        w: &mut Work,
+        _stats: &mut Stats,
+    ) {
+        match self {
+            Scheme::Rk4 => {}
+            Scheme::Dopri5 => dopri5_dense(y, h, w),
+        }
+    }
+
+    /// The state at t + theta h on the continuous extension of the step from y0.
+    fn eval(self, y0: &[f64], w: &Work, h: f64, theta: f64, out: &mut [f64]) {
+        match self {
+            Scheme::Rk4 => hermite_eval(y0, w, 4, h, theta, out),
+            Scheme::Dopri5 => dopri5_eval(w, theta, out),
         }
     }
 }
@@ -277,7 +400,9 @@ fn axpy_stage(out: &mut [f64], y: &[f64], h: f64, terms: &[(f64, &[f64])]) {
 /// and `w.k[4]` = f(t + h, y_new) (the next step's first stage, used by the dense output).
 fn rk4_step<S: OdeSystem>(sys: &mut S, t: f64, y: &[f64], h: f64, w: &mut Work) {
     let n = y.len();
-    let [k1, k2, k3, k4, k5, ..] = &mut w.k;
+    let [k1, k2, k3, k4, k5] = &mut w.k[..] else {
+        unreachable!("RK4 has five stage vectors")
+    };
     for i in 0..n {
         w.tmp[i] = y[i] + 0.5 * h * k1[i];
     }
@@ -299,7 +424,9 @@ fn rk4_step<S: OdeSystem>(sys: &mut S, t: f64, y: &[f64], h: f64, w: &mut Work) 
 /// One DOPRI5 step with k1 = f(t, y) in `w.k[0]`; 5th-order result in `w.y_new`, f(t+h, y_new)
 /// in `w.k[6]`, and the scaled error estimate in `w.tmp`.
 fn dopri5_step<S: OdeSystem>(sys: &mut S, t: f64, y: &[f64], h: f64, w: &mut Work) {
-    let [k1, k2, k3, k4, k5, k6, k7] = &mut w.k;
+    let [k1, k2, k3, k4, k5, k6, k7] = &mut w.k[..] else {
+        unreachable!("DOPRI5 has seven stage vectors")
+    };
     axpy_stage(&mut w.tmp, y, h, &[(A21, k1)]);
     sys.rhs(t + C2 * h, &w.tmp, k2);
     axpy_stage(&mut w.tmp, y, h, &[(A31, k1), (A32, k2)]);
@@ -335,8 +462,12 @@ fn dopri5_step<S: OdeSystem>(sys: &mut S, t: f64, y: &[f64], h: f64, w: &mut Wor
 
 /// Stores the DOPRI5 continuous extension of the step just taken.
 fn dopri5_dense(y: &[f64], h: f64, w: &mut Work) {
-    let [k1, _, k3, k4, k5, k6, k7] = &w.k;
-    let [c0, c1, c2, c3, c4] = &mut w.cont;
+    let [k1, _, k3, k4, k5, k6, k7] = &w.k[..] else {
+        unreachable!("DOPRI5 has seven stage vectors")
+    };
+    let [c0, c1, c2, c3, c4] = &mut w.cont[..] else {
+        unreachable!("DOPRI5 has five dense-output vectors")
+    };
     for i in 0..y.len() {
         let ydiff = w.y_new[i] - y[i];
         let bspl = h * k1[i] - ydiff;
@@ -350,14 +481,15 @@ fn dopri5_dense(y: &[f64], h: f64, w: &mut Work) {
 
 fn dopri5_eval(w: &Work, theta: f64, out: &mut [f64]) {
     let th1 = 1.0 - theta;
-    let [c0, c1, c2, c3, c4] = &w.cont;
+    let [c0, c1, c2, c3, c4] = &w.cont[..] else {
+        unreachable!("DOPRI5 has five dense-output vectors")
+    };
     for i in 0..out.len() {
         out[i] = c0[i] + theta * (c1[i] + th1 * (c2[i] + theta * (c3[i] + th1 * c4[i])));
     }
 }
 
-/// Cubic Hermite interpolation on [t, t+h] from y0, f0 (k[0]) and y1, f1 (k[4] for RK4,
-/// k[6] for DOPRI5 at a fixed step).
+/// Cubic Hermite interpolation on [t, t+h] from y0, f0 (k[0]) and y1, f1 (k[f1]).
 fn hermite_eval(y0: &[f64], w: &Work, f1: usize, h: f64, theta: f64, out: &mut [f64]) {
     let f0 = &w.k[0];
     let f1 = &w.k[f1];
@@ -381,13 +513,15 @@ fn error_norm(err: &[f64], y0: &[f64], y1: &[f64], rtol: f64, atol: f64) -> f64 
     (s / err.len().max(1) as f64).sqrt()
 }
 
-/// Initial step for an adaptive method (Hairer, Norsett & Wanner, section II.4, HINIT).
+/// Initial step for an adaptive method whose local error estimate is O(h^q) (Hairer, Norsett &
+/// Wanner, section II.4, HINIT; q = 5 for DOPRI5).
 fn initial_step<S: OdeSystem>(
     sys: &mut S,
     t: f64,
     y: &[f64],
     f0: &[f64],
     (rtol, atol, max_step): (f64, f64, f64),
+    q: f64,
     stats: &mut Stats,
 ) -> f64 {
     let n = y.len();
@@ -411,7 +545,7 @@ fn initial_step<S: OdeSystem>(
     let h1 = if d1.max(d2) <= 1e-15 {
         (h0 * 1e-3).max(1e-6)
     } else {
-        (0.01 / d1.max(d2)).powf(1.0 / 5.0)
+        (0.01 / d1.max(d2)).powf(1.0 / q)
     };
     (100.0 * h0).min(h1).min(max_step)
 }
@@ -428,7 +562,7 @@ pub struct Step<'a> {
     /// States at both ends.
     pub y0: &'a [f64],
     pub y1: &'a [f64],
-    rk4: bool,
+    scheme: Scheme,
     w: &'a Work,
 }
 
@@ -440,10 +574,8 @@ impl Step<'_> {
         let theta = ((t - self.t0) / h).clamp(0.0, 1.0);
         if theta == 1.0 {
             out.copy_from_slice(self.y1);
-        } else if self.rk4 {
-            hermite_eval(self.y0, self.w, 4, h, theta, out);
         } else {
-            dopri5_eval(self.w, theta, out);
+            self.scheme.eval(self.y0, self.w, h, theta, out);
         }
     }
 }
@@ -524,7 +656,8 @@ fn run_steps<S: OdeSystem>(
         n,
         "state length does not match the system dimension"
     );
-    let mut w = Work::new(n);
+    let scheme = method.scheme();
+    let mut w = Work::new(n, scheme);
     let mut ys = vec![0.0; n];
     let mut t = t0;
     let mut next_sample = 0usize;
@@ -541,14 +674,14 @@ fn run_steps<S: OdeSystem>(
     sys.rhs(t, y, &mut w.k[0]);
     stats.rhs_evals += 1;
 
-    let (mut h, adaptive, rtol, atol, max_step) = match method {
-        Method::Rk4 { step } | Method::Dopri5Fixed { step } => (step, false, 0.0, 0.0, step),
-        Method::Dopri5 {
-            rtol,
-            atol,
-            max_step,
-        } => {
-            let h = initial_step(sys, t, y, &w.k[0], (rtol, atol, max_step), stats);
+    let (mut h, adaptive, rtol, atol, max_step) = match method.tolerances() {
+        None => {
+            let step = method.fixed_step().unwrap_or(f64::NAN);
+            (step, false, 0.0, 0.0, step)
+        }
+        Some((rtol, atol, max_step)) => {
+            let q = scheme.control_order();
+            let h = initial_step(sys, t, y, &w.k[0], (rtol, atol, max_step), q, stats);
             (h, true, rtol, atol, max_step)
         }
     };
@@ -558,7 +691,6 @@ fn run_steps<S: OdeSystem>(
             message: format!("the step size must be positive and finite, got {h}"),
         });
     }
-    let is_rk4 = matches!(method, Method::Rk4 { .. });
     let mut err_old: f64 = 1e-4;
     let mut last_rejected = false;
     let span = t_end - t0;
@@ -576,19 +708,14 @@ fn run_steps<S: OdeSystem>(
         } else {
             (t_next_grid - t, t_next_grid)
         };
-        if is_rk4 {
-            rk4_step(sys, t, y, h_try, &mut w);
-            stats.rhs_evals += 4;
-        } else {
-            dopri5_step(sys, t, y, h_try, &mut w);
-            stats.rhs_evals += 6;
-        }
+        scheme.step(sys, t, y, h_try, &mut w, stats, last_rejected)?;
         if adaptive {
-            let err = error_norm(&w.tmp, y, &w.y_new, rtol, atol);
+            let err = scheme.error_norm(&w, y, h_try, rtol, atol);
+            let q = scheme.control_order();
             if !err.is_finite() || err > 1.0 {
                 stats.rejected += 1;
                 let fac = if err.is_finite() {
-                    (0.9 * err.powf(-0.2)).clamp(0.2, 1.0)
+                    (0.9 * err.powf(-1.0 / q)).clamp(0.2, 1.0)
                 } else {
                     0.2
                 };
@@ -604,9 +731,10 @@ fn run_steps<S: OdeSystem>(
                 }
                 continue;
             }
-            // PI controller (Hairer's DOPRI5: beta = 0.04), step growth limited to 10x.
+            // PI controller (Hairer's DOPRI5: beta = 0.04, exponents 0.7/q and 0.4/q), step
+            // growth limited to 10x.
             let e = err.max(1e-10);
-            let mut fac = 0.9 * e.powf(-0.7 / 5.0) * err_old.powf(0.4 / 5.0);
+            let mut fac = 0.9 * e.powf(-0.7 / q) * err_old.powf(0.4 / q);
             fac = fac.clamp(0.2, if last_rejected { 1.0 } else { 10.0 });
             err_old = e;
             last_rejected = false;
@@ -629,8 +757,8 @@ fn run_steps<S: OdeSystem>(
             });
         }
         let has_dense_sample = next_sample < samples.len() && samples[next_sample] < t_new;
-        if (has_dense_sample || on_step.is_some()) && !is_rk4 {
-            dopri5_dense(y, h_try, &mut w);
+        if has_dense_sample || on_step.is_some() {
+            scheme.dense(sys, t, y, h_try, &mut w, stats);
         }
         // Emit the samples inside (t, t_new].
         while next_sample < samples.len() && samples[next_sample] <= t_new {
@@ -639,11 +767,7 @@ fn run_steps<S: OdeSystem>(
             let flow = if ts == t_new {
                 observer(sys, ts, &w.y_new)
             } else {
-                if is_rk4 {
-                    hermite_eval(y, &w, 4, h_try, theta, &mut ys);
-                } else {
-                    dopri5_eval(&w, theta, &mut ys);
-                }
+                scheme.eval(y, &w, h_try, theta, &mut ys);
                 observer(sys, ts, &ys)
             };
             next_sample += 1;
@@ -658,7 +782,7 @@ fn run_steps<S: OdeSystem>(
                 t1: t_new,
                 y0: y,
                 y1: &w.y_new,
-                rk4: is_rk4,
+                scheme,
                 w: &w,
             };
             if f(sys, &step) == Flow::Stop {
@@ -670,8 +794,7 @@ fn run_steps<S: OdeSystem>(
         t = t_new;
         // The last stage is f(t_new, y_new): first stage of the next step (FSAL), unless the
         // system's history changed at the step end.
-        let last = if is_rk4 { 4 } else { 6 };
-        w.k.swap(0, last);
+        w.k.swap(0, scheme.fsal());
         if history_changed {
             sys.rhs(t, y, &mut w.k[0]);
             stats.rhs_evals += 1;
