@@ -9,6 +9,25 @@
 //!   as-last stage reuse, a PI step-size controller and Hairer's order-4 continuous extension
 //!   (Hairer, Norsett & Wanner, *Solving ODEs I*, 2nd ed., section II.6, code DOPRI5).
 //!   [`Method::Dopri5Fixed`] takes the same tableau at a fixed step (for convergence studies).
+//!   6 right-hand-side evaluations per step.
+//! * [`Method::Dop853`]: Hairer's DOP853 (Hairer, Norsett & Wanner, *Solving ODEs I*, 2nd ed.,
+//!   section II.10, code DOP853), the explicit Runge-Kutta pair of order 8 of Prince & Dormand
+//!   (J. Comput. Appl. Math. 7:67-75, 1981) with Hairer's error estimate built from embedded
+//!   solutions of orders 5 and 3, and an order-7 continuous extension. 12 evaluations per step
+//!   (the 13th stage, f at the new state, is the next step's first), plus 3 in a step whose
+//!   continuous extension is needed (a sample inside it, or a step observer). At tight
+//!   tolerances it takes several times fewer evaluations than DOPRI5 (4.4x on the harmonic
+//!   oscillator at rtol 1e-10). Coefficients generated from SciPy's `dop853_coefficients.py`
+//!   by `scripts/dop853_coefficients.py`.
+//!
+//! The adaptive methods share one step-size controller. The error norm is the root mean square
+//! of the error estimate scaled per component by `atol + rtol * max(|y_old|, |y_new|)` (DOP853
+//! combines its two estimates in that scaling as Hairer's code does); a step is accepted when the
+//! norm is at most 1 and the next step follows the PI rule `h * 0.9 err^(-0.7/q) err_prev^(0.4/q)`
+//! (Hairer's DOPRI5 with beta = 0.04), at most 10 times larger (not larger right after a
+//! rejection); a rejected step is retried with `h * 0.9 err^(-1/q)`, at least 5 times smaller.
+//! Here the estimate is O(h^q): q = 5 for DOPRI5, 8 for DOP853. The initial step follows Hairer's
+//! HINIT with the same q.
 //!
 //! [`integrate`] advances from `t0` to `t_end`, and hands the observer the state at each requested
 //! sample time, evaluated on the dense output: the step sequence does not depend on the sampling.
@@ -18,6 +37,8 @@
 use std::time::{Duration, Instant};
 
 use crate::error::{Error, Result};
+
+mod dop853;
 
 /// A first-order system `y' = f(t, y)`.
 pub trait OdeSystem {
@@ -60,6 +81,9 @@ pub enum Method {
     Dopri5 { rtol: f64, atol: f64, max_step: f64 },
     /// Dormand-Prince 5th-order solution at a fixed step (no error control).
     Dopri5Fixed { step: f64 },
+    /// Hairer's DOP853: explicit Runge-Kutta 8(5,3), adaptive, with an order-7 dense output.
+    /// Tolerances and step bound as for [`Method::Dopri5`].
+    Dop853 { rtol: f64, atol: f64, max_step: f64 },
 }
 
 impl Method {
@@ -79,6 +103,17 @@ impl Method {
                 s
             }
             Method::Dopri5Fixed { step } => format!("dopri5 (fixed step {step:e} s)"),
+            Method::Dop853 {
+                rtol,
+                atol,
+                max_step,
+            } => {
+                let mut s = format!("dop853, rtol {rtol:e}, atol {atol:e}");
+                if max_step.is_finite() {
+                    s += &format!(", max step {max_step:e} s");
+                }
+                s
+            }
         }
     }
 
@@ -88,11 +123,12 @@ impl Method {
             Method::Rk4 { .. } => "rk4",
             Method::Dopri5 { .. } => "dopri5",
             Method::Dopri5Fixed { .. } => "dopri5_fixed",
+            Method::Dop853 { .. } => "dop853",
         }
     }
 
     /// Every family name accepted by [`Method::of_family`].
-    pub const FAMILIES: &'static [&'static str] = &["rk4", "dopri5", "dopri5_fixed"];
+    pub const FAMILIES: &'static [&'static str] = &["rk4", "dopri5", "dopri5_fixed", "dop853"];
 
     /// The member of family `name` at accuracy `setting`: the step (s) of a fixed-step family,
     /// the relative tolerance of an adaptive one (with absolute tolerance `atol` and no step
@@ -106,6 +142,11 @@ impl Method {
                 max_step: f64::INFINITY,
             },
             "dopri5_fixed" => Method::Dopri5Fixed { step: setting },
+            "dop853" => Method::Dop853 {
+                rtol: setting,
+                atol,
+                max_step: f64::INFINITY,
+            },
             _ => return None,
         })
     }
@@ -114,7 +155,7 @@ impl Method {
     pub fn setting(&self) -> f64 {
         match *self {
             Method::Rk4 { step } | Method::Dopri5Fixed { step } => step,
-            Method::Dopri5 { rtol, .. } => rtol,
+            Method::Dopri5 { rtol, .. } | Method::Dop853 { rtol, .. } => rtol,
         }
     }
 
@@ -123,6 +164,7 @@ impl Method {
         match self {
             Method::Rk4 { .. } => Scheme::Rk4,
             Method::Dopri5 { .. } | Method::Dopri5Fixed { .. } => Scheme::Dopri5,
+            Method::Dop853 { .. } => Scheme::Dop853,
         }
     }
 
@@ -134,6 +176,11 @@ impl Method {
                 rtol,
                 atol,
                 max_step,
+            }
+            | Method::Dop853 {
+                rtol,
+                atol,
+                max_step,
             } => Some((rtol, atol, max_step)),
         }
     }
@@ -142,7 +189,7 @@ impl Method {
     pub fn fixed_step(&self) -> Option<f64> {
         match *self {
             Method::Rk4 { step } | Method::Dopri5Fixed { step } => Some(step),
-            Method::Dopri5 { .. } => None,
+            Method::Dopri5 { .. } | Method::Dop853 { .. } => None,
         }
     }
 
@@ -164,7 +211,7 @@ impl Method {
                 1.0 / 120.0,
                 1.0 / 600.0,
             ],
-            Method::Dopri5 { .. } => return None,
+            Method::Dopri5 { .. } | Method::Dop853 { .. } => return None,
         };
         // Horner's scheme in complex arithmetic.
         let (mut pr, mut pi) = (0.0, 0.0);
@@ -289,6 +336,7 @@ impl Work {
 enum Scheme {
     Rk4,
     Dopri5,
+    Dop853,
 }
 
 impl Scheme {
@@ -297,6 +345,7 @@ impl Scheme {
         match self {
             Scheme::Rk4 => 5,
             Scheme::Dopri5 => 7,
+            Scheme::Dop853 => dop853::STAGES,
         }
     }
 
@@ -305,6 +354,7 @@ impl Scheme {
         match self {
             Scheme::Rk4 => 0,
             Scheme::Dopri5 => 5,
+            Scheme::Dop853 => 7,
         }
     }
 
@@ -313,6 +363,7 @@ impl Scheme {
         match self {
             Scheme::Rk4 => 4,
             Scheme::Dopri5 => 6,
+            Scheme::Dop853 => dop853::FSAL,
         }
     }
 
@@ -322,6 +373,9 @@ impl Scheme {
         match self {
             Scheme::Rk4 => unreachable!("RK4 runs at a fixed step"),
             Scheme::Dopri5 => 5.0,
+            // The 5th-order estimate, corrected by the 3rd-order one, is treated as O(h^8), as
+            // in Hairer's DOP853 and SciPy.
+            Scheme::Dop853 => 8.0,
         }
     }
 
@@ -349,30 +403,39 @@ impl Scheme {
                 dopri5_step(sys, t, y, h, w);
                 stats.rhs_evals += 6;
             }
+            Scheme::Dop853 => {
+                dop853_step(sys, t, y, h, w);
+                stats.rhs_evals += dop853::FSAL as u64;
+            }
         }
         Ok(())
     }
 
     /// The scaled error norm of the step just taken (adaptive schemes).
-    fn error_norm(self, w: &Work, y: &[f64], _h: f64, rtol: f64, atol: f64) -> f64 {
+    fn error_norm(self, w: &Work, y: &[f64], h: f64, rtol: f64, atol: f64) -> f64 {
         match self {
             Scheme::Rk4 | Scheme::Dopri5 => error_norm(&w.tmp, y, &w.y_new, rtol, atol),
+            Scheme::Dop853 => dop853_error_norm(w, y, h, rtol, atol),
         }
     }
 
     /// Prepares the continuous extension of the step just taken from (t, y).
     fn dense<S: OdeSystem>(
         self,
-        _sys: &mut S,
-        _t: f64,
+        sys: &mut S,
+        t: f64,
         y: &[f64],
         h: f64,
         w: &mut Work,
-        _stats: &mut Stats,
+        stats: &mut Stats,
     ) {
         match self {
             Scheme::Rk4 => {}
             Scheme::Dopri5 => dopri5_dense(y, h, w),
+            Scheme::Dop853 => {
+                dop853_dense(sys, t, y, h, w);
+                stats.rhs_evals += (dop853::STAGES - dop853::FSAL - 1) as u64;
+            }
         }
     }
 
@@ -381,6 +444,7 @@ impl Scheme {
         match self {
             Scheme::Rk4 => hermite_eval(y0, w, 4, h, theta, out),
             Scheme::Dopri5 => dopri5_eval(w, theta, out),
+            Scheme::Dop853 => dop853_eval(y0, w, theta, out),
         }
     }
 }
@@ -503,6 +567,99 @@ fn hermite_eval(y0: &[f64], w: &Work, f1: usize, h: f64, theta: f64, out: &mut [
     }
 }
 
+/// `out = y + h * sum_j a_j k[j]` over the nonzero coefficients `row` = [(j, a_j)].
+#[inline]
+fn rk_stage(out: &mut [f64], y: &[f64], h: f64, row: &[(usize, f64)], k: &[Vec<f64>]) {
+    for i in 0..out.len() {
+        let mut s = 0.0;
+        for &(j, a) in row {
+            s += a * k[j][i];
+        }
+        out[i] = y[i] + h * s;
+    }
+}
+
+/// One DOP853 step with k1 = f(t, y) in `w.k[0]`: stages 1..11, the 8th-order result in
+/// `w.y_new` and f(t + h, y_new) in `w.k[12]`.
+fn dop853_step<S: OdeSystem>(sys: &mut S, t: f64, y: &[f64], h: f64, w: &mut Work) {
+    for s in 1..dop853::FSAL {
+        let (done, rest) = w.k.split_at_mut(s);
+        rk_stage(&mut w.tmp, y, h, dop853::A[s], done);
+        sys.rhs(t + dop853::C[s] * h, &w.tmp, &mut rest[0]);
+    }
+    let (done, rest) = w.k.split_at_mut(dop853::FSAL);
+    rk_stage(&mut w.y_new, y, h, dop853::B, done);
+    sys.rhs(t + h, &w.y_new, &mut rest[0]);
+}
+
+/// DOP853's error norm (Hairer's code, SciPy's `DOP853._estimate_error_norm`): with the 5th- and
+/// 3rd-order estimates e5, e3 scaled per component by `atol + rtol * max(|y_old|, |y_new|)`,
+/// `|h| * |e5|^2 / sqrt((|e5|^2 + 0.01 |e3|^2) n)`. The 3rd-order estimate keeps the 5th-order one
+/// honest at large steps, where the latter can be accidentally small.
+fn dop853_error_norm(w: &Work, y: &[f64], h: f64, rtol: f64, atol: f64) -> f64 {
+    let (mut s5, mut s3) = (0.0, 0.0);
+    for i in 0..y.len() {
+        let sc = atol + rtol * y[i].abs().max(w.y_new[i].abs());
+        let (mut e5, mut e3) = (0.0, 0.0);
+        for &(j, e) in dop853::E5 {
+            e5 += e * w.k[j][i];
+        }
+        for &(j, e) in dop853::E3 {
+            e3 += e * w.k[j][i];
+        }
+        s5 += (e5 / sc) * (e5 / sc);
+        s3 += (e3 / sc) * (e3 / sc);
+    }
+    if s5 == 0.0 && s3 == 0.0 {
+        return 0.0;
+    }
+    h.abs() * s5 / ((s5 + 0.01 * s3) * y.len() as f64).sqrt()
+}
+
+/// DOP853's order-7 continuous extension of the step from (t, y): the three extra stages 13..15
+/// (three right-hand-side evaluations) and the seven coefficient vectors of Hairer's CONTD8.
+fn dop853_dense<S: OdeSystem>(sys: &mut S, t: f64, y: &[f64], h: f64, w: &mut Work) {
+    for s in dop853::FSAL + 1..dop853::STAGES {
+        let (done, rest) = w.k.split_at_mut(s);
+        rk_stage(&mut w.tmp, y, h, dop853::A[s], done);
+        sys.rhs(t + dop853::C[s] * h, &w.tmp, &mut rest[0]);
+    }
+    let (f_old, f_new) = (&w.k[0], &w.k[dop853::FSAL]);
+    let (first, rest) = w.cont.split_at_mut(3);
+    for i in 0..y.len() {
+        let dy = w.y_new[i] - y[i];
+        first[0][i] = dy;
+        first[1][i] = h * f_old[i] - dy;
+        first[2][i] = 2.0 * dy - h * (f_new[i] + f_old[i]);
+    }
+    for (c, row) in rest.iter_mut().zip(dop853::D) {
+        for i in 0..y.len() {
+            let mut s = 0.0;
+            for &(j, d) in row {
+                s += d * w.k[j][i];
+            }
+            c[i] = h * s;
+        }
+    }
+}
+
+/// y(t + theta h) = y0 + x (F0 + (1-x) (F1 + x (F2 + (1-x) (F3 + x (F4 + (1-x) (F5 + x F6))))))
+/// with x = theta (SciPy's `Dop853DenseOutput`).
+fn dop853_eval(y0: &[f64], w: &Work, theta: f64, out: &mut [f64]) {
+    let (x, x1) = (theta, 1.0 - theta);
+    let f = &w.cont;
+    for i in 0..out.len() {
+        let mut v = f[6][i] * x;
+        v = (v + f[5][i]) * x1;
+        v = (v + f[4][i]) * x;
+        v = (v + f[3][i]) * x1;
+        v = (v + f[2][i]) * x;
+        v = (v + f[1][i]) * x1;
+        v = (v + f[0][i]) * x;
+        out[i] = y0[i] + v;
+    }
+}
+
 fn error_norm(err: &[f64], y0: &[f64], y1: &[f64], rtol: f64, atol: f64) -> f64 {
     let mut s = 0.0;
     for i in 0..err.len() {
@@ -568,7 +725,8 @@ pub struct Step<'a> {
 
 impl Step<'_> {
     /// The state at `t` in `[t0, t1]` on the method's dense output (the same interpolant as the
-    /// samples: cubic Hermite for RK4, Hairer's order-4 extension for DOPRI5).
+    /// samples: cubic Hermite for RK4, Hairer's order-4 extension for DOPRI5, order 7 for
+    /// DOP853).
     pub fn eval(&self, t: f64, out: &mut [f64]) {
         let h = self.t1 - self.t0;
         let theta = ((t - self.t0) / h).clamp(0.0, 1.0);
@@ -873,6 +1031,11 @@ mod tests {
                 max_step: f64::INFINITY,
             },
             Method::Rk4 { step: 1e-3 },
+            Method::Dop853 {
+                rtol: 1e-10,
+                atol: 1e-12,
+                max_step: f64::INFINITY,
+            },
         ] {
             let mut worst: f64 = 0.0;
             let mut count = 0;
@@ -892,8 +1055,8 @@ mod tests {
             )
             .unwrap();
             assert_eq!(count, samples.len());
-            // Both interpolants are accurate to the order of the method's own error:
-            // 1e-8 is ~100x the DOPRI5 tolerance and ~100x RK4's global error at h = 1e-3.
+            // The interpolants are accurate to the order of the method's own error: 1e-8 is
+            // ~100x the DOPRI5 and DOP853 tolerance and ~100x RK4's global error at h = 1e-3.
             assert!(worst < 1e-8, "{method:?}: worst dense error {worst}");
         }
     }
@@ -1002,5 +1165,215 @@ mod tests {
         )
         .unwrap_err();
         assert!(matches!(err, Error::Diverged { time, .. } if time > 0.5 && time < 5.0));
+    }
+
+    /// The Kepler problem q'' = -q / |q|^3 with eccentricity 0.5, starting at pericentre: the
+    /// orbit is periodic with period 2 pi, a nonlinear test of all order conditions.
+    struct Kepler;
+    impl OdeSystem for Kepler {
+        fn dim(&self) -> usize {
+            4
+        }
+        fn rhs(&mut self, _t: f64, y: &[f64], d: &mut [f64]) {
+            let r3 = (y[0] * y[0] + y[1] * y[1]).powf(1.5);
+            d[0] = y[2];
+            d[1] = y[3];
+            d[2] = -y[0] / r3;
+            d[3] = -y[1] / r3;
+        }
+    }
+    fn kepler_start(e: f64) -> [f64; 4] {
+        [1.0 - e, 0.0, 0.0, ((1.0 + e) / (1.0 - e)).sqrt()]
+    }
+    /// The exact Kepler state at time t (Kepler's equation M = E - e sin E by Newton).
+    fn kepler_exact(e: f64, t: f64) -> [f64; 4] {
+        let m = t.rem_euclid(2.0 * std::f64::consts::PI);
+        let mut ea = m + e * m.sin();
+        for _ in 0..50 {
+            ea -= (ea - e * ea.sin() - m) / (1.0 - e * ea.cos());
+        }
+        let b = (1.0 - e * e).sqrt();
+        let edot = 1.0 / (1.0 - e * ea.cos());
+        [
+            ea.cos() - e,
+            b * ea.sin(),
+            -ea.sin() * edot,
+            b * ea.cos() * edot,
+        ]
+    }
+    fn dist(a: &[f64], b: &[f64]) -> f64 {
+        a.iter()
+            .zip(b)
+            .map(|(x, y)| (x - y) * (x - y))
+            .sum::<f64>()
+            .sqrt()
+    }
+
+    /// Runs `scheme` at the fixed step h = t_end / steps, driving the stepper directly (no
+    /// error control), and returns the final state.
+    fn fixed_steps<S: OdeSystem>(
+        sys: &mut S,
+        scheme: Scheme,
+        y0: &[f64],
+        t_end: f64,
+        steps: usize,
+    ) -> Vec<f64> {
+        let n = sys.dim();
+        let mut w = Work::new(n, scheme);
+        let mut stats = Stats::default();
+        let mut y = y0.to_vec();
+        let h = t_end / steps as f64;
+        sys.rhs(0.0, &y, &mut w.k[0]);
+        for i in 0..steps {
+            scheme
+                .step(sys, i as f64 * h, &y, h, &mut w, &mut stats, false)
+                .unwrap();
+            y.copy_from_slice(&w.y_new);
+            w.k.swap(0, scheme.fsal());
+        }
+        y
+    }
+
+    fn dop853(rtol: f64) -> Method {
+        Method::Dop853 {
+            rtol,
+            atol: rtol * 1e-2,
+            max_step: f64::INFINITY,
+        }
+    }
+
+    /// The global error at t = 2 pi on the circular Kepler orbit (nonlinear right-hand side)
+    /// with 10, 20 and 40 fixed steps: 8.7e-7, 3.7e-9, 1.5e-11, far above rounding (~1e-14).
+    /// The ratios give observed orders 7.89 and 7.93: terms of order 9 still pull the estimate
+    /// slightly below 8 at these coarse steps, so the band 7.5..8.7 admits that and excludes the
+    /// neighbouring orders 7 and 9.
+    #[test]
+    fn dop853_fixed_step_converges_with_order_eight() {
+        let t_end = 2.0 * std::f64::consts::PI;
+        let exact = kepler_exact(0.0, t_end);
+        let err = |steps| {
+            let y = fixed_steps(
+                &mut Kepler,
+                Scheme::Dop853,
+                &kepler_start(0.0),
+                t_end,
+                steps,
+            );
+            dist(&y, &exact)
+        };
+        let (e10, e20, e40) = (err(10), err(20), err(40));
+        for (a, b) in [(e10, e20), (e20, e40)] {
+            let p = (a / b).log2();
+            assert!(
+                (7.5..8.7).contains(&p),
+                "observed order {p} ({a:e} -> {b:e})"
+            );
+        }
+    }
+
+    #[test]
+    fn dop853_meets_its_tolerance_with_far_fewer_evaluations_than_dopri5() {
+        let dopri5 = Method::Dopri5 {
+            rtol: 1e-10,
+            atol: 1e-12,
+            max_step: f64::INFINITY,
+        };
+        let (e8, s8) = final_error(dop853(1e-10));
+        let (_, s5) = final_error(dopri5);
+        // Same bound as DOPRI5's own test: a small multiple of the tolerance over 1.6 periods.
+        assert!(e8 < 1e-8, "error {e8}");
+        // f(t0, y0), one evaluation of the initial-step heuristic, 12 per step (no samples).
+        assert_eq!(s8.rhs_evals, 2 + 12 * (s8.accepted + s8.rejected));
+        // Measured: 566 against 2480 evaluations.
+        assert!(
+            4 * s8.rhs_evals < s5.rhs_evals,
+            "dop853 {s8:?}, dopri5 {s5:?}"
+        );
+        // Kepler orbit of eccentricity 0.5 over three periods (the step size varies by ~10x
+        // along the orbit); measured: error 2.8e-8 with 1874 evaluations against DOPRI5's 9.2e-9
+        // with 5198. The global error grows along the orbits, to ~100 times the tolerance.
+        let t_end = 6.0 * std::f64::consts::PI;
+        let run = |m| {
+            let mut y = kepler_start(0.5);
+            let s = integrate(&mut Kepler, m, 0.0, &mut y, t_end, &[], |_, _, _| {
+                Flow::Continue
+            })
+            .unwrap();
+            (dist(&y, &kepler_exact(0.5, t_end)), s)
+        };
+        let (e8, s8) = run(dop853(1e-10));
+        let (_, s5) = run(dopri5);
+        assert!(e8 < 1e-7, "error {e8}");
+        assert!(
+            2 * s8.rhs_evals < s5.rhs_evals,
+            "dop853 {s8:?}, dopri5 {s5:?}"
+        );
+    }
+
+    /// The order-7 continuous extension: from a point of the circular Kepler orbit, one step of
+    /// size h, 0.4, 0.2, 0.1: the local error at the midpoint falls as h^8 (measured exponents
+    /// 8.10 and 8.03), the step's own local error as h^9 (9.07, 9.02). Along an adaptive run the
+    /// error at the step midpoints then stays at the level of the (global) error at the step
+    /// ends.
+    #[test]
+    fn dop853_dense_output_has_order_seven() {
+        let t0 = 0.7;
+        let y0 = kepler_exact(0.0, t0);
+        let local = |h: f64| {
+            let mut w = Work::new(4, Scheme::Dop853);
+            let mut stats = Stats::default();
+            Kepler.rhs(t0, &y0, &mut w.k[0]);
+            Scheme::Dop853
+                .step(&mut Kepler, t0, &y0, h, &mut w, &mut stats, false)
+                .unwrap();
+            Scheme::Dop853.dense(&mut Kepler, t0, &y0, h, &mut w, &mut stats);
+            assert_eq!(stats.rhs_evals, 12 + 3);
+            let mut mid = [0.0; 4];
+            Scheme::Dop853.eval(&y0, &w, h, 0.5, &mut mid);
+            (
+                dist(&mid, &kepler_exact(0.0, t0 + 0.5 * h)),
+                dist(&w.y_new, &kepler_exact(0.0, t0 + h)),
+            )
+        };
+        let errs: Vec<(f64, f64)> = [0.4, 0.2, 0.1].into_iter().map(local).collect();
+        for pair in errs.windows(2) {
+            let p_mid = (pair[0].0 / pair[1].0).log2();
+            let p_end = (pair[0].1 / pair[1].1).log2();
+            assert!((7.6..8.6).contains(&p_mid), "midpoint exponent {p_mid}");
+            assert!((8.6..9.6).contains(&p_end), "step-end exponent {p_end}");
+        }
+
+        let e = 0.5;
+        let (mut worst_mid, mut worst_end) = (0.0f64, 0.0f64);
+        let mut on_step = |_: &mut Kepler, st: &Step| {
+            let tm = 0.5 * (st.t0 + st.t1);
+            let mut mid = [0.0; 4];
+            st.eval(tm, &mut mid);
+            worst_mid = worst_mid.max(dist(&mid, &kepler_exact(e, tm)));
+            worst_end = worst_end.max(dist(st.y1, &kepler_exact(e, st.t1)));
+            Flow::Continue
+        };
+        let mut y = kepler_start(e);
+        let s = integrate_steps(
+            &mut Kepler,
+            dop853(1e-10),
+            0.0,
+            &mut y,
+            4.0 * std::f64::consts::PI,
+            &[],
+            |_, _, _| Flow::Continue,
+            Some(&mut on_step),
+        )
+        .unwrap();
+        // The dense output of every step costs three more evaluations.
+        assert_eq!(
+            s.rhs_evals,
+            2 + 12 * (s.accepted + s.rejected) + 3 * s.accepted
+        );
+        // Measured: 9.3e-9 at the midpoints, 9.2e-9 at the step ends.
+        assert!(
+            worst_mid < 2.0 * worst_end,
+            "{worst_mid:e} vs {worst_end:e}"
+        );
     }
 }
