@@ -1810,4 +1810,19 @@ mod tests {
             "{err:?}"
         );
     }
+
+    #[test]
+    fn every_family_name_builds_its_method() {
+        for &name in Method::FAMILIES {
+            let m = Method::of_family(name, 1e-3, 1e-9).unwrap();
+            assert_eq!((m.family(), m.setting()), (name, 1e-3));
+            // Fixed-step families take the setting as their step, adaptive ones as rtol.
+            assert_eq!(m.fixed_step().is_some(), m.tolerances().is_none());
+            assert_eq!(
+                m.amplification(0.0, 1.0).is_some(),
+                m.fixed_step().is_some()
+            );
+        }
+        assert_eq!(Method::of_family("rk45", 1e-3, 1e-9), None);
+    }
 }
