@@ -209,6 +209,23 @@ impl SystemSpec {
                 .try_into()
                 .map_err(|e: toml::de::Error| ("solver".to_string(), e.message().to_string()))?,
         };
+        // The adaptive integrators share their settings and checks.
+        let adaptive = |make: fn(f64, f64, f64) -> Method| {
+            if !(solver.rtol > 0.0 && solver.atol > 0.0) {
+                return Err((
+                    "solver.rtol".to_string(),
+                    "tolerances must be positive".to_string(),
+                ));
+            }
+            let max_step = solver.max_step.unwrap_or(f64::INFINITY);
+            if max_step <= 0.0 {
+                return Err((
+                    "solver.max_step".to_string(),
+                    "must be positive".to_string(),
+                ));
+            }
+            Ok(make(solver.rtol, solver.atol, max_step))
+        };
         let method = match solver.integrator {
             IntegratorKind::Rk4 => {
                 let step = solver
@@ -219,19 +236,22 @@ impl SystemSpec {
                 }
                 Method::Rk4 { step }
             }
-            IntegratorKind::Dopri5 => {
-                if !(solver.rtol > 0.0 && solver.atol > 0.0) {
-                    return Err(("solver.rtol".into(), "tolerances must be positive".into()));
-                }
-                let max_step = solver.max_step.unwrap_or(f64::INFINITY);
-                if max_step <= 0.0 {
-                    return Err(("solver.max_step".into(), "must be positive".into()));
-                }
-                Method::Dopri5 {
-                    rtol: solver.rtol,
-                    atol: solver.atol,
+            IntegratorKind::Dopri5 => adaptive(|rtol, atol, max_step| Method::Dopri5 {
+                rtol,
+                atol,
+                max_step,
+            })?,
+            IntegratorKind::Dop853 => adaptive(|rtol, atol, max_step| Method::Dop853 {
+                rtol,
+                atol,
+                max_step,
+            })?,
+            IntegratorKind::Rosenbrock23 => {
+                adaptive(|rtol, atol, max_step| Method::Rosenbrock23 {
+                    rtol,
+                    atol,
                     max_step,
-                }
+                })?
             }
         };
         Ok(SystemSpec {
@@ -350,6 +370,39 @@ impl OdeSystem for Builtin {
                 d[1] = y[0] * (rho - y[2]) - y[1];
                 d[2] = y[0] * y[1] - beta * y[2];
             }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn solver(text: &str) -> Result<Method, (String, String)> {
+        let t: Table = format!("kind = \"duffing\"\nsolver = {{ {text} }}")
+            .parse()
+            .unwrap();
+        SystemSpec::parse(&t).map(|s| s.method)
+    }
+
+    #[test]
+    fn every_adaptive_integrator_is_selectable_with_its_tolerances() {
+        for family in ["dopri5", "dop853", "rosenbrock23"] {
+            let m = solver(&format!(
+                "integrator = \"{family}\", rtol = 1e-7, atol = 1e-9, max_step = 0.1"
+            ))
+            .unwrap();
+            assert_eq!(m.family(), family);
+            assert_eq!(
+                Method::of_family(family, 1e-7, 1e-9).unwrap().setting(),
+                1e-7
+            );
+            assert_eq!(
+                m.describe(),
+                format!("{family}, rtol 1e-7, atol 1e-9, max step 1e-1 s")
+            );
+            let e = solver(&format!("integrator = \"{family}\", rtol = 0.0")).unwrap_err();
+            assert_eq!(e.0, "solver.rtol");
         }
     }
 }

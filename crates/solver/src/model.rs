@@ -1569,6 +1569,20 @@ impl Model {
 
         // Settings.
         let sv = &spec.solver;
+        // The adaptive integrators share their settings and checks.
+        let adaptive = |make: fn(f64, f64, f64) -> Method| {
+            if sv.rtol <= 0.0 {
+                return Err(cx.err("solver.rtol", "must be positive"));
+            }
+            if sv.atol <= 0.0 {
+                return Err(cx.err("solver.atol", "must be positive"));
+            }
+            let max_step = sv.max_step.unwrap_or(f64::INFINITY);
+            if max_step <= 0.0 {
+                return Err(cx.err("solver.max_step", "must be positive"));
+            }
+            Ok(make(sv.rtol, sv.atol, max_step))
+        };
         let method = match sv.integrator {
             IntegratorKind::Rk4 => {
                 if sv.step <= 0.0 {
@@ -1579,22 +1593,22 @@ impl Model {
                 }
                 Method::Rk4 { step: sv.step }
             }
-            IntegratorKind::Dopri5 => {
-                if sv.rtol <= 0.0 {
-                    return Err(cx.err("solver.rtol", "must be positive"));
-                }
-                if sv.atol <= 0.0 {
-                    return Err(cx.err("solver.atol", "must be positive"));
-                }
-                let max_step = sv.max_step.unwrap_or(f64::INFINITY);
-                if max_step <= 0.0 {
-                    return Err(cx.err("solver.max_step", "must be positive"));
-                }
-                Method::Dopri5 {
-                    rtol: sv.rtol,
-                    atol: sv.atol,
+            IntegratorKind::Dopri5 => adaptive(|rtol, atol, max_step| Method::Dopri5 {
+                rtol,
+                atol,
+                max_step,
+            })?,
+            IntegratorKind::Dop853 => adaptive(|rtol, atol, max_step| Method::Dop853 {
+                rtol,
+                atol,
+                max_step,
+            })?,
+            IntegratorKind::Rosenbrock23 => {
+                adaptive(|rtol, atol, max_step| Method::Rosenbrock23 {
+                    rtol,
+                    atol,
                     max_step,
-                }
+                })?
             }
         };
         if sv.baumgarte_alpha < 0.0 {
@@ -1648,7 +1662,9 @@ impl Model {
         // A step so small that the run could never finish is a mistake, not a setting.
         let span = end_time - sv.start_time;
         let (step_field, step) = match method {
-            Method::Dopri5 { max_step, .. } => ("solver.max_step", max_step),
+            Method::Dopri5 { max_step, .. }
+            | Method::Dop853 { max_step, .. }
+            | Method::Rosenbrock23 { max_step, .. } => ("solver.max_step", max_step),
             _ => ("solver.step", method.fixed_step().unwrap_or(f64::INFINITY)),
         };
         if span / step > 1e12 {

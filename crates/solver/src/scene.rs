@@ -443,9 +443,16 @@ pub struct LoadSpec {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum IntegratorKind {
+    /// Classical Runge-Kutta, fixed `step`.
     #[default]
     Rk4,
+    /// Dormand-Prince 5(4), adaptive.
     Dopri5,
+    /// Hairer's DOP853, order 8, adaptive: for tight tolerances.
+    Dop853,
+    /// Shampine & Reichelt's linearly implicit Rosenbrock method of order 2, adaptive: for stiff
+    /// contact.
+    Rosenbrock23,
 }
 
 /// Solver settings.
@@ -457,12 +464,13 @@ pub struct SolverSpec {
     /// Fixed step for rk4 (s).
     #[serde(default = "default_step")]
     pub step: f64,
-    /// Relative and absolute tolerances for dopri5.
+    /// Relative and absolute tolerances of the adaptive integrators (dopri5, dop853,
+    /// rosenbrock23).
     #[serde(default = "default_rtol")]
     pub rtol: f64,
     #[serde(default = "default_atol")]
     pub atol: f64,
-    /// Largest step of dopri5 (s); default unlimited.
+    /// Largest step of the adaptive integrators (s); default unlimited.
     #[serde(default)]
     pub max_step: Option<f64>,
     /// Baumgarte stabilisation Phi'' + 2 alpha Phi' + beta^2 Phi = 0 (1/s).
