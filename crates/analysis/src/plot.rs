@@ -207,6 +207,13 @@ where
     if panel.series.len() + panel.points.len() > 1 && !small {
         chart
             .configure_series_labels()
+            // Log-log work-precision lines fall from upper left to lower right: the lower left
+            // (fast and accurate) stays empty.
+            .position(if panel.log_x {
+                SeriesLabelPosition::LowerLeft
+            } else {
+                SeriesLabelPosition::MiddleRight
+            })
             .background_style(WHITE.mix(0.8))
             .border_style(BLACK)
             .label_font(("sans-serif", 13))
@@ -214,6 +221,16 @@ where
             .map_err(|e| e.to_string())?;
     }
     Ok(())
+}
+
+/// A logarithmic axis range from `lo` to `hi` (positive data): widened to whole decades, at least
+/// one, so that the ticks fall on round values and do not crowd a partial decade.
+fn decades(lo: f64, hi: f64) -> (f64, f64) {
+    let lo = lo.max(1e-300);
+    let hi = hi.max(lo);
+    let a = lo.log10().floor();
+    let b = hi.log10().ceil().max(a + 1.0);
+    (10f64.powf(a), 10f64.powf(b))
 }
 
 /// One panel in `area`; `small` for an inset (smaller fonts, no legend).
@@ -250,17 +267,17 @@ where
                 .flat_map(|s| s.x.iter().copied())
                 .filter(|v| *v > 0.0 && v.is_finite())
         };
-        let lo = pos().fold(f64::INFINITY, f64::min).max(1e-300);
-        let hi = pos().fold(0.0, f64::max).max(lo * 10.0);
-        (lo / 1.5, hi * 1.5)
+        decades(
+            pos().fold(f64::INFINITY, f64::min),
+            pos().fold(0.0, f64::max),
+        )
     };
     let y_lin = y0..y1;
     let yspan = y1 - y0;
     let y_fmt = |v: &f64| tick(*v, yspan);
     if panel.log_y {
-        let lo = ys().fold(f64::INFINITY, f64::min).max(1e-300);
-        let hi = ys().fold(0.0, f64::max).max(lo * 10.0);
-        let y_log = (lo / 2.0..hi * 2.0).log_scale();
+        let (lo, hi) = decades(ys().fold(f64::INFINITY, f64::min), ys().fold(0.0, f64::max));
+        let y_log = (lo..hi).log_scale();
         if panel.log_x {
             let mut chart = builder
                 .build_cartesian_2d((lx0..lx1).log_scale(), y_log)

@@ -845,7 +845,7 @@ impl Outcome {
         s += "| integrator | setting | position error | restart error | force error | restart force error | RHS evaluations | steps (rejected) | wall time (s) | RHS/s | note |\n";
         s += "|---|---|---|---|---|---|---|---|---|---|---|\n";
         s += &format!(
-            "| floor (check) | | {} | {} | {} | {} | | | {:.3} (reference) | | |\n",
+            "| floor (check) | | {} | {} | {} | {} | | | {:.3e} (reference) | | |\n",
             sci(self.floor.position),
             sci(self.floor.restart),
             sci(self.floor.force),
@@ -861,7 +861,7 @@ impl Outcome {
                 None => String::new(),
             };
             s += &format!(
-                "| {} | {:e} | {} | {} | {} | {} | {} | {} ({}) | {:.4} | {:.3e} | {} |\n",
+                "| {} | {:e} | {} | {} | {} | {} | {} | {} ({}) | {:.3e} | {:.3e} | {} |\n",
                 r.family,
                 r.setting,
                 sci(r.errors.position),
