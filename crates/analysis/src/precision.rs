@@ -657,27 +657,30 @@ impl Precision {
         let (samples, strobe_idx, last_idx) = self.times.merged();
         let (t0, t_end) = (self.times.start, self.times.end());
         let y0 = self.runner.y0.clone();
-        let mut first: Option<Leg> = None;
-        let mut best = f64::INFINITY;
-        let mut total = 0.0;
-        let mut repeats = 0;
-        while repeats < 50 {
-            let leg = self.runner.leg(method, t0, &y0, None, t_end, &samples);
-            let w = leg.stats.wall.as_secs_f64();
+        let mut leg = self.runner.leg(method, t0, &y0, None, t_end, &samples);
+        let mut best = leg.stats.wall.as_secs_f64();
+        let mut total = best;
+        let mut repeats = 1;
+        // Repeats only time the run: it is deterministic, so the first one's results stand.
+        while leg.failure.is_none() && total < self.min_time && repeats < 50 {
+            let w = self
+                .runner
+                .leg(method, t0, &y0, None, t_end, &samples)
+                .stats
+                .wall
+                .as_secs_f64();
             best = best.min(w);
             total += w;
             repeats += 1;
-            let failed = leg.failure.is_some();
-            if first.is_none() {
-                first = Some(leg);
-            }
-            if failed || total >= self.min_time {
-                break;
-            }
         }
-        let Some(leg) = first else {
-            unreachable!("at least one repeat runs")
-        };
+        // Every sample is emitted on a run that finishes; anything else is a failure.
+        if leg.failure.is_none() && leg.samples.len() != samples.len() {
+            leg.failure = Some(format!(
+                "{} of {} samples recorded",
+                leg.samples.len(),
+                samples.len()
+            ));
+        }
         let mut errors = Errors {
             position: f64::NAN,
             restart: f64::NAN,
@@ -691,7 +694,8 @@ impl Precision {
                 .map(|w| max_abs_diff(w, &vec![vec![0.0; n_obs]; w.len()], force))
                 .fold(0.0, f64::max)
         };
-        let r_last = &r.windows[r.windows.len() - 1];
+        let empty = Vec::new();
+        let r_last = r.windows.last().unwrap_or(&empty);
         if leg.failure.is_none() {
             let strobe: Vec<Vec<f64>> =
                 strobe_idx.iter().map(|&j| leg.samples[j].clone()).collect();
@@ -714,12 +718,16 @@ impl Precision {
             let l = self
                 .runner
                 .leg(method, s0, y, onset, s1, &self.times.window(k));
-            if let Some(f) = l.failure {
+            let w = &r.windows[k];
+            let failed = l.failure.or_else(|| {
+                (l.samples.len() != w.len() || w.is_empty())
+                    .then(|| format!("{} of {} samples recorded", l.samples.len(), w.len()))
+            });
+            if let Some(f) = failed {
                 failure.get_or_insert(format!("restart at {s0} s: {f}"));
                 (restart, restart_force) = (f64::NAN, f64::NAN);
                 break;
             }
-            let w = &r.windows[k];
             // The window's last sample is the strobe time s_{k+1}.
             restart = restart.max(max_abs_diff(
                 &l.samples[l.samples.len() - 1..],
