@@ -631,13 +631,14 @@ fn precision_cmd(path: &Path, out: &Path, plots: bool, quiet: bool) -> Result<()
         .with_context(|| format!("work-precision of {}", path.display()))?;
     let file = o.write(out, p.study())?;
     let md = out.join(format!("{}.md", o.name));
-    std::fs::write(&md, o.markdown()).with_context(|| format!("writing {}", md.display()))?;
+    let table = o.markdown();
+    std::fs::write(&md, &table).with_context(|| format!("writing {}", md.display()))?;
     let mut figs = Vec::new();
     if plots {
         figs = precision::Outcome::read(&file)?
             .figures(&out.join(&o.name), &[Format::Png, Format::Svg])?;
     }
-    print!("{}", o.markdown());
+    print!("{table}");
     println!();
     println!("wrote        {}", file.display());
     println!("             {}", md.display());

@@ -1157,6 +1157,22 @@ fn bad_work_precision_input_names_the_file_and_the_field() {
     let e = run("b.toml", &DUFFING_PRECISION.replace("1e-6", "-1e-6"));
     assert!(e.contains("precision.methods[1].settings[1]"), "{e}");
     let e = run(
+        "d.toml",
+        &DUFFING_PRECISION.replace("samples_per_period = 50", "samples_per_period = 0"),
+    );
+    assert!(
+        e.contains("d.toml") && e.contains("analysis.samples_per_period"),
+        "{e}"
+    );
+    let e = run(
+        "e.toml",
+        &DUFFING_PRECISION.replace("0.05235987755982988", "1e-13"),
+    );
+    assert!(
+        e.contains("precision.methods[0].settings[0]") && e.contains("1e12"),
+        "{e}"
+    );
+    let e = run(
         "c.toml",
         &DUFFING_PRECISION.replace("restarts = 4", "position = [\"y\"]"),
     );
@@ -1183,4 +1199,29 @@ fn bad_work_precision_input_names_the_file_and_the_field() {
 
 fn text_err(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+#[test]
+fn a_work_precision_run_whose_every_method_diverges_lists_the_failures_and_finishes() {
+    let dir = tempfile::tempdir().unwrap();
+    let study = dir.path().join("wp.toml");
+    let i = DUFFING_PRECISION.find("[[precision.methods]]").unwrap();
+    // RK4 at 3 s on a period of 5.2 s: the state overflows within a few steps.
+    let body = format!(
+        "{}[[precision.methods]]\nintegrator = \"rk4\"\nsettings = [3.0]\n",
+        &DUFFING_PRECISION[..i]
+    );
+    std::fs::write(&study, body).unwrap();
+    let out = bin()
+        .args(["precision", "-q"])
+        .arg(&study)
+        .arg("--out")
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{:?}", text(&out));
+    let md = std::fs::read_to_string(dir.path().join("wp.md")).unwrap();
+    assert!(md.contains("failed: integration stopped"), "{md}");
+    assert!(read_runs(&dir.path().join("wp.h5"), "position_error")[0].is_nan());
+    assert!(dir.path().join("wp.svg").exists());
 }

@@ -226,6 +226,10 @@ where
 /// A logarithmic axis range from `lo` to `hi` (positive data): widened to whole decades, at least
 /// one, so that the ticks fall on round values and do not crowd a partial decade.
 fn decades(lo: f64, hi: f64) -> (f64, f64) {
+    if !(lo.is_finite() && hi.is_finite() && hi > 0.0) {
+        // No positive data: an empty decade (an infinite range would never end its ticks).
+        return (1.0, 10.0);
+    }
     let lo = lo.max(1e-300);
     let hi = hi.max(lo);
     let a = lo.log10().floor();

@@ -354,6 +354,17 @@ struct Reference {
     wall: f64,
 }
 
+/// The larger of two measures, NaN (not finite) if either is.
+fn worse(a: f64, b: f64) -> f64 {
+    if a.is_nan() || b.is_nan() {
+        f64::NAN
+    } else {
+        a.max(b)
+    }
+}
+
+/// The largest `|a - b|` over the samples and the observables `which`; NaN when any is not
+/// finite.
 fn max_abs_diff(a: &[Vec<f64>], b: &[Vec<f64>], which: &[usize]) -> f64 {
     let mut e: f64 = 0.0;
     for (x, y) in a.iter().zip(b) {
@@ -423,6 +434,13 @@ impl Precision {
         };
         let runner = Runner { target, y0, period };
         let a = &study.spec.analysis;
+        if a.samples_per_period == 0 {
+            return Err(invalid(
+                &path,
+                "analysis.samples_per_period",
+                "a work-precision run compares the contact forces at samples inside each period: give at least 1",
+            ));
+        }
         let strobe: Vec<f64> = (0..=a.periods)
             .map(|k| t0 + a.phase + k as f64 * period)
             .collect();
@@ -430,7 +448,7 @@ impl Precision {
             start: t0,
             strobe,
             transient: a.transient,
-            spp: a.samples_per_period.max(1),
+            spp: a.samples_per_period,
         };
         let obs = runner.obs();
         let names: Vec<&str> = study
@@ -455,12 +473,12 @@ impl Precision {
         };
         let mut position = pick("position", &spec.position)?;
         if position.is_empty() {
-            position = (0..obs.len())
-                .filter(|&i| obs[i].unit == "m" || obs[i].unit == "rad")
-                .collect();
-            if position.is_empty() {
-                position = (0..obs.len()).collect();
-            }
+            // Every observable in m, else in rad, else in the first observable's unit: one unit.
+            let unit = ["m", "rad"]
+                .into_iter()
+                .find(|u| obs.iter().any(|o| o.unit == *u))
+                .unwrap_or(obs[0].unit.as_str());
+            position = (0..obs.len()).filter(|&i| obs[i].unit == unit).collect();
         }
         let units: Vec<&str> = position.iter().map(|&i| obs[i].unit.as_str()).collect();
         if units.iter().any(|u| *u != units[0]) {
@@ -491,6 +509,20 @@ impl Precision {
                     format!("{setting}: a step or tolerance must be positive and finite"),
                 ));
             }
+            // As for scenes: a fixed step that needs more than 1e12 steps would never finish.
+            let span = period * a.periods as f64 + a.phase;
+            if Method::of_family(name, setting, 1.0).is_some_and(|m| m.fixed_step().is_some())
+                && span / setting > 1e12
+            {
+                return Err(invalid(
+                    &path,
+                    field,
+                    format!(
+                        "{setting:e} s over a span of {span} s means {:.3e} steps; at most 1e12 are allowed",
+                        span / setting
+                    ),
+                ));
+            }
             // Rounded to 12 digits so that 1e-4 * 1e-3 reads 1e-7, not 1.0000000000000001e-7.
             let atol = format!("{:.12e}", setting * atol_scale)
                 .parse()
@@ -514,16 +546,11 @@ impl Precision {
         if !(min_time.is_finite() && min_time >= 0.0) {
             return Err(invalid(&path, "precision.min_time", "must not be negative"));
         }
-        let best_adaptive = if Method::FAMILIES.contains(&"dop853") {
-            "dop853"
-        } else {
-            "dopri5"
-        };
         let (rname, rset) = spec
             .reference
             .as_ref()
             .map(|m| (m.integrator.clone(), m.setting))
-            .unwrap_or((best_adaptive.to_string(), 1e-12));
+            .unwrap_or(("dop853".to_string(), 1e-12));
         let reference = method_of("precision.reference", &rname, rset, atol_scale)?;
         // The default check is a second method at the same tolerance; when the reference is
         // that method, the same method at a tenfold looser tolerance.
@@ -653,7 +680,7 @@ impl Precision {
     }
 
     /// One tested method: the continuous run (repeated while short) and the restarts.
-    fn measure(&mut self, method: Method, r: &Reference) -> RunRecord {
+    fn measure(&mut self, method: Method, r: &Reference, timed: bool) -> RunRecord {
         let (samples, strobe_idx, last_idx) = self.times.merged();
         let (t0, t_end) = (self.times.start, self.times.end());
         let y0 = self.runner.y0.clone();
@@ -662,7 +689,7 @@ impl Precision {
         let mut total = best;
         let mut repeats = 1;
         // Repeats only time the run: it is deterministic, so the first one's results stand.
-        while leg.failure.is_none() && total < self.min_time && repeats < 50 {
+        while timed && leg.failure.is_none() && total < self.min_time && repeats < 50 {
             let w = self
                 .runner
                 .leg(method, t0, &y0, None, t_end, &samples)
@@ -692,7 +719,18 @@ impl Precision {
             windows
                 .iter()
                 .map(|w| max_abs_diff(w, &vec![vec![0.0; n_obs]; w.len()], force))
-                .fold(0.0, f64::max)
+                .fold(0.0, worse)
+        };
+        // Relative to the reference's peak; a force where the reference has none is an
+        // infinite relative error, and no force in either is no error.
+        let relative = |e: f64, scale: f64| {
+            if scale > 0.0 || e.is_nan() || scale.is_nan() {
+                e / scale
+            } else if e > 0.0 {
+                f64::INFINITY
+            } else {
+                0.0
+            }
         };
         let empty = Vec::new();
         let r_last = r.windows.last().unwrap_or(&empty);
@@ -704,9 +742,7 @@ impl Precision {
                 let last: Vec<Vec<f64>> =
                     last_idx.iter().map(|&j| leg.samples[j].clone()).collect();
                 let scale = peak(&[r_last], &self.force);
-                if scale > 0.0 {
-                    errors.force = max_abs_diff(&last, r_last, &self.force) / scale;
-                }
+                errors.force = relative(max_abs_diff(&last, r_last, &self.force), scale);
             }
         }
         let mut failure = leg.failure.clone();
@@ -729,22 +765,45 @@ impl Precision {
                 break;
             }
             // The window's last sample is the strobe time s_{k+1}.
-            restart = restart.max(max_abs_diff(
-                &l.samples[l.samples.len() - 1..],
-                &w[w.len() - 1..],
-                &self.position,
-            ));
-            restart_force = restart_force.max(max_abs_diff(&l.samples, w, &self.force));
+            restart = worse(
+                restart,
+                max_abs_diff(
+                    &l.samples[l.samples.len() - 1..],
+                    &w[w.len() - 1..],
+                    &self.position,
+                ),
+            );
+            restart_force = worse(restart_force, max_abs_diff(&l.samples, w, &self.force));
         }
         if !self.restart_at.is_empty() {
             errors.restart = restart;
             let windows: Vec<&Vec<Vec<f64>>> =
                 self.restart_at.iter().map(|&k| &r.windows[k]).collect();
-            let scale = peak(&windows, &self.force);
-            if !self.force.is_empty() && scale > 0.0 {
-                errors.restart_force = restart_force / scale;
+            if !self.force.is_empty() {
+                errors.restart_force = relative(restart_force, peak(&windows, &self.force));
             }
         }
+        // A measure that is not finite although the run finished: an observable went non-finite.
+        let restarts = !self.restart_at.is_empty();
+        let forces = !self.force.is_empty();
+        let bad: Vec<&str> = [
+            (errors.position, true, "position"),
+            (errors.restart, restarts, "restart"),
+            (errors.force, forces, "force"),
+            (errors.restart_force, forces && restarts, "restart force"),
+        ]
+        .into_iter()
+        .filter(|(e, measured, _)| *measured && e.is_nan())
+        .map(|(_, _, name)| name)
+        .collect();
+        if failure.is_none() && !bad.is_empty() {
+            failure = Some(format!(
+                "an observable became non-finite: the {} error is not finite",
+                bad.join(", ")
+            ));
+        }
+        let mut stats = leg.stats;
+        stats.wall = Duration::from_secs_f64(best);
         RunRecord {
             family: method.family().to_string(),
             setting: method.setting(),
@@ -752,7 +811,7 @@ impl Precision {
             errors,
             wall: best,
             repeats,
-            stats: leg.stats,
+            stats,
             failure,
             warnings: leg.warnings,
         }
@@ -763,7 +822,7 @@ impl Precision {
         progress(Progress::Reference);
         let r = self.reference()?;
         progress(Progress::Check);
-        let check = self.measure(self.check, &r);
+        let check = self.measure(self.check, &r, false);
         if let Some(f) = &check.failure {
             return Err(invalid(
                 &self.study.path,
@@ -781,7 +840,7 @@ impl Precision {
                     total,
                     what: &what,
                 });
-                runs.push(self.measure(m, &r));
+                runs.push(self.measure(m, &r, true));
             }
         }
         let obs = &self.study.spec.observables;
@@ -814,7 +873,7 @@ impl Precision {
     }
 }
 
-/// `x` in three significant digits, "-" when not measured, "failed" when NaN after a failure.
+/// `x` in three significant digits; "-" when NaN (not measured, or the run failed).
 fn sci(x: f64) -> String {
     if x.is_nan() {
         "-".into()
@@ -929,7 +988,7 @@ impl Outcome {
                 let pts: Vec<(f64, f64)> = self
                     .runs
                     .iter()
-                    .filter(|r| r.family == *f && r.failure.is_none())
+                    .filter(|r| r.family == *f)
                     .map(|r| (r.wall, get(&r.errors)))
                     .filter(|(x, y)| *x > 0.0 && *y > 0.0 && y.is_finite())
                     .collect();
@@ -942,6 +1001,10 @@ impl Outcome {
                     x: pts.iter().map(|p| p.0).collect(),
                     y: pts.iter().map(|p| p.1).collect(),
                 });
+            }
+            if series.iter().all(|s| s.x.is_empty()) {
+                // Nothing to draw: every run failed or has no finite, positive error here.
+                continue;
             }
             let floor = get(&self.floor);
             if floor > 0.0 && xhi > 0.0 {
@@ -1203,7 +1266,32 @@ impl Outcome {
             col("rejected")?,
             col("repeats")?,
         );
-        let runs = (0..family.len())
+        let rows = family.len();
+        let lengths = [
+            integrator.len(),
+            status.len(),
+            warnings.len(),
+            setting.len(),
+            pe.len(),
+            re.len(),
+            fe.len(),
+            rfe.len(),
+            jacobians.len(),
+            wall.len(),
+            rhs.len(),
+            steps.len(),
+            rejected.len(),
+            repeats.len(),
+        ];
+        if lengths.iter().any(|&l| l != rows) {
+            return Err(Error::Hdf5 {
+                file: path.to_path_buf(),
+                message: format!(
+                    "the /runs datasets differ in length ({rows} families, {lengths:?})"
+                ),
+            });
+        }
+        let runs = (0..rows)
             .map(|i| RunRecord {
                 family: family[i].clone(),
                 setting: setting[i],
@@ -1220,7 +1308,7 @@ impl Outcome {
                     accepted: steps[i] as u64,
                     rejected: rejected[i] as u64,
                     rhs_evals: rhs[i] as u64,
-                    wall: Duration::from_secs_f64(wall[i].max(0.0)),
+                    wall: Duration::try_from_secs_f64(wall[i]).unwrap_or_default(),
                     jacobians: jacobians[i] as u64,
                 },
                 failure: (status[i] != "ok").then(|| status[i].clone()),

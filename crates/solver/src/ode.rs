@@ -15,7 +15,10 @@
 //!   (J. Comput. Appl. Math. 7:67-75, 1981) with Hairer's error estimate built from embedded
 //!   solutions of orders 5 and 3, and an order-7 continuous extension. 12 evaluations per step
 //!   (the 13th stage, f at the new state, is the next step's first), plus 3 in a step whose
-//!   continuous extension is needed (a sample inside it, or a step observer). At tight
+//!   continuous extension is needed (a sample inside it, or a step observer). Those 3 stages
+//!   are evaluated after [`OdeSystem::step_accepted`], so in a step where a system's discrete
+//!   history changes (a contact begins) they see the new history and the other 12 the old: the
+//!   interpolant inside that one step is then of lower order. At tight
 //!   tolerances it takes several times fewer evaluations than DOPRI5 (4.4x on the harmonic
 //!   oscillator at rtol 1e-10). Coefficients generated from SciPy's `dop853_coefficients.py`
 //!   by `scripts/dop853_coefficients.py`.
@@ -34,7 +37,7 @@
 //! of the error estimate scaled per component by `atol + rtol * max(|y_old|, |y_new|)` (DOP853
 //! combines its two estimates in that scaling as Hairer's code does); a step is accepted when the
 //! norm is at most 1 and the next step follows the PI rule `h * 0.9 err^(-0.7/q) err_prev^(0.4/q)`
-//! (Hairer's DOPRI5 with beta = 0.04), at most 10 times larger (not larger right after a
+//! (a PI controller of Gustafsson's form; Hairer's codes use other exponents), at most 10 times larger (not larger right after a
 //! rejection); a rejected step is retried with `h * 0.9 err^(-1/q)`, at least 5 times smaller.
 //! Here the estimate is O(h^q): q = 5 for DOPRI5, 8 for DOP853, 3 for Rosenbrock23 (the PI rule
 //! with q = 3, rather than ode23s's plain err^(-1/3): the smoother step sequence suits stiff
@@ -1081,8 +1084,8 @@ fn run_steps<S: OdeSystem>(
                 }
                 continue;
             }
-            // PI controller (Hairer's DOPRI5: beta = 0.04, exponents 0.7/q and 0.4/q), step
-            // growth limited to 10x.
+            // PI controller with exponents 0.7/q and 0.4/q (Gustafsson's form), step growth
+            // limited to 10x.
             let e = err.max(1e-10);
             let mut fac = 0.9 * e.powf(-0.7 / q) * err_old.powf(0.4 / q);
             fac = fac.clamp(0.2, if last_rejected { 1.0 } else { 10.0 });
