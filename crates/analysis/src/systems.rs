@@ -209,51 +209,34 @@ impl SystemSpec {
                 .try_into()
                 .map_err(|e: toml::de::Error| ("solver".to_string(), e.message().to_string()))?,
         };
-        // The adaptive integrators share their settings and checks.
-        let adaptive = |make: fn(f64, f64, f64) -> Method| {
+        // rk4 needs its step; the adaptive integrators share their settings and checks.
+        let max_step = solver.max_step.unwrap_or(f64::INFINITY);
+        let step = if solver.integrator == IntegratorKind::Rk4 {
+            let step = solver
+                .step
+                .ok_or(("solver.step".to_string(), "rk4 needs a step".to_string()))?;
+            if !(step > 0.0 && step.is_finite()) {
+                return Err(("solver.step".into(), "must be positive".into()));
+            }
+            step
+        } else {
             if !(solver.rtol > 0.0 && solver.atol > 0.0) {
                 return Err((
                     "solver.rtol".to_string(),
                     "tolerances must be positive".to_string(),
                 ));
             }
-            let max_step = solver.max_step.unwrap_or(f64::INFINITY);
             if max_step <= 0.0 {
                 return Err((
                     "solver.max_step".to_string(),
                     "must be positive".to_string(),
                 ));
             }
-            Ok(make(solver.rtol, solver.atol, max_step))
+            f64::NAN
         };
-        let method = match solver.integrator {
-            IntegratorKind::Rk4 => {
-                let step = solver
-                    .step
-                    .ok_or(("solver.step".to_string(), "rk4 needs a step".to_string()))?;
-                if !(step > 0.0 && step.is_finite()) {
-                    return Err(("solver.step".into(), "must be positive".into()));
-                }
-                Method::Rk4 { step }
-            }
-            IntegratorKind::Dopri5 => adaptive(|rtol, atol, max_step| Method::Dopri5 {
-                rtol,
-                atol,
-                max_step,
-            })?,
-            IntegratorKind::Dop853 => adaptive(|rtol, atol, max_step| Method::Dop853 {
-                rtol,
-                atol,
-                max_step,
-            })?,
-            IntegratorKind::Rosenbrock23 => {
-                adaptive(|rtol, atol, max_step| Method::Rosenbrock23 {
-                    rtol,
-                    atol,
-                    max_step,
-                })?
-            }
-        };
+        let method = solver
+            .integrator
+            .method(step, solver.rtol, solver.atol, max_step);
         Ok(SystemSpec {
             builtin,
             initial,

@@ -1569,48 +1569,27 @@ impl Model {
 
         // Settings.
         let sv = &spec.solver;
-        // The adaptive integrators share their settings and checks.
-        let adaptive = |make: fn(f64, f64, f64) -> Method| {
+        // rk4 needs its step; the adaptive integrators share their settings and checks.
+        let max_step = sv.max_step.unwrap_or(f64::INFINITY);
+        if sv.integrator == IntegratorKind::Rk4 {
+            if sv.step <= 0.0 {
+                return Err(cx.err(
+                    "solver.step",
+                    format!("must be positive, got {} s", sv.step),
+                ));
+            }
+        } else {
             if sv.rtol <= 0.0 {
                 return Err(cx.err("solver.rtol", "must be positive"));
             }
             if sv.atol <= 0.0 {
                 return Err(cx.err("solver.atol", "must be positive"));
             }
-            let max_step = sv.max_step.unwrap_or(f64::INFINITY);
             if max_step <= 0.0 {
                 return Err(cx.err("solver.max_step", "must be positive"));
             }
-            Ok(make(sv.rtol, sv.atol, max_step))
-        };
-        let method = match sv.integrator {
-            IntegratorKind::Rk4 => {
-                if sv.step <= 0.0 {
-                    return Err(cx.err(
-                        "solver.step",
-                        format!("must be positive, got {} s", sv.step),
-                    ));
-                }
-                Method::Rk4 { step: sv.step }
-            }
-            IntegratorKind::Dopri5 => adaptive(|rtol, atol, max_step| Method::Dopri5 {
-                rtol,
-                atol,
-                max_step,
-            })?,
-            IntegratorKind::Dop853 => adaptive(|rtol, atol, max_step| Method::Dop853 {
-                rtol,
-                atol,
-                max_step,
-            })?,
-            IntegratorKind::Rosenbrock23 => {
-                adaptive(|rtol, atol, max_step| Method::Rosenbrock23 {
-                    rtol,
-                    atol,
-                    max_step,
-                })?
-            }
-        };
+        }
+        let method = sv.integrator.method(sv.step, sv.rtol, sv.atol, max_step);
         if sv.baumgarte_alpha < 0.0 {
             return Err(cx.err("solver.baumgarte_alpha", "must not be negative"));
         }

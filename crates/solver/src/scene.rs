@@ -455,6 +455,32 @@ pub enum IntegratorKind {
     Rosenbrock23,
 }
 
+impl IntegratorKind {
+    /// The method of this kind: `step` (s) for rk4, the tolerances and step bound (s) for the
+    /// adaptive kinds (the other settings are ignored). The callers check the values.
+    pub fn method(self, step: f64, rtol: f64, atol: f64, max_step: f64) -> crate::ode::Method {
+        use crate::ode::Method;
+        match self {
+            IntegratorKind::Rk4 => Method::Rk4 { step },
+            IntegratorKind::Dopri5 => Method::Dopri5 {
+                rtol,
+                atol,
+                max_step,
+            },
+            IntegratorKind::Dop853 => Method::Dop853 {
+                rtol,
+                atol,
+                max_step,
+            },
+            IntegratorKind::Rosenbrock23 => Method::Rosenbrock23 {
+                rtol,
+                atol,
+                max_step,
+            },
+        }
+    }
+}
+
 /// Solver settings.
 #[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
