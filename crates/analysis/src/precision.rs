@@ -363,6 +363,16 @@ fn worse(a: f64, b: f64) -> f64 {
     }
 }
 
+/// The largest `|a|` over the samples and the observables `which`; NaN when any is not finite.
+fn max_abs(a: &[Vec<f64>], which: &[usize]) -> f64 {
+    a.iter()
+        .flat_map(|x| which.iter().map(move |&i| x[i].abs()))
+        .fold(
+            0.0,
+            |e, d| if d.is_finite() { worse(e, d) } else { f64::NAN },
+        )
+}
+
 /// The largest `|a - b|` over the samples and the observables `which`; NaN when any is not
 /// finite.
 fn max_abs_diff(a: &[Vec<f64>], b: &[Vec<f64>], which: &[usize]) -> f64 {
@@ -382,7 +392,6 @@ fn max_abs_diff(a: &[Vec<f64>], b: &[Vec<f64>], which: &[usize]) -> f64 {
 /// Everything a work-precision run needs, resolved from the study.
 pub struct Precision {
     study: Loaded,
-    spec: PrecisionSpec,
     runner: Runner,
     times: Times,
     position: Vec<usize>,
@@ -610,7 +619,6 @@ impl Precision {
         }
         Ok(Precision {
             study,
-            spec,
             runner,
             times,
             position,
@@ -714,12 +722,8 @@ impl Precision {
             force: f64::NAN,
             restart_force: f64::NAN,
         };
-        let n_obs = self.runner.obs().len();
         let peak = |windows: &[&Vec<Vec<f64>>], force: &[usize]| {
-            windows
-                .iter()
-                .map(|w| max_abs_diff(w, &vec![vec![0.0; n_obs]; w.len()], force))
-                .fold(0.0, worse)
+            windows.iter().map(|w| max_abs(w, force)).fold(0.0, worse)
         };
         // Relative to the reference's peak; a force where the reference has none is an
         // infinite relative error, and no force in either is no error.
@@ -865,11 +869,6 @@ impl Precision {
     /// The study this run was read from.
     pub fn study(&self) -> &Loaded {
         &self.study
-    }
-
-    /// The `[precision]` settings as given (defaults left unset).
-    pub fn spec(&self) -> &PrecisionSpec {
-        &self.spec
     }
 }
 
