@@ -1061,13 +1061,7 @@ fn work_precision_measures_rk4_at_order_four_and_writes_its_table_figure_and_fil
     let dir = tempfile::tempdir().unwrap();
     let study = dir.path().join("wp.toml");
     std::fs::write(&study, DUFFING_PRECISION).unwrap();
-    let out = bin()
-        .args(["precision", "-q"])
-        .arg(&study)
-        .arg("--out")
-        .arg(dir.path())
-        .output()
-        .unwrap();
+    let out = precision(&study, dir.path());
     let (so, se) = text(&out);
     assert!(out.status.success(), "{so}\n{se}");
     for ext in ["h5", "md", "png", "svg"] {
@@ -1136,13 +1130,7 @@ fn bad_work_precision_input_names_the_file_and_the_field() {
     let run = |name: &str, text: &str| {
         let p = dir.path().join(name);
         std::fs::write(&p, text).unwrap();
-        let out = bin()
-            .args(["precision", "-q"])
-            .arg(&p)
-            .arg("--out")
-            .arg(dir.path())
-            .output()
-            .unwrap();
+        let out = precision(&p, dir.path());
         assert!(!out.status.success());
         text_err(&out)
     };
@@ -1181,13 +1169,7 @@ fn bad_work_precision_input_names_the_file_and_the_field() {
         "{e}"
     );
     // A scene without a periodic drive has no strobe times.
-    let out = bin()
-        .args(["precision", "-q"])
-        .arg(scenes().join("pendulum.toml"))
-        .arg("--out")
-        .arg(dir.path())
-        .output()
-        .unwrap();
+    let out = precision(&scenes().join("pendulum.toml"), dir.path());
     assert!(!out.status.success());
     let e = text_err(&out);
     assert!(e.contains("pendulum.toml") && e.contains("drives"), "{e}");
@@ -1195,6 +1177,17 @@ fn bad_work_precision_input_names_the_file_and_the_field() {
         let p = f.unwrap().path();
         p.extension().is_none_or(|x| x != "h5")
     }));
+}
+
+/// `jointplay precision -q FILE --out DIR`.
+fn precision(file: &Path, dir: &Path) -> Output {
+    bin()
+        .args(["precision", "-q"])
+        .arg(file)
+        .arg("--out")
+        .arg(dir)
+        .output()
+        .unwrap()
 }
 
 fn text_err(o: &Output) -> String {
@@ -1212,13 +1205,7 @@ fn a_work_precision_run_whose_every_method_diverges_lists_the_failures_and_finis
         &DUFFING_PRECISION[..i]
     );
     std::fs::write(&study, body).unwrap();
-    let out = bin()
-        .args(["precision", "-q"])
-        .arg(&study)
-        .arg("--out")
-        .arg(dir.path())
-        .output()
-        .unwrap();
+    let out = precision(&study, dir.path());
     assert!(out.status.success(), "{:?}", text(&out));
     let md = std::fs::read_to_string(dir.path().join("wp.md")).unwrap();
     assert!(md.contains("failed: integration stopped"), "{md}");

@@ -1444,26 +1444,24 @@ mod tests {
     /// neighbouring orders 7 and 9.
     #[test]
     fn dop853_fixed_step_converges_with_order_eight() {
-        let t_end = 2.0 * std::f64::consts::PI;
-        let exact = kepler_exact(0.0, t_end);
-        let err = |steps| {
-            let y = fixed_steps(
-                &mut Kepler,
-                Scheme::Dop853,
-                &kepler_start(0.0),
-                t_end,
-                steps,
-            );
-            dist(&y, &exact)
-        };
-        let (e10, e20, e40) = (err(10), err(20), err(40));
-        for (a, b) in [(e10, e20), (e20, e40)] {
-            let p = (a / b).log2();
+        for (p, a, b) in kepler_orders(Scheme::Dop853, [10, 20, 40]) {
             assert!(
                 (7.5..8.7).contains(&p),
                 "observed order {p} ({a:e} -> {b:e})"
             );
         }
+    }
+
+    /// The observed orders (with the errors they come from) between the global errors at
+    /// t = 2 pi on the circular Kepler orbit with `steps` fixed steps of `scheme`.
+    fn kepler_orders(scheme: Scheme, steps: [usize; 3]) -> [(f64, f64, f64); 2] {
+        let t_end = 2.0 * std::f64::consts::PI;
+        let exact = kepler_exact(0.0, t_end);
+        let e = steps.map(|n| {
+            let y = fixed_steps(&mut Kepler, scheme, &kepler_start(0.0), t_end, n);
+            dist(&y, &exact)
+        });
+        [(e[0], e[1]), (e[1], e[2])].map(|(a, b)| ((a / b).log2(), a, b))
     }
 
     #[test]
@@ -1607,21 +1605,7 @@ mod tests {
     /// 50 steps); the band 1.9..2.1 excludes orders 1 and 3.
     #[test]
     fn rosenbrock23_fixed_step_converges_with_order_two() {
-        let t_end = 2.0 * std::f64::consts::PI;
-        let exact = kepler_exact(0.0, t_end);
-        let err = |steps| {
-            let y = fixed_steps(
-                &mut Kepler,
-                Scheme::Rosenbrock23,
-                &kepler_start(0.0),
-                t_end,
-                steps,
-            );
-            dist(&y, &exact)
-        };
-        let (e200, e400, e800) = (err(200), err(400), err(800));
-        for (a, b) in [(e200, e400), (e400, e800)] {
-            let p = (a / b).log2();
+        for (p, a, b) in kepler_orders(Scheme::Rosenbrock23, [200, 400, 800]) {
             assert!(
                 (1.9..2.1).contains(&p),
                 "observed order {p} ({a:e} -> {b:e})"
