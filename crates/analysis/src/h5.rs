@@ -447,7 +447,8 @@ fn write_group(file: &hdf5::Group, meta: &Meta, run: &RunResult) -> hdf5::Result
             }
         }
     }
-    Ok(())
+    // The hybrid state at the end: a later run can continue from it (`run --from`).
+    crate::hybrid::write_state(file, &run.final_state)
 }
 
 /// One component of a recorded dataset with its time axis, for comparing runs.

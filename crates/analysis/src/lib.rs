@@ -13,6 +13,7 @@
 
 pub mod figures;
 pub mod h5;
+pub mod hybrid;
 pub mod nlfigures;
 pub mod nonlinear;
 pub mod observe;

@@ -27,12 +27,14 @@ use jointplay_solver::dynamics::Mechanism;
 use jointplay_solver::model::{Model, State};
 use jointplay_solver::ode::OdeSystem;
 use jointplay_solver::scene::{SceneFile, SceneSpec};
-use ndarray::{Array1, Array2, s};
+use jointplay_solver::state::HybridState;
+use ndarray::{Array1, s};
 use rayon::prelude::*;
 use serde::Deserialize;
 use toml::{Table, Value};
 
 use crate::h5::{f64_attr, h5err, str_attr, u8_attr_set, u64_attr, write_atomically, write1};
+use crate::hybrid;
 use crate::observe::Observable;
 use crate::sections::{Direction, Hyperplane, Observed, Plan, Trace, trace_partial};
 use crate::study::{edit, edited_scene, invalid};
@@ -678,6 +680,12 @@ impl OdeSystem for MechFlow<'_> {
     fn explain_non_finite(&mut self, t: f64, y: &[f64], component: usize) -> String {
         self.mech.explain_non_finite(t, y, component)
     }
+    fn load_memory(&mut self, state: &HybridState) -> jointplay_solver::Result<()> {
+        self.mech.load_memory(state)
+    }
+    fn save_memory(&self, state: &mut HybridState) {
+        self.mech.save_memory(state)
+    }
 }
 
 impl Observed for MechFlow<'_> {
@@ -760,7 +768,7 @@ impl Loaded {
     fn run_job(
         &self,
         value: Option<f64>,
-        start: Option<&[f64]>,
+        start: Option<&HybridState>,
         progress: &mut dyn FnMut(f64),
     ) -> Result<JobResult> {
         let (r, failure) = self.run_job_partial(value, start, progress)?;
@@ -773,10 +781,15 @@ impl Loaded {
     /// [`Loaded::run_job`] that keeps what a run recorded before it failed: errors before the
     /// integration (a bad value, the assembly) are returned as such; a failure during it comes
     /// back beside the partial result.
+    ///
+    /// A continuation job starts at the flow's start time from the previous job's continuous
+    /// state and its contact-onset history (a contact that carries on through the hand-over
+    /// keeps the approach velocity of its onset); the integrator's step memory and the guard's
+    /// warnings start afresh, since each value is a run of its own with its own warnings.
     fn run_job_partial(
         &self,
         value: Option<f64>,
-        start: Option<&[f64]>,
+        start: Option<&HybridState>,
         progress: &mut dyn FnMut(f64),
     ) -> Result<(JobResult, Option<Error>)> {
         let t0 = Instant::now();
@@ -788,8 +801,8 @@ impl Loaded {
                 obs,
                 period,
             } => {
-                if let Some(y) = start {
-                    state.y.copy_from_slice(y);
+                if let Some(s) = start {
+                    state.y.copy_from_slice(&s.y);
                 }
                 model.assemble(&mut state)?;
                 let plan = self.plan(model.settings.method, state.t, period);
@@ -798,8 +811,13 @@ impl Loaded {
                     dynamics: obs.iter().any(|o| o.needs_dynamics()),
                     obs: &obs,
                 };
-                flow.mech.check_initial(state.t, &state.y)?;
-                let (tr, res) = trace_partial(&mut flow, &plan, &mut state.y, progress);
+                let mut hs = HybridState::new(state.t, state.y);
+                if let Some(s) = start {
+                    hs.onset.clone_from(&s.onset);
+                }
+                flow.mech.load_memory(&hs)?;
+                flow.mech.check_initial(hs.t, &hs.y)?;
+                let (tr, res) = trace_partial(&mut flow, &plan, &mut hs, progress);
                 let r = JobResult {
                     warnings: model
                         .warnings
@@ -817,13 +835,14 @@ impl Loaded {
                 Ok((r, res.err()))
             }
             Target::System { sys, obs, period } => {
-                let mut y = start.map(<[f64]>::to_vec).unwrap_or(sys.initial.clone());
+                let y = start.map_or_else(|| sys.initial.clone(), |s| s.y.clone());
                 let plan = self.plan(sys.method, sys.start_time, period);
                 let mut flow = SysFlow {
                     sys: sys.builtin,
                     obs: &obs,
                 };
-                let (tr, res) = trace_partial(&mut flow, &plan, &mut y, progress);
+                let mut hs = HybridState::new(plan.start, y);
+                let (tr, res) = trace_partial(&mut flow, &plan, &mut hs, progress);
                 let r = JobResult {
                     warnings: Vec::new(),
                     trace: tr,
@@ -846,6 +865,18 @@ impl Loaded {
     /// Runs the job with parameter `value` alone (tests, scripting).
     pub fn run_value(&self, value: f64, progress: &mut dyn FnMut(f64)) -> Result<JobResult> {
         self.run_job(Some(value), None, progress)
+    }
+
+    /// Runs the job with parameter `value` from `start`, another job's final state, as a
+    /// continuation sweep hands it over (its continuous state and contact-onset history, at the
+    /// flow's start time).
+    pub fn run_value_from(
+        &self,
+        value: f64,
+        start: &HybridState,
+        progress: &mut dyn FnMut(f64),
+    ) -> Result<JobResult> {
+        self.run_job(Some(value), Some(start), progress)
     }
 }
 
@@ -1012,14 +1043,15 @@ pub fn execute(
     if sw.continuation {
         // In order; each job starts from the previous job's final state (read back from the file
         // when resuming, so a resumed run continues from exactly the same state).
-        let mut prev: Option<Vec<f64>> = None;
+        let mut prev: Option<HybridState> = None;
+        let sweep = file.group("sweep").map_err(&e)?;
         for j in 0..n {
             if stop.load(Ordering::SeqCst) {
                 break;
             }
             if done[j] != 0 {
                 prev = if done[j] == 1 {
-                    Some(read_row(&file, "sweep/final_state", j).map_err(&e)?)
+                    Some(hybrid::read_row(&sweep, j).map_err(&e)?)
                 } else {
                     None
                 };
@@ -1027,7 +1059,7 @@ pub fn execute(
             }
             let res = st.run_job(
                 Some(st.jobs[j].0),
-                prev.as_deref(),
+                prev.as_ref(),
                 &mut throttled(j, progress),
             );
             prev = res.as_ref().ok().map(|r| r.trace.final_state.clone());
@@ -1077,12 +1109,6 @@ pub fn execute(
         wall,
         rhs_evals: rhs,
     })
-}
-
-fn read_row(file: &hdf5::File, ds: &str, row: usize) -> hdf5::Result<Vec<f64>> {
-    let d = file.dataset(ds)?;
-    let a: Array2<f64> = d.read_slice(s![row..row + 1, ..])?;
-    Ok(a.iter().copied().collect())
 }
 
 fn set_f64_attr(loc: &hdf5::Location, name: &str, v: f64) -> hdf5::Result<()> {
@@ -1169,13 +1195,7 @@ fn write_single(file: &hdf5::File, st: &Loaded, r: &JobResult) -> hdf5::Result<(
         write1(&gp, "time", &c.time, "s", "crossing times")?;
         obs_datasets(&gp, st, &r.units, &c.values, "at the crossings")?;
     }
-    write1(
-        file,
-        "final_state",
-        &t.final_state,
-        "SI",
-        "state vector at the end time",
-    )
+    hybrid::write_state(file, &t.final_state)
 }
 
 fn matrix(
@@ -1205,7 +1225,7 @@ fn create_sweep_file(
     let e = h5err(path);
     // Probe run to learn the units, period and state size without simulating: build job 0.
     let target = st.target(Some(st.jobs[0].0))?;
-    let (units, dim, method, period, start): (Vec<String>, usize, _, f64, f64) = match &target {
+    let (units, shape, method, period, start): (Vec<String>, _, _, f64, f64) = match &target {
         Target::Scene {
             model,
             state,
@@ -1213,14 +1233,22 @@ fn create_sweep_file(
             period,
         } => (
             obs.iter().map(|o| o.unit.clone()).collect(),
-            state.y.len(),
+            hybrid::StateShape {
+                dim: state.y.len(),
+                contacts: model.n_contacts,
+                clearances: model.clearances.len(),
+            },
             model.settings.method,
             *period,
             state.t,
         ),
         Target::System { sys, obs, period } => (
             obs.iter().map(|o| o.unit.clone()).collect(),
-            sys.initial.len(),
+            hybrid::StateShape {
+                dim: sys.initial.len(),
+                contacts: 0,
+                clearances: 0,
+            },
             sys.method,
             *period,
             sys.start_time,
@@ -1314,14 +1342,7 @@ fn create_sweep_file(
                 )?;
             }
         }
-        matrix(
-            &g,
-            "final_state",
-            n,
-            dim,
-            "SI",
-            "state vector at the end time, per job",
-        )?;
+        hybrid::create_rows(&g, n, shape)?;
         g.new_dataset::<u64>().shape(n).create("rhs_evals")?;
         let d = g
             .new_dataset::<f64>()
@@ -1367,7 +1388,7 @@ fn write_job(file: &hdf5::File, st: &Loaded, j: usize, r: &JobResult) -> hdf5::R
             write_row(&h, &o.name, j, v)?;
         }
     }
-    write_row(&g, "final_state", j, &t.final_state)?;
+    hybrid::write_row(&g, j, &t.final_state)?;
     g.dataset("rhs_evals")?
         .write_slice(&Array1::from(vec![t.stats.rhs_evals]), s![j..j + 1])?;
     g.dataset("wall_time")?

@@ -37,7 +37,8 @@ use std::time::Duration;
 
 use jointplay_solver::dynamics::Mechanism;
 use jointplay_solver::model::Model;
-use jointplay_solver::ode::{Flow, Method, Stats, integrate_partial};
+use jointplay_solver::ode::{Flow, Method, OdeSystem, Stats, advance};
+use jointplay_solver::state::HybridState;
 use serde::Deserialize;
 
 use hdf5::types::VarLenUnicode;
@@ -174,27 +175,24 @@ struct Leg {
     stats: Stats,
     failure: Option<String>,
     warnings: Vec<String>,
-    /// Final state and contact-onset history.
-    y: Vec<f64>,
-    onset: Vec<f64>,
+    /// The hybrid state at the end (at the failure, for a leg that failed).
+    state: HybridState,
 }
 
 fn observed_leg<F: Observed>(
     flow: &mut F,
     method: Method,
-    t0: f64,
-    y: &mut [f64],
+    state: &mut HybridState,
     t_end: f64,
     samples: &[f64],
 ) -> (Vec<Vec<f64>>, Stats, Option<String>) {
     let n = flow.n_obs();
     let mut out = Vec::with_capacity(samples.len());
     let mut buf = vec![0.0; n];
-    let (stats, res) = integrate_partial(
+    let (stats, res) = advance(
         flow,
         method,
-        t0,
-        y,
+        state,
         t_end,
         samples,
         |f: &mut F, t, ys| {
@@ -214,17 +212,10 @@ impl Runner {
         }
     }
 
-    /// Integrates from `(t0, y0)` (with contact-onset history `onset`, if any) to `t_end`.
-    fn leg(
-        &mut self,
-        method: Method,
-        t0: f64,
-        y0: &[f64],
-        onset: Option<&[f64]>,
-        t_end: f64,
-        samples: &[f64],
-    ) -> Leg {
-        let mut y = y0.to_vec();
+    /// Integrates from `start` to `t_end` as a new run of `method` (the contact-onset history
+    /// carries over, the integrator and the guards start afresh: [`HybridState::for_new_run`]).
+    fn leg(&mut self, method: Method, start: &HybridState, t_end: f64, samples: &[f64]) -> Leg {
+        let mut state = start.for_new_run();
         match &mut self.target {
             Target::Scene { model, obs, .. } => {
                 // The guards of a fixed-step method look at every stage: the model must know
@@ -236,21 +227,21 @@ impl Runner {
                     dynamics: obs.iter().any(|o| o.needs_dynamics()),
                     obs,
                 };
-                if let Some(o) = onset {
-                    flow.mech.ws.onset.copy_from_slice(o);
-                }
-                if let Err(e) = flow.mech.check_initial(t0, &y) {
+                if let Err(e) = flow
+                    .mech
+                    .load_memory(&state)
+                    .and_then(|()| flow.mech.check_initial(state.t, &state.y))
+                {
                     return Leg {
                         samples: Vec::new(),
                         stats: Stats::default(),
                         failure: Some(e.to_string()),
                         warnings: Vec::new(),
-                        y,
-                        onset: Vec::new(),
+                        state,
                     };
                 }
                 let (samples, stats, failure) =
-                    observed_leg(&mut flow, method, t0, &mut y, t_end, samples);
+                    observed_leg(&mut flow, method, &mut state, t_end, samples);
                 Leg {
                     samples,
                     stats,
@@ -261,8 +252,7 @@ impl Runner {
                         .iter()
                         .map(|w| w.message.clone())
                         .collect(),
-                    onset: flow.mech.ws.onset.clone(),
-                    y,
+                    state,
                 }
             }
             Target::System { sys, obs, .. } => {
@@ -271,14 +261,13 @@ impl Runner {
                     obs,
                 };
                 let (samples, stats, failure) =
-                    observed_leg(&mut flow, method, t0, &mut y, t_end, samples);
+                    observed_leg(&mut flow, method, &mut state, t_end, samples);
                 Leg {
                     samples,
                     stats,
                     failure,
                     warnings: Vec::new(),
-                    y,
-                    onset: Vec::new(),
+                    state,
                 }
             }
         }
@@ -346,11 +335,11 @@ impl Times {
 }
 
 /// The reference solution: kept strobe observables, the observables at the samples of every
-/// period, and the state and onset history at every strobe time.
+/// period, and the hybrid state (with the contact-onset history) at every strobe time.
 struct Reference {
     strobe: Vec<Vec<f64>>,
     windows: Vec<Vec<Vec<f64>>>,
-    states: Vec<(Vec<f64>, Vec<f64>)>,
+    states: Vec<HybridState>,
     wall: f64,
 }
 
@@ -640,8 +629,7 @@ impl Precision {
     fn reference(&mut self) -> Result<Reference> {
         let t = self.times.clone();
         let method = self.reference;
-        let mut y = self.runner.y0.clone();
-        let mut onset: Option<Vec<f64>> = None;
+        let mut state = HybridState::new(t.start, self.runner.y0.clone());
         let mut states = Vec::with_capacity(t.strobe.len());
         let mut strobe = Vec::new();
         let mut windows = Vec::new();
@@ -652,9 +640,7 @@ impl Precision {
             // The leg before s_0 (a phase offset) has no samples; the others end a period.
             let samples = if k > 0 { t.window(k - 1) } else { Vec::new() };
             if s_k > t_prev {
-                let leg = self
-                    .runner
-                    .leg(method, t_prev, &y, onset.as_deref(), s_k, &samples);
+                let leg = self.runner.leg(method, &state, s_k, &samples);
                 wall += leg.stats.wall;
                 if let Some(f) = leg.failure {
                     return Err(invalid(
@@ -666,8 +652,7 @@ impl Precision {
                         ),
                     ));
                 }
-                y = leg.y;
-                onset = Some(leg.onset);
+                state = leg.state;
                 if k > 0 {
                     if k > t.transient {
                         // The window's last sample is s_k itself.
@@ -676,7 +661,9 @@ impl Precision {
                     windows.push(leg.samples);
                 }
             }
-            states.push((y.clone(), onset.clone().unwrap_or_default()));
+            // The strobe time exactly, as the restarts start from it.
+            state.t = s_k;
+            states.push(state.clone());
             t_prev = s_k;
         }
         Ok(Reference {
@@ -691,8 +678,8 @@ impl Precision {
     fn measure(&mut self, method: Method, r: &Reference, timed: bool) -> RunRecord {
         let (samples, strobe_idx, last_idx) = self.times.merged();
         let (t0, t_end) = (self.times.start, self.times.end());
-        let y0 = self.runner.y0.clone();
-        let mut leg = self.runner.leg(method, t0, &y0, None, t_end, &samples);
+        let start = HybridState::new(t0, self.runner.y0.clone());
+        let mut leg = self.runner.leg(method, &start, t_end, &samples);
         let mut best = leg.stats.wall.as_secs_f64();
         let mut total = best;
         let mut repeats = 1;
@@ -700,7 +687,7 @@ impl Precision {
         while timed && leg.failure.is_none() && total < self.min_time && repeats < 50 {
             let w = self
                 .runner
-                .leg(method, t0, &y0, None, t_end, &samples)
+                .leg(method, &start, t_end, &samples)
                 .stats
                 .wall
                 .as_secs_f64();
@@ -752,12 +739,10 @@ impl Precision {
         let mut failure = leg.failure.clone();
         let (mut restart, mut restart_force): (f64, f64) = (0.0, 0.0);
         for &k in &self.restart_at.clone() {
-            let (y, onset) = &r.states[k];
-            let onset = (!onset.is_empty()).then_some(onset.as_slice());
             let (s0, s1) = (self.times.strobe[k], self.times.strobe[k + 1]);
             let l = self
                 .runner
-                .leg(method, s0, y, onset, s1, &self.times.window(k));
+                .leg(method, &r.states[k], s1, &self.times.window(k));
             let w = &r.windows[k];
             let failed = l.failure.or_else(|| {
                 (l.samples.len() != w.len() || w.is_empty())

@@ -9,13 +9,20 @@
 //! A run that diverges (the guards of [`jointplay_solver::guard`], a non-finite state, a
 //! non-finite recorded value) keeps every sample recorded before the failure:
 //! [`RunResult::stopped`] says where and why, and the file written from it is marked incomplete.
+//!
+//! Every run ends with its hybrid state ([`RunResult::final_state`]: the continuous state with
+//! the contact-onset history, the guard's flags and the integrator's memory), written to the run
+//! file ([`crate::hybrid`]). [`resume`] continues a run from such a state to the scene's end
+//! time, without assembling it again: a run of 2T and a run of T continued for T from its file
+//! are the same run, bit for bit when T lies on a fixed-step method's grid.
 
 use jointplay_solver::clearance::Geometry;
 use jointplay_solver::dynamics::{AssemblyReport, Mechanism};
 use jointplay_solver::guard::Warning;
 use jointplay_solver::model::{Model, State};
-use jointplay_solver::ode::{Flow, Stats, integrate_partial};
+use jointplay_solver::ode::{Flow, OdeSystem, Stats, advance};
 use jointplay_solver::scene::DriveCoordinate;
+use jointplay_solver::state::HybridState;
 
 use crate::Result;
 
@@ -202,9 +209,9 @@ pub struct RunResult {
     pub recording: Recording,
     pub stats: Stats,
     pub assembly: AssemblyReport,
-    /// The state at the end time; for a run that stopped, the last accepted state at or before
-    /// the failure, with `t` the failure time.
-    pub final_state: State,
+    /// The hybrid state at the end time; for a run that stopped, the last accepted state at or
+    /// before the failure (with its own time, which [`RunResult::stopped`] may exceed).
+    pub final_state: HybridState,
     /// Warnings of the step-size guard.
     pub warnings: Vec<Warning>,
     /// Set when the run stopped before its end time.
@@ -247,7 +254,63 @@ pub fn simulate(
     progress: &mut dyn FnMut(f64),
 ) -> Result<RunResult> {
     let assembly = model.assemble(&mut state)?;
-    let samples = model.sample_times();
+    record(
+        model,
+        HybridState::new(state.t, state.y),
+        assembly,
+        progress,
+    )
+}
+
+/// Continues a run from `state` (the final state of an earlier run of the same model, as
+/// [`crate::hybrid::read_state`] reads it from its file) to the scene's end time, with its
+/// contact-onset history, guard flags and integrator memory, and records the samples of the
+/// scene's output grid from the state's time on. The state is not assembled again (that would
+/// move it); the assembly report gives its constraint residuals instead. An error when the
+/// state does not fit the model or lies at or after the end time.
+pub fn resume(
+    model: &Model,
+    state: HybridState,
+    progress: &mut dyn FnMut(f64),
+) -> Result<RunResult> {
+    let mut sys = Mechanism::new(model);
+    sys.load_memory(&state)?;
+    let t1 = model.settings.end_time;
+    if !state.t.is_finite() || state.t >= t1 || !state.y.iter().all(|v| v.is_finite()) {
+        return Err(jointplay_solver::Error::Invalid {
+            file: model.file.clone(),
+            field: "state".into(),
+            message: format!(
+                "cannot continue from the state at t = {} s: it must be finite and before the \
+                 scene's end time {t1} s",
+                state.t
+            ),
+        }
+        .into());
+    }
+    model.drift(state.t, &state.y, &mut sys.ws);
+    let max = |v: &[f64]| v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+    let (p, v) = (max(&sys.ws.phi), max(&sys.ws.phi_dot));
+    let assembly = AssemblyReport {
+        iterations: 0,
+        initial_residual: p,
+        final_residual: p,
+        initial_velocity_residual: v,
+        final_velocity_residual: v,
+    };
+    record(model, state, assembly, progress)
+}
+
+/// Integrates `model` from the hybrid state `state` to the end time and records the outputs at
+/// the sample times from `state.t` on.
+fn record(
+    model: &Model,
+    mut state: HybridState,
+    assembly: AssemblyReport,
+    progress: &mut dyn FnMut(f64),
+) -> Result<RunResult> {
+    let mut samples = model.sample_times();
+    samples.retain(|&t| t >= state.t);
     let out = &model.outputs;
     let mut rec = Recording {
         time: Vec::with_capacity(samples.len()),
@@ -311,7 +374,7 @@ pub fn simulate(
         .filter_map(|&j| model.joints[j].clearance)
         .collect();
     let np = model.n_pos();
-    let (t0, t1) = (model.settings.start_time, model.settings.end_time);
+    let (t0, t1) = (state.t, model.settings.end_time);
     let mut failure = None;
     // Outputs are evaluated with the system's own workspace, so that they see its contact history.
     let mut observe = |sys: &mut Mechanism, t: f64, y: &[f64]| -> Result<()> {
@@ -416,13 +479,15 @@ pub fn simulate(
         Ok(())
     };
     let mut sys = Mechanism::new(model);
-    let (stats, res) = match sys.check_initial(t0, &state.y) {
+    let checked = sys
+        .load_memory(&state)
+        .and_then(|()| sys.check_initial(t0, &state.y));
+    let (stats, res) = match checked {
         Err(e) => (Stats::default(), Err(e)),
-        Ok(()) => integrate_partial(
+        Ok(()) => advance(
             &mut sys,
             model.settings.method,
-            t0,
-            &mut state.y,
+            &mut state,
             t1,
             &samples,
             |sys, t, y| match observe(sys, t, y) {
@@ -452,7 +517,6 @@ pub fn simulate(
         (None, Err(e)) => Some(Stopped::from_error(&e, t0)),
         (None, Ok(())) => None,
     };
-    state.t = stopped.as_ref().map_or(t1, |s| s.time);
     Ok(RunResult {
         recording: rec,
         stats,

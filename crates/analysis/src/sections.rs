@@ -19,7 +19,8 @@
 //! The flow only has to be an [`OdeSystem`] that can evaluate observables ([`Observed`]);
 //! nothing here knows mechanics.
 
-use jointplay_solver::ode::{Flow, Method, OdeSystem, Stats, Step, integrate_partial};
+use jointplay_solver::ode::{Flow, Method, OdeSystem, Stats, Step, advance};
+use jointplay_solver::state::HybridState;
 
 use crate::Result;
 
@@ -104,8 +105,9 @@ pub struct Trace {
     /// One per hyperplane of the plan.
     pub crossings: Vec<Crossings>,
     pub stats: Stats,
-    /// State at the end time.
-    pub final_state: Vec<f64>,
+    /// The hybrid state at the end time (at the failure, for a run that failed): a run
+    /// continued from it is the same run as one that never stopped.
+    pub final_state: HybridState,
 }
 
 impl Plan {
@@ -174,15 +176,16 @@ fn nonfinite<S: Observed>(sys: &S, i: usize, t: f64) -> crate::Error {
     .into()
 }
 
-/// Runs `sys` from state `y` (at `plan.start`) and keeps what the plan asks for; `y` ends at the
-/// final state. `progress` receives the fraction of the span done after every accepted step.
+/// Runs `sys` from the hybrid state `state` (whose time is `plan.start`, or later for a run that
+/// continues) and keeps what the plan asks for; `state` ends at the final state. `progress`
+/// receives the fraction of the span done after every accepted step.
 pub fn trace<S: Observed>(
     sys: &mut S,
     plan: &Plan,
-    y: &mut [f64],
+    state: &mut HybridState,
     progress: &mut dyn FnMut(f64),
 ) -> Result<Trace> {
-    let (tr, res) = trace_partial(sys, plan, y, progress);
+    let (tr, res) = trace_partial(sys, plan, state, progress);
     res.map(|()| tr)
 }
 
@@ -191,7 +194,7 @@ pub fn trace<S: Observed>(
 pub fn trace_partial<S: Observed>(
     sys: &mut S,
     plan: &Plan,
-    y: &mut [f64],
+    state: &mut HybridState,
     progress: &mut dyn FnMut(f64),
 ) -> (Trace, Result<()>) {
     let no = sys.n_obs();
@@ -250,7 +253,7 @@ pub fn trace_partial<S: Observed>(
     let mut g1 = vec![0.0; planes.len()];
     let mut o1 = vec![0.0; no];
     let mut o = vec![0.0; no];
-    let mut ys = vec![0.0; y.len()];
+    let mut ys = vec![0.0; state.y.len()];
     let mut step_fail = None;
     let mut on_step = |sys: &mut S, st: &Step| -> Flow {
         progress((st.t1 - plan.start) / span);
@@ -328,11 +331,10 @@ pub fn trace_partial<S: Observed>(
         g_prev = Some(st.t1);
         Flow::Continue
     };
-    let (stats, res) = integrate_partial(
+    let (stats, res) = advance(
         sys,
         plan.method,
-        plan.start,
-        y,
+        state,
         t_end,
         &times,
         observer,
@@ -349,7 +351,7 @@ pub fn trace_partial<S: Observed>(
         strobe,
         crossings,
         stats,
-        final_state: y.to_vec(),
+        final_state: state.clone(),
     };
     (tr, res)
 }

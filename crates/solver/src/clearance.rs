@@ -32,7 +32,7 @@
 use nalgebra::Vector3;
 
 use crate::contact::{FrictionLaw, NormalLaw};
-use crate::dynamics::Kin;
+use crate::kin::{Kin, any_normal};
 
 /// Clearance geometry of one joint (lengths in m).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -223,7 +223,7 @@ impl Clearance {
             Geometry::Spherical { .. } => Vector3::z(),
             _ => self.axis_h,
         };
-        let u = crate::model::any_normal(&a);
+        let u = any_normal(&a);
         (u, a.cross(&u))
     }
 

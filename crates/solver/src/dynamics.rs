@@ -31,239 +31,22 @@
 
 use nalgebra::{DMatrix, Matrix3, Quaternion, UnitQuaternion, Vector3};
 
-use crate::clearance::{ContactEval, Resultant};
+use crate::clearance::ContactEval;
 use crate::error::{Error, Result};
 use crate::guard::{StepGuard, Warning};
+use crate::kin::{GROUND, Kin};
 use crate::linalg::PsdSolver;
-use crate::model::{GROUND, Model, Prim, State};
+use crate::model::{Model, Prim, State};
 use crate::ode::OdeSystem;
 use crate::profile::SinCos;
 use crate::scene::LoadFrame;
+use crate::state::HybridState;
+use crate::workspace::minv_block;
+pub use crate::workspace::{Row, Workspace};
 
 /// Relative pivot tolerance of the reduced-matrix factorisation: pivots below it count as
 /// redundant constraint directions.
 pub const RANK_TOL: f64 = 1e-10;
-
-/// Kinematics of one body at the current state (global).
-#[derive(Debug, Clone, Copy)]
-pub struct Kin {
-    pub r: Vector3<f64>,
-    pub rot: Matrix3<f64>,
-    pub v: Vector3<f64>,
-    pub w: Vector3<f64>,
-}
-
-impl Default for Kin {
-    fn default() -> Self {
-        Kin {
-            r: Vector3::zeros(),
-            rot: Matrix3::identity(),
-            v: Vector3::zeros(),
-            w: Vector3::zeros(),
-        }
-    }
-}
-
-/// One constraint row: Jacobian blocks (v, w) of its two bodies.
-#[derive(Debug, Clone, Copy)]
-pub struct Row {
-    pub a: usize,
-    pub b: usize,
-    pub ja: [f64; 6],
-    pub jb: [f64; 6],
-}
-
-/// Which constraint rows act on which body: fixed by the scene, it fixes the sparsity of the
-/// reduced matrix `S = G M^-1 G^T`, whose entry (i, j) is nonzero only when rows i and j act on a
-/// common body (the ground aside). Built once when the model is compiled.
-#[derive(Debug, Clone, Default)]
-pub struct Coupling {
-    /// Rows acting on body k: `inc[inc_ptr[k]..inc_ptr[k + 1]]`, ascending, each as (row, side)
-    /// with side 0 when k is the row's body a and 1 when it is its body b.
-    inc_ptr: Vec<usize>,
-    inc: Vec<(usize, u8)>,
-    /// The terms G_u^k M_k^-1 G_v^k^T of S as (storage index in the sparse solver, incidence u,
-    /// incidence v), one per pair u <= v of rows on a body: `first` holds the first term of each
-    /// entry, in storage order, and `extra` the second one of the entries whose rows share both
-    /// bodies. Writing the first terms and adding the others fills S without clearing it. Each
-    /// list comes in two parts: [0] terms with a row that constrains rotation only (a
-    /// perpendicularity or an angle: zero translational Jacobian, so only the rotational halves
-    /// contribute, with the same value), [1] the others.
-    first: [Vec<[u32; 3]>; 2],
-    extra: [Vec<[u32; 3]>; 2],
-    /// The symbolic factorisation (elimination order and pattern of the factor).
-    solver: crate::linalg::SparsePsd,
-}
-
-impl Coupling {
-    /// The coupling of the rows of `prims` (n_rows in all) among nb bodies.
-    pub fn new(nb: usize, prims: &[(Prim, usize)], n_rows: usize) -> Self {
-        let mut on_body: Vec<Vec<(usize, u8)>> = vec![Vec::new(); nb];
-        let mut rot_only = vec![false; n_rows];
-        for (prim, r0) in prims {
-            let (a, b, n) = match *prim {
-                Prim::Coincident { a, b, .. } => (a, b, 3),
-                Prim::Perpendicular { a, b, .. } => (a, b, 1),
-                Prim::Distance { a, b, .. } => (a, b, 1),
-                Prim::Angle { a, b, .. } => (a, b, 1),
-            };
-            let rot = matches!(prim, Prim::Perpendicular { .. } | Prim::Angle { .. });
-            for i in *r0..*r0 + n {
-                rot_only[i] = rot;
-                for (k, side) in [(a, 0), (b, 1)] {
-                    if k != GROUND {
-                        on_body[k].push((i, side));
-                    }
-                }
-            }
-        }
-        for rows in &mut on_body {
-            rows.sort_unstable();
-        }
-        let cliques: Vec<Vec<usize>> = on_body
-            .iter()
-            .map(|rows| rows.iter().map(|r| r.0).collect())
-            .collect();
-        let solver = crate::linalg::SparsePsd::new(n_rows, &cliques);
-        let mut inc_ptr = vec![0];
-        let mut inc = Vec::new();
-        let mut terms = Vec::new();
-        for rows in &on_body {
-            let u0 = inc.len();
-            for (u, ru) in rows.iter().enumerate() {
-                for (v, rv) in rows.iter().enumerate().skip(u) {
-                    let slot = solver.index(ru.0, rv.0);
-                    let full = !(rot_only[ru.0] || rot_only[rv.0]);
-                    terms.push((
-                        [slot, u0 + u, u0 + v].map(|x| u32::try_from(x).unwrap()),
-                        full,
-                    ));
-                }
-            }
-            inc.extend_from_slice(rows);
-            inc_ptr.push(inc.len());
-        }
-        terms.sort_unstable();
-        let (mut first, mut extra) = ([Vec::new(), Vec::new()], [Vec::new(), Vec::new()]);
-        for (i, (tm, full)) in terms.iter().enumerate() {
-            if i > 0 && terms[i - 1].0[0] == tm[0] {
-                extra[*full as usize].push(*tm);
-            } else {
-                first[*full as usize].push(*tm);
-            }
-        }
-        Coupling {
-            inc_ptr,
-            inc,
-            first,
-            extra,
-            solver,
-        }
-    }
-}
-
-/// Scratch memory of the right-hand side; also holds the last evaluation's results
-/// (multipliers, accelerations, constraint residuals) for the recorders.
-#[derive(Debug, Clone)]
-pub struct Workspace {
-    /// Per body, with the ground appended at index nb.
-    pub kin: Vec<Kin>,
-    /// Inverse global inertia per body.
-    pub inv_j: Vec<Matrix3<f64>>,
-    /// Applied generalized forces per body: force (N) and torque about the COM (N m).
-    pub q: Vec<[f64; 6]>,
-    /// M^-1 Q per body.
-    pub minv_q: Vec<[f64; 6]>,
-    pub rows: Vec<Row>,
-    /// Phi, Phi' (= G v - s') and the Baumgarte right-hand side per row.
-    pub phi: Vec<f64>,
-    pub phi_dot: Vec<f64>,
-    pub rhs: Vec<f64>,
-    /// Jacobian blocks G_i^k and W_i^k = M_k^-1 G_i^k^T of the rows acting on each body, in the
-    /// order of [`Coupling`]'s incidence list.
-    inc_j: Vec<[f64; 6]>,
-    inc_w: Vec<[f64; 6]>,
-    /// The sparse factorisation of the reduced matrix.
-    sparse: crate::linalg::SparsePsd,
-    /// The dense path (reference, and fallback near singular configurations): M^-1 G^T per row
-    /// (blocks for a and b), the dense reduced matrix (allocated on first use) and its solver.
-    wrows: Vec<([f64; 6], [f64; 6])>,
-    s: Vec<f64>,
-    solver: PsdSolver,
-    /// Whether the last evaluation solved on the dense path.
-    dense_used: bool,
-    /// Multipliers of the last evaluation.
-    pub lambda: Vec<f64>,
-    /// Accelerations of the last evaluation per body: a (m/s^2), alpha (rad/s^2).
-    pub acc: Vec<[f64; 6]>,
-    /// Numerical rank of the reduced matrix at the last evaluation.
-    pub rank: usize,
-    /// Contact points of the clearance joints at the last evaluation.
-    pub contacts: Vec<ContactEval>,
-    /// Resultant contact wrench per clearance joint at the last evaluation.
-    pub resultants: Vec<Resultant>,
-    /// Approach velocity at the onset of each contact (m/s); NaN while out of contact. This is
-    /// history, updated only on accepted steps ([`Model::update_onsets`]).
-    pub onset: Vec<f64>,
-    /// Contact geometry at the start of the last accepted step (scratch for onset location).
-    pub(crate) contacts0: Vec<ContactEval>,
-}
-
-impl Workspace {
-    /// Solves `S x = b` in place with the reduced matrix S = G M^-1 G^T factored by the last
-    /// evaluation of the accelerations (minimum-norm when constraints are redundant).
-    pub(crate) fn solve_reduced(&mut self, b: &mut [f64]) {
-        if self.dense_used {
-            self.solver.solve(b);
-        } else {
-            self.sparse.solve(b);
-        }
-    }
-
-    pub fn new(m: &Model) -> Self {
-        let nb = m.nb();
-        let nr = m.n_rows;
-        let zero_row = Row {
-            a: GROUND,
-            b: GROUND,
-            ja: [0.0; 6],
-            jb: [0.0; 6],
-        };
-        Workspace {
-            kin: vec![Kin::default(); nb + 1],
-            inv_j: vec![Matrix3::zeros(); nb],
-            q: vec![[0.0; 6]; nb],
-            minv_q: vec![[0.0; 6]; nb],
-            rows: vec![zero_row; nr],
-            phi: vec![0.0; nr],
-            phi_dot: vec![0.0; nr],
-            rhs: vec![0.0; nr],
-            inc_j: vec![[0.0; 6]; m.coupling.inc.len()],
-            inc_w: vec![[0.0; 6]; m.coupling.inc.len()],
-            sparse: m.coupling.solver.clone(),
-            wrows: vec![([0.0; 6], [0.0; 6]); nr],
-            s: Vec::new(),
-            solver: PsdSolver::new(),
-            dense_used: false,
-            lambda: vec![0.0; nr],
-            acc: vec![[0.0; 6]; nb],
-            rank: 0,
-            contacts: vec![ContactEval::default(); m.n_contacts],
-            resultants: vec![Resultant::default(); m.clearances.len()],
-            onset: vec![f64::NAN; m.n_contacts],
-            contacts0: vec![ContactEval::default(); m.n_contacts],
-        }
-    }
-}
-
-impl Workspace {
-    /// Whether the last evaluation solved the reduced system on the dense path (see
-    /// [`SparsePsd::factor`](crate::linalg::SparsePsd::factor) for when the sparse one defers to
-    /// it).
-    pub fn solved_densely(&self) -> bool {
-        self.dense_used
-    }
-}
 
 #[inline]
 fn v3(s: &[f64]) -> Vector3<f64> {
@@ -1077,15 +860,6 @@ fn row_dot(ri: &Row, rj: &Row) -> f64 {
     s
 }
 
-pub(crate) fn minv_block(m: &Model, ws: &Workspace, b: usize, j: &[f64; 6]) -> [f64; 6] {
-    if b == GROUND {
-        return [0.0; 6];
-    }
-    let mi = 1.0 / m.bodies[b].mass;
-    let t = ws.inv_j[b] * Vector3::new(j[3], j[4], j[5]);
-    [j[0] * mi, j[1] * mi, j[2] * mi, t.x, t.y, t.z]
-}
-
 fn point_state(ws: &Workspace, b: usize, s: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
     if b == GROUND {
         return (*s, Vector3::zeros());
@@ -1197,6 +971,43 @@ impl OdeSystem for Mechanism<'_> {
     }
     fn explain_non_finite(&mut self, t: f64, y: &[f64], component: usize) -> String {
         self.model.explain_non_finite(t, y, component, &mut self.ws)
+    }
+    /// The onset history and the guard's flags; empty vectors keep the mechanism's own (fresh
+    /// for a new mechanism). Vectors of another length are refused: the state belongs to
+    /// another model.
+    fn load_memory(&mut self, state: &HybridState) -> Result<()> {
+        let m = self.model;
+        let fits = |len: usize, want: usize| len == 0 || len == want;
+        if state.y.len() != self.dim()
+            || !fits(state.onset.len(), m.n_contacts)
+            || !fits(state.warned.len(), m.clearances.len())
+        {
+            return Err(Error::Invalid {
+                file: m.file.clone(),
+                field: "state".into(),
+                message: format!(
+                    "a state of {} coordinates, {} contacts and {} clearance joints does not \
+                     fit this model ({} coordinates, {} contacts, {} clearance joints)",
+                    state.y.len(),
+                    state.onset.len(),
+                    state.warned.len(),
+                    self.dim(),
+                    m.n_contacts,
+                    m.clearances.len()
+                ),
+            });
+        }
+        if !state.onset.is_empty() {
+            self.ws.onset.copy_from_slice(&state.onset);
+        }
+        if !state.warned.is_empty() {
+            self.guard.set_warned(&state.warned);
+        }
+        Ok(())
+    }
+    fn save_memory(&self, state: &mut HybridState) {
+        state.onset.clone_from(&self.ws.onset);
+        state.warned = self.guard.warned(self.model.clearances.len());
     }
 }
 

@@ -44,9 +44,10 @@
 use nalgebra::Vector3;
 
 use crate::clearance::{Clearance, ContactEval};
-use crate::dynamics::{Kin, Workspace, minv_block};
-use crate::model::{GROUND, Model, any_normal};
+use crate::kin::{GROUND, Kin, any_normal};
+use crate::model::Model;
 use crate::ode::Method;
+use crate::workspace::{Workspace, minv_block};
 
 /// A warning raised while the run goes on.
 #[derive(Debug, Clone, PartialEq)]
@@ -63,6 +64,20 @@ pub struct StepGuard {
     /// Scratch of the constrained effective mass (one entry per constraint row).
     u: Vec<f64>,
     x: Vec<f64>,
+}
+
+impl StepGuard {
+    /// Whether each clearance joint has been warned about (part of the run's hybrid state).
+    pub fn warned(&self, n_clearances: usize) -> Vec<bool> {
+        let mut w = self.warned.clone();
+        w.resize(n_clearances, false);
+        w
+    }
+
+    pub fn set_warned(&mut self, warned: &[bool]) {
+        self.warned.clear();
+        self.warned.extend_from_slice(warned);
+    }
 }
 
 /// `M^-1 w^T` of the journal and housing bodies (ground: [`GROUND`]).

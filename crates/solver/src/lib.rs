@@ -15,14 +15,18 @@
 
 pub mod clearance;
 pub mod contact;
+pub mod coupling;
 pub mod disable;
 pub mod dynamics;
 pub mod error;
 pub mod guard;
+pub mod kin;
 pub mod linalg;
 pub mod model;
 pub mod ode;
 pub mod profile;
 pub mod scene;
+pub mod state;
+pub mod workspace;
 
 pub use error::{Error, Result};

@@ -40,8 +40,8 @@ use crate::ode::Method;
 use crate::profile::{Profile, Spline};
 use crate::scene::*;
 
-/// Index used for the ground in body references.
-pub const GROUND: usize = usize::MAX;
+// Re-exported: they are used with these paths across the workspace.
+pub use crate::kin::{GROUND, any_normal};
 
 /// A rigid body, with vectors relative to its centre of mass in body axes.
 #[derive(Debug, Clone)]
@@ -95,6 +95,23 @@ pub enum Prim {
 }
 
 impl Prim {
+    /// The bodies and rows of this primitive, starting at row `first`, for the sparsity pattern.
+    pub fn row_block(&self, first: usize) -> crate::coupling::RowBlock {
+        let (a, b) = match *self {
+            Prim::Coincident { a, b, .. }
+            | Prim::Perpendicular { a, b, .. }
+            | Prim::Distance { a, b, .. }
+            | Prim::Angle { a, b, .. } => (a, b),
+        };
+        crate::coupling::RowBlock {
+            a,
+            b,
+            first,
+            n: self.rows(),
+            rotation_only: matches!(self, Prim::Perpendicular { .. } | Prim::Angle { .. }),
+        }
+    }
+
     pub fn rows(&self) -> usize {
         match self {
             Prim::Coincident { .. } => 3,
@@ -282,7 +299,7 @@ pub struct Model {
     pub joint_rows: usize,
     pub n_rows: usize,
     /// Which rows act on which body, and the sparse factorisation that follows from it.
-    pub coupling: crate::dynamics::Coupling,
+    pub coupling: crate::coupling::Coupling,
     pub effects: Effects,
     /// What the scene's `disable` list removed, one line per entry (see [`crate::disable`]).
     pub disabled: Vec<String>,
@@ -325,16 +342,6 @@ impl Ctx<'_> {
 
 fn v3(a: [f64; 3]) -> Vector3<f64> {
     Vector3::new(a[0], a[1], a[2])
-}
-
-/// Any unit vector normal to `a` (unit), chosen deterministically.
-pub fn any_normal(a: &Vector3<f64>) -> Vector3<f64> {
-    let t = if a.x.abs() < 0.9 {
-        Vector3::x()
-    } else {
-        Vector3::y()
-    };
-    (t - a * a.dot(&t)).normalize()
 }
 
 /// Walks the raw TOML tree and rejects NaN and infinities, naming the field path.
@@ -1739,7 +1746,8 @@ impl Model {
                 )
             }),
         };
-        let coupling = crate::dynamics::Coupling::new(bodies.len(), &prims, n_rows);
+        let blocks: Vec<_> = prims.iter().map(|(p, r0)| p.row_block(*r0)).collect();
+        let coupling = crate::coupling::Coupling::new(bodies.len(), &blocks, n_rows);
         let model = Model {
             name: scene.name(),
             file: scene.path.clone(),

@@ -53,6 +53,7 @@ use std::time::{Duration, Instant};
 use nalgebra::{DMatrix, DVectorViewMut, Dyn, LU};
 
 use crate::error::{Error, Result};
+use crate::state::{HybridState, StepperMemory};
 
 mod dop853;
 
@@ -85,6 +86,16 @@ pub trait OdeSystem {
     fn explain_non_finite(&mut self, _t: f64, _y: &[f64], component: usize) -> String {
         format!("state component {component} became non-finite")
     }
+
+    /// Takes the system's discrete memory (contact-onset history, guard flags) from `state`
+    /// before [`advance`] integrates; an error when it does not fit the system. A state without
+    /// memory (empty vectors) starts the memory afresh. The default keeps none.
+    fn load_memory(&mut self, _state: &HybridState) -> Result<()> {
+        Ok(())
+    }
+
+    /// Writes the system's discrete memory into `state` after [`advance`] has integrated.
+    fn save_memory(&self, _state: &mut HybridState) {}
 }
 
 /// Integration method and its accuracy settings.
@@ -984,35 +995,79 @@ pub fn integrate_partial<S: OdeSystem>(
 ) -> (Stats, Result<()>) {
     let start = Instant::now();
     let mut stats = Stats::default();
-    let res = run_steps(
-        sys, method, t0, y, t_end, samples, observer, on_step, &mut stats,
+    let mut t = t0;
+    let mut memory = StepperMemory::default();
+    let res = step_loop(
+        sys,
+        method,
+        &mut t,
+        y,
+        &mut memory,
+        t_end,
+        samples,
+        observer,
+        on_step,
+        &mut stats,
     );
     stats.wall = start.elapsed();
     (stats, res)
 }
 
+/// Advances the hybrid state `state` of `sys` to `t_end`: the system's memory is loaded from the
+/// state, the integrator continues with the state's step memory (the same step grid, the same
+/// controller state), and every memory is written back, also when the run fails (then `state`
+/// holds the last accepted state). An observer's [`Flow::Stop`] leaves `state` at the end of the
+/// step that contained the sample. Samples and the step observer as in [`integrate_steps`].
 #[allow(clippy::too_many_arguments)]
-fn run_steps<S: OdeSystem>(
+pub fn advance<S: OdeSystem>(
     sys: &mut S,
     method: Method,
-    t0: f64,
+    state: &mut HybridState,
+    t_end: f64,
+    samples: &[f64],
+    observer: impl FnMut(&mut S, f64, &[f64]) -> Flow,
+    on_step: Option<StepObserver<S>>,
+) -> (Stats, Result<()>) {
+    let start = Instant::now();
+    let mut stats = Stats::default();
+    if let Err(e) = sys.load_memory(state) {
+        return (stats, Err(e));
+    }
+    let HybridState { t, y, stepper, .. } = state;
+    let res = step_loop(
+        sys, method, t, y, stepper, t_end, samples, observer, on_step, &mut stats,
+    );
+    sys.save_memory(state);
+    stats.wall = start.elapsed();
+    (stats, res)
+}
+
+/// The step loop. `(t, y, memory)` is the state it starts from and leaves at the last accepted
+/// step (the end of the step of a stopping sample); the memory is written back on every exit.
+#[allow(clippy::too_many_arguments)]
+fn step_loop<S: OdeSystem>(
+    sys: &mut S,
+    method: Method,
+    t: &mut f64,
     y: &mut [f64],
+    memory: &mut StepperMemory,
     t_end: f64,
     samples: &[f64],
     mut observer: impl FnMut(&mut S, f64, &[f64]) -> Flow,
     mut on_step: Option<StepObserver<S>>,
     stats: &mut Stats,
 ) -> Result<()> {
+    let t_out = t;
     let n = sys.dim();
     assert_eq!(
         y.len(),
         n,
         "state length does not match the system dimension"
     );
+    let t0 = *t_out;
     let scheme = method.scheme();
     let mut w = Work::new(n, scheme);
     let mut ys = vec![0.0; n];
-    let mut t = t0;
     let mut next_sample = 0usize;
     // Samples at t0 itself.
     while next_sample < samples.len() && samples[next_sample] <= t0 {
@@ -1024,7 +1079,7 @@ fn run_steps<S: OdeSystem>(
     if t_end <= t0 {
         return Ok(());
     }
-    sys.rhs(t, y, &mut w.k[0]);
+    sys.rhs(t0, y, &mut w.k[0]);
     stats.rhs_evals += 1;
 
     let (mut h, adaptive, rtol, atol, max_step) = match method.tolerances() {
@@ -1034,126 +1089,157 @@ fn run_steps<S: OdeSystem>(
         }
         Some((rtol, atol, max_step)) => {
             let q = scheme.control_order();
-            let h = initial_step(sys, t, y, &w.k[0], (rtol, atol, max_step), q, stats);
+            let h = if memory.next_step > 0.0 && memory.next_step.is_finite() {
+                memory.next_step.min(max_step)
+            } else {
+                initial_step(sys, t0, y, &w.k[0], (rtol, atol, max_step), q, stats)
+            };
             (h, true, rtol, atol, max_step)
         }
     };
     if !(h > 0.0 && h.is_finite()) {
         return Err(Error::Diverged {
-            time: t,
+            time: t0,
             message: format!("the step size must be positive and finite, got {h}"),
         });
     }
-    let mut err_old: f64 = 1e-4;
+    // Fixed-step methods step on the grid origin + k h, continued from the memory when it was
+    // laid with the same step; the final step is shortened to hit t_end.
+    if adaptive || memory.grid_step != h || !memory.grid_origin.is_finite() {
+        memory.grid_origin = t0;
+        memory.grid_step = h;
+        memory.grid_steps = 0;
+    }
+    let origin = memory.grid_origin;
+    let mut err_old: f64 = memory.last_error;
     let mut last_rejected = false;
     let span = t_end - t0;
-    // Fixed-step methods step on the grid t0 + k h; the final step is shortened to hit t_end.
-    let mut k_step: u64 = 0;
-    while t < t_end {
-        let t_next_grid = if adaptive {
-            t + h
-        } else {
-            t0 + (k_step + 1) as f64 * h
-        };
-        // Land exactly on t_end when within a small fraction of a step of it.
-        let (h_try, t_new) = if t_next_grid >= t_end - 1e-9 * h.max(span * 1e-12) {
-            (t_end - t, t_end)
-        } else {
-            (t_next_grid - t, t_next_grid)
-        };
-        scheme.step(sys, t, y, h_try, &mut w, stats, last_rejected)?;
-        if adaptive {
-            let err = scheme.error_norm(&w, y, h_try, rtol, atol);
-            let q = scheme.control_order();
-            if !err.is_finite() || err > 1.0 {
-                stats.rejected += 1;
-                let fac = if err.is_finite() {
-                    (0.9 * err.powf(-1.0 / q)).clamp(0.2, 1.0)
-                } else {
-                    0.2
-                };
-                h = h_try * fac;
-                last_rejected = true;
-                if h < 1e-14 * t.abs().max(1.0) {
-                    return Err(Error::Diverged {
-                        time: t,
-                        message: format!(
-                            "step size underflow (h = {h:e} s) with error estimate {err:e}"
-                        ),
-                    });
-                }
-                continue;
-            }
-            // PI controller with exponents 0.7/q and 0.4/q (Gustafsson's form), step growth
-            // limited to 10x.
-            let e = err.max(1e-10);
-            let mut fac = 0.9 * e.powf(-0.7 / q) * err_old.powf(0.4 / q);
-            fac = fac.clamp(0.2, if last_rejected { 1.0 } else { 10.0 });
-            err_old = e;
-            last_rejected = false;
-            h = (h_try * fac).min(max_step);
-        }
-        if let Some(i) = w.y_new.iter().position(|v| !v.is_finite()) {
-            return Err(Error::Diverged {
-                time: t_new,
-                message: sys.explain_non_finite(t, y, i),
-            });
-        }
-        stats.accepted += 1;
-        k_step += 1;
-        let history_changed = sys.step_accepted(t, y, t_new, &w.y_new);
-        if let Some(message) = sys.check_step(t_new, &w.y_new) {
-            y.copy_from_slice(&w.y_new);
-            return Err(Error::Diverged {
-                time: t_new,
-                message,
-            });
-        }
-        let has_dense_sample = next_sample < samples.len() && samples[next_sample] < t_new;
-        if has_dense_sample || on_step.is_some() {
-            scheme.dense(sys, t, y, h_try, &mut w, stats);
-        }
-        // Emit the samples inside (t, t_new].
-        while next_sample < samples.len() && samples[next_sample] <= t_new {
-            let ts = samples[next_sample];
-            let theta = ((ts - t) / h_try).clamp(0.0, 1.0);
-            let flow = if ts == t_new {
-                observer(sys, ts, &w.y_new)
+    let mut k_step: u64 = memory.grid_steps;
+    let mut t = t0;
+    let res = 'run: {
+        while t < t_end {
+            let t_next_grid = if adaptive {
+                t + h
             } else {
-                scheme.eval(y, &w, h_try, theta, &mut ys);
-                observer(sys, ts, &ys)
+                origin + (k_step + 1) as f64 * h
             };
-            next_sample += 1;
-            if flow == Flow::Stop {
+            // Land exactly on t_end when within a small fraction of a step of it.
+            let tol = 1e-9 * h.max(span * 1e-12);
+            let (h_try, t_new) = if t_next_grid >= t_end - tol {
+                (t_end - t, t_end)
+            } else {
+                (t_next_grid - t, t_next_grid)
+            };
+            // A step shortened to end at t_end does not reach the next grid point.
+            let on_grid = t_next_grid <= t_end + tol;
+            if let Err(e) = scheme.step(sys, t, y, h_try, &mut w, stats, last_rejected) {
+                break 'run Err(e);
+            }
+            if adaptive {
+                let err = scheme.error_norm(&w, y, h_try, rtol, atol);
+                let q = scheme.control_order();
+                if !err.is_finite() || err > 1.0 {
+                    stats.rejected += 1;
+                    let fac = if err.is_finite() {
+                        (0.9 * err.powf(-1.0 / q)).clamp(0.2, 1.0)
+                    } else {
+                        0.2
+                    };
+                    h = h_try * fac;
+                    last_rejected = true;
+                    if h < 1e-14 * t.abs().max(1.0) {
+                        break 'run Err(Error::Diverged {
+                            time: t,
+                            message: format!(
+                                "step size underflow (h = {h:e} s) with error estimate {err:e}"
+                            ),
+                        });
+                    }
+                    continue;
+                }
+                // PI controller with exponents 0.7/q and 0.4/q (Gustafsson's form), step growth
+                // limited to 10x.
+                let e = err.max(1e-10);
+                let mut fac = 0.9 * e.powf(-0.7 / q) * err_old.powf(0.4 / q);
+                fac = fac.clamp(0.2, if last_rejected { 1.0 } else { 10.0 });
+                err_old = e;
+                last_rejected = false;
+                h = (h_try * fac).min(max_step);
+            }
+            if let Some(i) = w.y_new.iter().position(|v| !v.is_finite()) {
+                break 'run Err(Error::Diverged {
+                    time: t_new,
+                    message: sys.explain_non_finite(t, y, i),
+                });
+            }
+            stats.accepted += 1;
+            if on_grid {
+                k_step += 1;
+            }
+            let history_changed = sys.step_accepted(t, y, t_new, &w.y_new);
+            if let Some(message) = sys.check_step(t_new, &w.y_new) {
                 y.copy_from_slice(&w.y_new);
-                return Ok(());
+                t = t_new;
+                break 'run Err(Error::Diverged {
+                    time: t_new,
+                    message,
+                });
+            }
+            let has_dense_sample = next_sample < samples.len() && samples[next_sample] < t_new;
+            if has_dense_sample || on_step.is_some() {
+                scheme.dense(sys, t, y, h_try, &mut w, stats);
+            }
+            // Emit the samples inside (t, t_new].
+            while next_sample < samples.len() && samples[next_sample] <= t_new {
+                let ts = samples[next_sample];
+                let theta = ((ts - t) / h_try).clamp(0.0, 1.0);
+                let flow = if ts == t_new {
+                    observer(sys, ts, &w.y_new)
+                } else {
+                    scheme.eval(y, &w, h_try, theta, &mut ys);
+                    observer(sys, ts, &ys)
+                };
+                next_sample += 1;
+                if flow == Flow::Stop {
+                    y.copy_from_slice(&w.y_new);
+                    t = t_new;
+                    break 'run Ok(());
+                }
+            }
+            if let Some(f) = on_step.as_mut() {
+                let step = Step {
+                    t0: t,
+                    t1: t_new,
+                    y0: y,
+                    y1: &w.y_new,
+                    scheme,
+                    w: &w,
+                };
+                if f(sys, &step) == Flow::Stop {
+                    y.copy_from_slice(&w.y_new);
+                    t = t_new;
+                    break 'run Ok(());
+                }
+            }
+            y.copy_from_slice(&w.y_new);
+            t = t_new;
+            // The last stage is f(t_new, y_new): first stage of the next step (FSAL), unless the
+            // system's history changed at the step end.
+            w.k.swap(0, scheme.fsal());
+            if history_changed {
+                sys.rhs(t, y, &mut w.k[0]);
+                stats.rhs_evals += 1;
             }
         }
-        if let Some(f) = on_step.as_mut() {
-            let step = Step {
-                t0: t,
-                t1: t_new,
-                y0: y,
-                y1: &w.y_new,
-                scheme,
-                w: &w,
-            };
-            if f(sys, &step) == Flow::Stop {
-                y.copy_from_slice(&w.y_new);
-                return Ok(());
-            }
-        }
-        y.copy_from_slice(&w.y_new);
-        t = t_new;
-        // The last stage is f(t_new, y_new): first stage of the next step (FSAL), unless the
-        // system's history changed at the step end.
-        w.k.swap(0, scheme.fsal());
-        if history_changed {
-            sys.rhs(t, y, &mut w.k[0]);
-            stats.rhs_evals += 1;
-        }
+        Ok(())
+    };
+    *t_out = t;
+    memory.grid_steps = k_step;
+    if adaptive {
+        memory.next_step = h;
+        memory.last_error = err_old;
     }
-    Ok(())
+    res
 }
 
 #[cfg(test)]
@@ -1811,5 +1897,78 @@ mod tests {
             );
         }
         assert_eq!(Method::of_family("rk45", 1e-3, 1e-9), None);
+    }
+
+    /// Step end times of `advance` from `state` to `t_end`.
+    fn step_ends(method: Method, state: &mut HybridState, t_end: f64) -> Vec<f64> {
+        let mut ends = Vec::new();
+        let mut on_step = |_: &mut Harmonic, st: &Step| {
+            ends.push(st.t1);
+            Flow::Continue
+        };
+        let (_, res) = advance(
+            &mut Harmonic,
+            method,
+            state,
+            t_end,
+            &[],
+            |_, _, _| Flow::Continue,
+            Some(&mut on_step),
+        );
+        res.unwrap();
+        ends
+    }
+
+    #[test]
+    fn a_fixed_step_run_continued_on_its_grid_is_the_same_run() {
+        let h = 0.01;
+        let m = Method::Rk4 { step: h };
+        let mut whole = HybridState::new(0.0, vec![1.0, 0.0]);
+        let all = step_ends(m, &mut whole, 600.0 * h);
+        let mut split = HybridState::new(0.0, vec![1.0, 0.0]);
+        let mut ends = step_ends(m, &mut split, 250.0 * h);
+        assert_eq!(split.stepper.grid_steps, 250);
+        ends.extend(step_ends(m, &mut split, 600.0 * h));
+        assert_eq!(ends, all, "the same step grid");
+        assert_eq!(split, whole, "the same final state, bit for bit");
+    }
+
+    #[test]
+    fn a_fixed_step_run_stopped_off_its_grid_returns_to_it() {
+        let h = 0.01;
+        let m = Method::Rk4 { step: h };
+        let mut s = HybridState::new(0.0, vec![1.0, 0.0]);
+        // Stopped between grid points 3 and 4: the last step is shortened to 0.035 and the next
+        // run steps to grid point 4, not to 0.045.
+        let first = step_ends(m, &mut s, 0.035);
+        assert_eq!(first.last(), Some(&0.035));
+        assert_eq!(s.stepper.grid_steps, 3);
+        let next = step_ends(m, &mut s, 0.1);
+        assert_eq!(next[0], 4.0 * h);
+        assert_eq!(next[1], 5.0 * h);
+        // A new step size lays a new grid from the state's time.
+        let mut again = s.clone();
+        step_ends(Method::Rk4 { step: 0.02 }, &mut again, 0.2);
+        assert_eq!(again.stepper.grid_origin, 0.1);
+        assert_eq!(again.stepper.grid_step, 0.02);
+    }
+
+    #[test]
+    fn an_adaptive_run_continues_with_its_controller_memory() {
+        let m = Method::Dopri5 {
+            rtol: 1e-8,
+            atol: 1e-10,
+            max_step: f64::INFINITY,
+        };
+        let mut s = HybridState::new(0.0, vec![1.0, 0.0]);
+        step_ends(m, &mut s, 1.0);
+        let (h, err) = (s.stepper.next_step, s.stepper.last_error);
+        assert!(h > 0.0 && h.is_finite() && err > 0.0 && err <= 1.0);
+        // The continued run's first step is the controller's proposal, not Hairer's initial
+        // guess (which a fresh run would take).
+        let next = step_ends(m, &mut s.clone(), 2.0);
+        assert_eq!(next[0], 1.0 + h);
+        let fresh = step_ends(m, &mut s.for_new_run(), 2.0);
+        assert_ne!(fresh[0], next[0]);
     }
 }

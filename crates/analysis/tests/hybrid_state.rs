@@ -1,0 +1,147 @@
+//! The hybrid state is the whole state of a run: a run of the mixed-clearance 4-UPS/RPU to 2T
+//! equals a run to T, written to its HDF5 file, read back and continued for T more, bit for bit,
+//! with contacts in progress at the split. Without the contact-onset history the continued run
+//! is a different run, which shows the comparison can tell.
+
+use std::path::PathBuf;
+
+use jointplay_analysis::h5::{Meta, write_run};
+use jointplay_analysis::hybrid::read_state;
+use jointplay_analysis::run::{RunResult, resume, simulate};
+use jointplay_solver::model::Model;
+use jointplay_solver::scene::SceneSpec;
+
+fn scenes() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../data/scenes")
+}
+
+fn meta(model: &Model) -> Meta<'_> {
+    Meta {
+        scene_name: &model.name,
+        scene_file: &model.file,
+        scene_text: "",
+        program_version: "test",
+        integrator: model.settings.method.describe(),
+        baumgarte_alpha: model.settings.alpha,
+        baumgarte_beta: model.settings.beta,
+        drive_period: model.settings.period,
+        scene_warnings: &[],
+    }
+}
+
+/// Body positions of every sample at or after `t`, as bits.
+fn positions_from(run: &RunResult, t: f64) -> Vec<u64> {
+    let rec = &run.recording;
+    let first = rec.time.iter().position(|&s| s >= t).unwrap();
+    rec.bodies
+        .iter()
+        .flat_map(|b| b.position[first..].iter().flatten().copied())
+        .map(f64::to_bits)
+        .collect()
+}
+
+#[test]
+fn a_run_split_through_its_file_is_the_same_run() {
+    let file = SceneSpec::load(&scenes().join("4ups-rpu-mixed.toml")).unwrap();
+    let (mut model, state) = Model::compile(&file).unwrap();
+    let h = model.settings.method.fixed_step().unwrap();
+    // The split on the step grid t_k = k h (the scene starts at 0), a quarter of a second in:
+    // the balls of S2 and S5 are in contact there (asserted below).
+    assert_eq!(model.settings.start_time, 0.0);
+    let t_split = 3000.0 * h;
+    let t_end = 6000.0 * h;
+
+    model.settings.end_time = t_end;
+    let whole = simulate(&model, state.clone(), &mut |_| {}).unwrap();
+
+    model.settings.end_time = t_split;
+    let first = simulate(&model, state, &mut |_| {}).unwrap();
+    let dir = std::env::temp_dir().join(format!("jointplay-split-{}", std::process::id()));
+    let path = write_run(&dir, &meta(&model), &first).unwrap();
+    let saved = read_state(&hdf5::File::open(&path).unwrap()).unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+    let f = &first.final_state;
+    assert_eq!(saved.t, t_split);
+    assert_eq!(f.t, t_split);
+    // Equality of hybrid states is bitwise.
+    assert_eq!(&saved, f);
+    let active = saved.onset.iter().filter(|v| !v.is_nan()).count();
+    assert!(
+        active > 0,
+        "no contact in progress at the split: {:?}",
+        saved.onset
+    );
+
+    model.settings.end_time = t_end;
+    let second = resume(&model, saved.clone(), &mut |_| {}).unwrap();
+    assert_eq!(second.final_state, whole.final_state);
+    // Every sample of the continued run equals the uninterrupted run's (the split's own sample
+    // included), and the two halves together took the whole run's steps.
+    assert_eq!(
+        positions_from(&second, t_split),
+        positions_from(&whole, t_split)
+    );
+    assert_eq!(
+        first.stats.accepted + second.stats.accepted,
+        whole.stats.accepted
+    );
+
+    // The same continuation without the onset history: the contacts in progress take their
+    // current approach rate as onset velocity, and the run departs from the uninterrupted one.
+    let mut forgetful = saved;
+    forgetful.onset.clear();
+    let other = resume(&model, forgetful, &mut |_| {}).unwrap();
+    assert_ne!(other.final_state.y, whole.final_state.y);
+}
+
+/// A continuation sweep of the mixed 4-UPS/RPU over the friction coefficient, one drive period
+/// per value, with RK4 at the scene's step.
+const CONTINUATION: &str = r#"
+[study]
+name = "continuation-onset"
+scene = "4ups-rpu-mixed.toml"
+
+[analysis]
+periods = 1
+transient = 0
+samples_per_period = 0
+
+[[observables]]
+name = "platform_x"
+path = "bodies.platform.position.x"
+
+[sweep]
+parameter = "joints.*.clearance.friction.coefficient"
+from = 0.05
+to = 0.06
+count = 2
+continuation = true
+"#;
+
+#[test]
+fn a_continuation_sweep_hands_over_the_onset_history() {
+    use jointplay_analysis::hybrid::read_row;
+    use jointplay_analysis::nonlinear::{Loaded, Options, execute};
+
+    let st = Loaded::parse(CONTINUATION, &scenes().join("continuation-onset.toml")).unwrap();
+    let dir = std::env::temp_dir().join(format!("jointplay-continuation-{}", std::process::id()));
+    let out = execute(&st, &dir, Options::default(), "test", &|_| {}).unwrap();
+    let file = hdf5::File::open(&out.file).unwrap();
+    let sweep = file.group("sweep").unwrap();
+    let (first, second) = (read_row(&sweep, 0).unwrap(), read_row(&sweep, 1).unwrap());
+    std::fs::remove_dir_all(&dir).unwrap();
+    // Contacts are in progress at the hand-over, so there is an onset history to keep.
+    let active = first.onset.iter().filter(|v| !v.is_nan()).count();
+    assert!(active > 0, "no contact at the hand-over: {:?}", first.onset);
+    // Up the list, the second value (index 1; the sweep then comes back down) started from the
+    // first one's final state with its onset history: running it so again gives the same run.
+    let v1 = st.jobs[1].0;
+    let again = st.run_value_from(v1, &first, &mut |_| {}).unwrap();
+    assert_eq!(again.trace.final_state, second);
+    // Handed over without the history, the contacts in progress would have taken their
+    // current approach rate as onset velocity: another run.
+    let mut forgetful = first.clone();
+    forgetful.onset.clear();
+    let other = st.run_value_from(v1, &forgetful, &mut |_| {}).unwrap();
+    assert_ne!(other.trace.final_state.y, second.y);
+}
