@@ -19,7 +19,7 @@
 //! joint without clearance, no friction anywhere) is an error naming `disable[i]`, so a typo never
 //! passes silently.
 
-use crate::scene::{FrictionSpec, NormalLawKind, SceneSpec};
+use crate::scene::{FrictionSpec, NormalSpec, SceneSpec};
 
 /// The effects a `disable` entry can name.
 pub const EFFECTS: [&str; 10] = [
@@ -127,13 +127,8 @@ pub fn apply(spec: &SceneSpec) -> Result<(SceneSpec, Vec<String>), (String, Stri
                             had
                         }
                         "contact_damping" => {
-                            let n = &mut c.normal;
-                            let had = n.law != NormalLawKind::Hertz;
-                            n.law = NormalLawKind::Hertz;
-                            n.restitution = None;
-                            n.max_damping = None;
-                            n.full_damping_penetration = None;
-                            n.onset_velocity_floor = None;
+                            let had = !matches!(c.normal, NormalSpec::Hertz(_));
+                            c.normal = NormalSpec::Hertz(c.normal.elastic());
                             had
                         }
                         _ => {

@@ -1,6 +1,6 @@
-//! The contact laws of a clearance element (part of pass 4): the elastic part every normal law
-//! shares ([`elastic`]), then the law's own fields ([`hertz`], [`damped`], [`impact`]); then the
-//! friction law. The laws and their sources are in [`crate::contact`].
+//! The contact laws of a clearance element (part of pass 4): each normal law's fields are checked
+//! by its own function ([`hertz`], [`damped`], [`impact`]) after the elastic part they share
+//! ([`elastic`]); then the friction law. The laws and their sources are in [`crate::contact`].
 
 use super::{Ctx, positive};
 use crate::clearance::Geometry;
@@ -8,37 +8,25 @@ use crate::contact::{
     Damping, Elastic, FrictionLaw, NormalLaw, hunt_crossley_restitution, point_contact_stiffness,
 };
 use crate::error::Result;
-use crate::scene::{ContactModel, FrictionSpec, NormalLawKind, NormalSpec};
+use crate::scene::{ContactModel, DampedSpec, ElasticSpec, FrictionSpec, ImpactSpec, NormalSpec};
 
 /// The normal law of a clearance block with geometry `g`; `nf` is the field path of `normal`.
 pub(crate) fn normal(n: &NormalSpec, g: &Geometry, nf: &str, cx: &Ctx) -> Result<NormalLaw> {
-    let el = elastic(n, g, nf, cx)?;
-    match n.law {
-        NormalLawKind::Hertz => hertz(n, el, nf, cx),
-        NormalLawKind::LankaraniNikravesh => damped(Damping::LankaraniNikravesh, n, el, nf, cx),
-        NormalLawKind::HuntCrossley => damped(Damping::HuntCrossley, n, el, nf, cx),
-        NormalLawKind::Flores => damped(Damping::Flores, n, el, nf, cx),
-        NormalLawKind::Gonthier => damped(Damping::Gonthier, n, el, nf, cx),
-        NormalLawKind::CarvalhoMartins => damped(Damping::CarvalhoMartins, n, el, nf, cx),
-        NormalLawKind::Impact => impact(n, el, nf, cx),
-    }
-}
-
-/// Rejects a field the law `n.law` does not use.
-fn unused(n: &NormalSpec, v: Option<f64>, name: &str, nf: &str, cx: &Ctx) -> Result<()> {
-    if v.is_some() {
-        Err(cx.err(
-            format!("{nf}.{name}"),
-            format!("not used by the {:?} law", n.law).to_lowercase(),
-        ))
-    } else {
-        Ok(())
+    let el = elastic(&n.elastic(), g, nf, cx)?;
+    match n {
+        NormalSpec::Hertz(_) => Ok(hertz(el)),
+        NormalSpec::LankaraniNikravesh(d) => damped(Damping::LankaraniNikravesh, d, el, nf, cx),
+        NormalSpec::HuntCrossley(d) => damped(Damping::HuntCrossley, d, el, nf, cx),
+        NormalSpec::Flores(d) => damped(Damping::Flores, d, el, nf, cx),
+        NormalSpec::Gonthier(d) => damped(Damping::Gonthier, d, el, nf, cx),
+        NormalSpec::CarvalhoMartins(d) => damped(Damping::CarvalhoMartins, d, el, nf, cx),
+        NormalSpec::Impact(s) => impact(s, el, nf, cx),
     }
 }
 
 /// The elastic part every normal law has: point contact K delta^n (K given, or from the
 /// materials and the radii of `g`) or line contact (planar bearings only).
-pub(crate) fn elastic(n: &NormalSpec, g: &Geometry, nf: &str, cx: &Ctx) -> Result<Elastic> {
+pub(crate) fn elastic(n: &ElasticSpec, g: &Geometry, nf: &str, cx: &Ctx) -> Result<Elastic> {
     match n.contact {
         ContactModel::Point => {
             if n.contact_length.is_some() {
@@ -91,7 +79,7 @@ pub(crate) fn elastic(n: &NormalSpec, g: &Geometry, nf: &str, cx: &Ctx) -> Resul
 }
 
 /// Johnson's line contact of a journal in a planar bearing.
-fn line_contact(n: &NormalSpec, g: &Geometry, nf: &str, cx: &Ctx) -> Result<Elastic> {
+fn line_contact(n: &ElasticSpec, g: &Geometry, nf: &str, cx: &Ctx) -> Result<Elastic> {
     let Geometry::Planar {
         journal_radius,
         bearing_radius,
@@ -129,7 +117,7 @@ fn line_contact(n: &NormalSpec, g: &Geometry, nf: &str, cx: &Ctx) -> Result<Elas
 }
 
 /// Young's modulus and Poisson's ratio, when given (both or neither).
-fn material(n: &NormalSpec, nf: &str, cx: &Ctx) -> Result<Option<(f64, f64)>> {
+fn material(n: &ElasticSpec, nf: &str, cx: &Ctx) -> Result<Option<(f64, f64)>> {
     match (n.youngs_modulus, n.poisson_ratio) {
         (None, None) => Ok(None),
         (Some(e), Some(nu)) => {
@@ -154,32 +142,14 @@ fn material(n: &NormalSpec, nf: &str, cx: &Ctx) -> Result<Option<(f64, f64)>> {
 }
 
 /// `law = "hertz"`: the elastic force alone; it has no fields of its own.
-fn hertz(n: &NormalSpec, el: Elastic, nf: &str, cx: &Ctx) -> Result<NormalLaw> {
-    unused(n, n.restitution, "restitution", nf, cx)?;
-    unused(n, n.max_damping, "max_damping", nf, cx)?;
-    unused(
-        n,
-        n.full_damping_penetration,
-        "full_damping_penetration",
-        nf,
-        cx,
-    )?;
-    unused(n, n.onset_velocity_floor, "onset_velocity_floor", nf, cx)?;
-    Ok(NormalLaw::Hertz { el })
+fn hertz(el: Elastic) -> NormalLaw {
+    NormalLaw::Hertz { el }
 }
 
 /// The hysteresis-damped laws of the Hunt-Crossley family (`kind`): the coefficient of
 /// restitution and the floor of the onset velocity. Warns when the law restitutes, in an
 /// isolated impact, more than 0.05 away from the requested c_e.
-fn damped(kind: Damping, d: &NormalSpec, el: Elastic, nf: &str, cx: &Ctx) -> Result<NormalLaw> {
-    unused(d, d.max_damping, "max_damping", nf, cx)?;
-    unused(
-        d,
-        d.full_damping_penetration,
-        "full_damping_penetration",
-        nf,
-        cx,
-    )?;
+fn damped(kind: Damping, d: &DampedSpec, el: Elastic, nf: &str, cx: &Ctx) -> Result<NormalLaw> {
     let ce = match d.restitution {
         Some(e) if e > 0.0 && e <= 1.0 => e,
         Some(e) => {
@@ -236,9 +206,7 @@ fn damped(kind: Damping, d: &NormalSpec, el: Elastic, nf: &str, cx: &Ctx) -> Res
 }
 
 /// `law = "impact"` (ADAMS IMPACT): the damping ramp, on a point-contact force K delta^n.
-fn impact(s: &NormalSpec, el: Elastic, nf: &str, cx: &Ctx) -> Result<NormalLaw> {
-    unused(s, s.restitution, "restitution", nf, cx)?;
-    unused(s, s.onset_velocity_floor, "onset_velocity_floor", nf, cx)?;
+fn impact(s: &ImpactSpec, el: Elastic, nf: &str, cx: &Ctx) -> Result<NormalLaw> {
     let c_max = match s.max_damping {
         Some(c) if c >= 0.0 => c,
         Some(c) => {
