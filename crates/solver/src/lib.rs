@@ -14,6 +14,7 @@
 #![allow(clippy::needless_range_loop)]
 
 pub mod clearance;
+mod compile;
 pub mod contact;
 pub mod coupling;
 pub mod disable;

@@ -259,19 +259,6 @@ pub struct ClearanceSpec {
     pub friction: FrictionSpec,
 }
 
-/// Normal-contact laws.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Deserialize, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum NormalLawKind {
-    Hertz,
-    LankaraniNikravesh,
-    HuntCrossley,
-    Flores,
-    Gonthier,
-    CarvalhoMartins,
-    Impact,
-}
-
 /// Elastic contact model.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, Serialize)]
 #[serde(rename_all = "snake_case")]
@@ -284,11 +271,49 @@ pub enum ContactModel {
     Line,
 }
 
-/// Normal-contact law of a clearance joint.
+/// Normal-contact law of a clearance joint: `law` names it, the other fields are its own (a
+/// field the law does not take is rejected). The laws and their sources are in
+/// [`crate::contact`].
 #[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(tag = "law", rename_all = "snake_case", deny_unknown_fields)]
+pub enum NormalSpec {
+    /// Hertz (Hertz 1882; Johnson, *Contact Mechanics*, 1985, ch. 4): the elastic force alone.
+    Hertz(ElasticSpec),
+    /// Lankarani & Nikravesh, J. Mech. Des. 112:369-376 (1990).
+    LankaraniNikravesh(DampedSpec),
+    /// Hunt & Crossley, J. Appl. Mech. 42:440-445 (1975).
+    HuntCrossley(DampedSpec),
+    /// Flores, Machado, Silva & Martins, Multibody Syst. Dyn. 25:357-375 (2011).
+    Flores(DampedSpec),
+    /// Gonthier, McPhee, Lange & Piedboeuf, Multibody Syst. Dyn. 11:209-233 (2004).
+    Gonthier(DampedSpec),
+    /// Carvalho & Martins, Mech. Mach. Theory 139:174-194 (2019).
+    CarvalhoMartins(DampedSpec),
+    /// MSC ADAMS IMPACT function: K delta^n with damping ramped up to `max_damping` over
+    /// `full_damping_penetration`.
+    Impact(ImpactSpec),
+}
+
+impl NormalSpec {
+    /// The elastic part of the law (the whole of Hertz).
+    pub fn elastic(&self) -> ElasticSpec {
+        match self {
+            NormalSpec::Hertz(e) => e.clone(),
+            NormalSpec::LankaraniNikravesh(d)
+            | NormalSpec::HuntCrossley(d)
+            | NormalSpec::Flores(d)
+            | NormalSpec::Gonthier(d)
+            | NormalSpec::CarvalhoMartins(d) => d.elastic(),
+            NormalSpec::Impact(i) => i.elastic(),
+        }
+    }
+}
+
+/// The elastic force of a normal law: point contact K delta^n (K given, or from youngs_modulus
+/// and poisson_ratio) or line contact. The fields of `law = "hertz"`.
+#[derive(Debug, Clone, Default, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
-pub struct NormalSpec {
-    pub law: NormalLawKind,
+pub struct ElasticSpec {
     /// Elastic model: point (default) or line.
     #[serde(default)]
     pub contact: ContactModel,
@@ -307,18 +332,83 @@ pub struct NormalSpec {
     /// Exponent n (default 1.5, Hertz point contact).
     #[serde(default)]
     pub exponent: Option<f64>,
-    /// Coefficient of restitution (damped laws).
+}
+
+/// The fields of a hysteresis-damped law of the Hunt-Crossley family: the elastic fields of
+/// [`ElasticSpec`], the coefficient of restitution and the onset-velocity floor.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct DampedSpec {
+    #[serde(default)]
+    pub contact: ContactModel,
+    #[serde(default)]
+    pub contact_length: Option<f64>,
+    #[serde(default)]
+    pub stiffness: Option<f64>,
+    #[serde(default)]
+    pub youngs_modulus: Option<f64>,
+    #[serde(default)]
+    pub poisson_ratio: Option<f64>,
+    #[serde(default)]
+    pub exponent: Option<f64>,
+    /// Coefficient of restitution c_e, in (0, 1].
     #[serde(default)]
     pub restitution: Option<f64>,
-    /// IMPACT: maximum damping coefficient (N s/m).
-    #[serde(default)]
-    pub max_damping: Option<f64>,
-    /// IMPACT: penetration at which the damping reaches max_damping (m).
-    #[serde(default)]
-    pub full_damping_penetration: Option<f64>,
-    /// Damped laws: floor of the onset approach velocity (m/s); default 1e-3.
+    /// Floor of the onset approach velocity (m/s); default 1e-3.
     #[serde(default)]
     pub onset_velocity_floor: Option<f64>,
+}
+
+impl DampedSpec {
+    /// The elastic fields.
+    pub fn elastic(&self) -> ElasticSpec {
+        ElasticSpec {
+            contact: self.contact,
+            contact_length: self.contact_length,
+            stiffness: self.stiffness,
+            youngs_modulus: self.youngs_modulus,
+            poisson_ratio: self.poisson_ratio,
+            exponent: self.exponent,
+        }
+    }
+}
+
+/// The fields of the IMPACT law: the elastic fields of [`ElasticSpec`] and the damping ramp.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ImpactSpec {
+    #[serde(default)]
+    pub contact: ContactModel,
+    #[serde(default)]
+    pub contact_length: Option<f64>,
+    #[serde(default)]
+    pub stiffness: Option<f64>,
+    #[serde(default)]
+    pub youngs_modulus: Option<f64>,
+    #[serde(default)]
+    pub poisson_ratio: Option<f64>,
+    #[serde(default)]
+    pub exponent: Option<f64>,
+    /// Maximum damping coefficient (N s/m).
+    #[serde(default)]
+    pub max_damping: Option<f64>,
+    /// Penetration at which the damping reaches max_damping (m).
+    #[serde(default)]
+    pub full_damping_penetration: Option<f64>,
+}
+
+impl ImpactSpec {
+    /// The elastic fields.
+    pub fn elastic(&self) -> ElasticSpec {
+        ElasticSpec {
+            contact: self.contact,
+            contact_length: self.contact_length,
+            stiffness: self.stiffness,
+            youngs_modulus: self.youngs_modulus,
+            poisson_ratio: self.poisson_ratio,
+            exponent: self.exponent,
+        }
+    }
 }
 
 /// Friction law of a clearance joint.
@@ -617,7 +707,19 @@ pub fn parse_toml<T: serde::de::DeserializeOwned>(text: &str, file: &Path) -> Re
     };
     let de = toml::Deserializer::parse(text).map_err(|e| err(e.to_string()))?;
     serde_path_to_error::deserialize(de).map_err(|e| {
-        let path = e.path().to_string();
+        let mut path = e.path().to_string();
+        // Inside an internally tagged enum (a contact law, a profile) the path stops at the
+        // table; an unknown field is named as in any other table.
+        if let Some(field) = unknown_field(e.inner().message())
+            && !matches!(e.path().iter().next_back(),
+                Some(serde_path_to_error::Segment::Map { key }) if key == field)
+        {
+            path = if path.is_empty() || path == "." {
+                field.to_string()
+            } else {
+                format!("{path}.{field}")
+            };
+        }
         let inner = e.into_inner().to_string();
         if path.is_empty() || path == "." {
             err(inner)
@@ -625,6 +727,12 @@ pub fn parse_toml<T: serde::de::DeserializeOwned>(text: &str, file: &Path) -> Re
             err(format!("{path}: {inner}"))
         }
     })
+}
+
+/// The field serde's "unknown field `x`, expected ..." message names.
+fn unknown_field(message: &str) -> Option<&str> {
+    let rest = message.strip_prefix("unknown field `")?;
+    rest.split_once('`').map(|(field, _)| field)
 }
 
 impl SceneSpec {
@@ -657,5 +765,116 @@ impl SceneFile {
                 .map(|s| s.to_string_lossy().into_owned())
                 .unwrap_or_else(|| "scene".into())
         })
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A scene with one spherical clearance joint whose `normal` table is `normal`.
+    fn scene(normal: &str) -> Result<SceneSpec> {
+        let text = format!(
+            r#"
+[[bodies]]
+name = "ball"
+mass = 1.0
+inertia = {{ ixx = 1e-3, iyy = 1e-3, izz = 1e-3 }}
+
+[[joints]]
+name = "socket"
+kind = "spherical"
+body_a = "ground"
+body_b = "ball"
+point_a = [0.0, 0.0, 0.0]
+point_b = [0.0, 0.0, 0.0]
+clearance = {{ ball_radius = 0.01, radial_clearance = 1e-4, normal = {normal} }}
+"#
+        );
+        SceneSpec::parse(&text, Path::new("law.toml"))
+    }
+
+    fn normal(normal: &str) -> NormalSpec {
+        scene(normal).unwrap().joints[0]
+            .clearance
+            .clone()
+            .unwrap()
+            .normal
+    }
+
+    #[test]
+    fn each_normal_law_reads_its_own_fields() {
+        let NormalSpec::Hertz(e) = normal(r#"{ law = "hertz", stiffness = 1e9, exponent = 1.2 }"#)
+        else {
+            panic!("not hertz")
+        };
+        assert_eq!((e.stiffness, e.exponent), (Some(1e9), Some(1.2)));
+        assert_eq!(e.contact, ContactModel::Point);
+        for (law, want) in [
+            ("lankarani_nikravesh", "LankaraniNikravesh"),
+            ("hunt_crossley", "HuntCrossley"),
+            ("flores", "Flores"),
+            ("gonthier", "Gonthier"),
+            ("carvalho_martins", "CarvalhoMartins"),
+        ] {
+            let n = normal(&format!(
+                r#"{{ law = "{law}", youngs_modulus = 2e11, poisson_ratio = 0.3, restitution = 0.9, onset_velocity_floor = 1e-6 }}"#
+            ));
+            assert!(format!("{n:?}").starts_with(want), "{law}: {n:?}");
+            let e = n.elastic();
+            assert_eq!((e.youngs_modulus, e.poisson_ratio), (Some(2e11), Some(0.3)));
+        }
+        let NormalSpec::Impact(i) = normal(
+            r#"{ law = "impact", stiffness = 1e9, max_damping = 50.0, full_damping_penetration = 1e-5 }"#,
+        ) else {
+            panic!("not impact")
+        };
+        assert_eq!(
+            (i.max_damping, i.full_damping_penetration),
+            (Some(50.0), Some(1e-5))
+        );
+    }
+
+    #[test]
+    fn a_field_the_law_does_not_take_is_rejected_naming_its_path() {
+        for (law, field) in [
+            ("hertz", "restitution"),
+            ("hertz", "onset_velocity_floor"),
+            ("hertz", "max_damping"),
+            ("hertz", "full_damping_penetration"),
+            ("lankarani_nikravesh", "max_damping"),
+            ("hunt_crossley", "full_damping_penetration"),
+            ("flores", "max_damping"),
+            ("gonthier", "max_damping"),
+            ("carvalho_martins", "full_damping_penetration"),
+            ("impact", "restitution"),
+            ("impact", "onset_velocity_floor"),
+        ] {
+            let err = scene(&format!(
+                r#"{{ law = "{law}", stiffness = 1e9, {field} = 0.5 }}"#
+            ))
+            .unwrap_err()
+            .to_string();
+            assert!(
+                err.starts_with(&format!(
+                    "law.toml: joints[0].clearance.normal.{field}: TOML parse error"
+                )) && err.contains(&format!("unknown field `{field}`")),
+                "{law}, {field}: {err}"
+            );
+        }
+    }
+
+    #[test]
+    fn a_field_the_friction_law_does_not_take_names_its_path() {
+        let err = scene(
+            r#"{ law = "hertz", stiffness = 1e9 }, friction = { law = "threlfall", coefficient = 0.1, v0 = 1e-3, v1 = 1.0 }"#,
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(
+            err.starts_with("law.toml: joints[0].clearance.friction.v1: TOML parse error")
+                && err.contains("unknown field `v1`"),
+            "{err}"
+        );
     }
 }

@@ -1,0 +1,235 @@
+//! Pass 4: clearance elements. A joint's `clearance` block becomes a [`Clearance`] contact
+//! element: its geometry, its normal and friction laws ([`super::laws`]), and the constraint rows
+//! that stay in the joint for what the contact leaves unconstrained.
+
+use super::joints::{JointFrame, Rows};
+use super::{Ctx, laws, positive};
+use crate::clearance::{Clearance, Geometry};
+use crate::error::Result;
+use crate::scene::{ClearanceSpec, JointKind, JointSpec, RevoluteModel};
+
+/// The element of joint `j` (index `joint`, field path `jf`) with its clearance block `c`; its
+/// contacts start at slot `first`.
+pub(crate) fn compile(
+    c: &ClearanceSpec,
+    j: &JointSpec,
+    joint: usize,
+    fr: &JointFrame,
+    first: usize,
+    jf: &str,
+    cx: &Ctx,
+) -> Result<Clearance> {
+    let f = format!("{jf}.clearance");
+    let geometry = geometry(c, j.kind, &f, cx)?;
+    let law = laws::normal(&c.normal, &geometry, &format!("{f}.normal"), cx)?;
+    let friction = laws::friction(&c.friction, &format!("{f}.friction"), cx)?;
+    Ok(Clearance {
+        name: j.name.clone(),
+        joint,
+        housing: fr.a,
+        journal: fr.b,
+        sh: fr.sa,
+        sj: fr.sb,
+        axis_h: fr.axis_a,
+        axis_j: fr.axis_b,
+        geometry,
+        law,
+        friction,
+        first,
+    })
+}
+
+/// The contact element replaces the joint's rows; what it leaves unconstrained stays a
+/// constraint: the out-of-plane rows of a planar bearing, the axial position of a spatial one
+/// without axial contact.
+pub(crate) fn remaining_rows(geometry: &Geometry, fr: &JointFrame, rows: &mut Rows) {
+    match geometry {
+        Geometry::Planar { .. } => {
+            fr.parallel().into_iter().for_each(|p| rows.push(p));
+            rows.push(fr.along_axis(None));
+        }
+        Geometry::Revolute {
+            journal_length: None,
+            ..
+        } => rows.push(fr.along_axis(None)),
+        Geometry::Revolute {
+            journal_length: Some(_),
+            ..
+        }
+        | Geometry::Spherical { .. } => {}
+    }
+}
+
+/// The geometry of a clearance block of a joint of kind `kind`; `f` is the block's field path.
+fn geometry(c: &ClearanceSpec, kind: JointKind, f: &str, cx: &Ctx) -> Result<Geometry> {
+    // A joint without play is the ideal joint; the contact laws have no meaning there (the
+    // point-contact stiffness grows without bound as the clearance closes).
+    if c.radial_clearance == Some(0.0) {
+        return Err(cx.err(
+            format!("{f}.radial_clearance"),
+            "zero clearance is the ideal joint: remove the clearance block (or give a positive clearance)",
+        ));
+    }
+    match kind {
+        JointKind::Spherical => spherical(c, f, cx),
+        JointKind::Revolute => revolute(c, f, cx),
+        k => Err(cx.err(
+            f,
+            format!(
+                "clearance is available for spherical and revolute joints, not {}",
+                k.name()
+            ),
+        )),
+    }
+}
+
+/// Ball in socket: ball radius and radial clearance.
+fn spherical(c: &ClearanceSpec, f: &str, cx: &Ctx) -> Result<Geometry> {
+    if c.model.is_some() {
+        return Err(cx.err(format!("{f}.model"), "only revolute joints have a model"));
+    }
+    for (v, n) in [
+        (c.journal_radius, "journal_radius"),
+        (c.bushing_radius, "bushing_radius"),
+        (c.bushing_length, "bushing_length"),
+        (c.face_radius, "face_radius"),
+        (c.axial_clearance, "axial_clearance"),
+    ] {
+        if v.is_some() {
+            return Err(cx.err(
+                format!("{f}.{n}"),
+                "not a field of a spherical clearance (give ball_radius and radial_clearance)",
+            ));
+        }
+    }
+    Ok(Geometry::Spherical {
+        ball_radius: positive(
+            c.ball_radius,
+            format!("{f}.ball_radius"),
+            "the ball radius (m)",
+            cx,
+        )?,
+        clearance: positive(
+            c.radial_clearance,
+            format!("{f}.radial_clearance"),
+            "the radial clearance (m)",
+            cx,
+        )?,
+    })
+}
+
+/// Journal in bushing: the radii from any two of journal radius, bushing radius and radial
+/// clearance, then the planar or spatial model.
+fn revolute(c: &ClearanceSpec, f: &str, cx: &Ctx) -> Result<Geometry> {
+    if c.ball_radius.is_some() {
+        return Err(cx.err(
+            format!("{f}.ball_radius"),
+            "a revolute clearance has a journal_radius",
+        ));
+    }
+    // Any two of journal radius, bushing radius and radial clearance, each positive.
+    let given = |v: Option<f64>, n: &str| {
+        v.map(|x| positive(Some(x), format!("{f}.{n}"), "", cx))
+            .transpose()
+    };
+    let (rj, rb) = match (
+        given(c.journal_radius, "journal_radius")?,
+        given(c.bushing_radius, "bushing_radius")?,
+        given(c.radial_clearance, "radial_clearance")?,
+    ) {
+        (Some(rj), Some(rb), cr) => {
+            if let Some(cr) = cr
+                && ((rb - rj) - cr).abs() > 1e-9 * rb
+            {
+                return Err(cx.err(
+                    format!("{f}.radial_clearance"),
+                    format!(
+                        "{cr} m disagrees with bushing_radius - journal_radius = {} m",
+                        rb - rj
+                    ),
+                ));
+            }
+            (rj, rb)
+        }
+        (Some(rj), None, Some(cr)) => (rj, rj + cr),
+        (None, Some(rb), Some(cr)) => {
+            if cr >= rb {
+                return Err(cx.err(
+                    format!("{f}.radial_clearance"),
+                    format!("{cr} m leaves no journal inside a bushing of radius {rb} m"),
+                ));
+            }
+            (rb - cr, rb)
+        }
+        _ => {
+            return Err(cx.err(
+                format!("{f}.radial_clearance"),
+                "missing: give two of journal_radius, bushing_radius and radial_clearance (m)",
+            ));
+        }
+    };
+    if rb <= rj {
+        return Err(cx.err(
+            format!("{f}.bushing_radius"),
+            format!("the radial clearance must be positive: bushing radius {rb} m <= journal radius {rj} m"),
+        ));
+    }
+    match c.model.unwrap_or_default() {
+        RevoluteModel::Planar => {
+            for (v, n) in [
+                (c.bushing_length, "bushing_length"),
+                (c.face_radius, "face_radius"),
+                (c.axial_clearance, "axial_clearance"),
+            ] {
+                if v.is_some() {
+                    return Err(cx.err(format!("{f}.{n}"), "not a field of a planar clearance"));
+                }
+            }
+            Ok(Geometry::Planar {
+                journal_radius: rj,
+                bearing_radius: rb,
+            })
+        }
+        RevoluteModel::Spatial => spatial(c, rj, rb, f, cx),
+    }
+}
+
+/// Spatial journal-bushing geometry with journal radius `rj` and bushing radius `rb`: the
+/// bushing length, and the end faces when the block has axial contact.
+fn spatial(c: &ClearanceSpec, rj: f64, rb: f64, f: &str, cx: &Ctx) -> Result<Geometry> {
+    let lb = positive(
+        c.bushing_length,
+        format!("{f}.bushing_length"),
+        "the bushing length (m)",
+        cx,
+    )?;
+    let journal_length = match c.axial_clearance {
+        Some(ca) => Some(lb + 2.0 * positive(Some(ca), format!("{f}.axial_clearance"), "", cx)?),
+        None => None,
+    };
+    let face_radius = match (c.face_radius, journal_length) {
+        (Some(r), _) => {
+            if r <= rb {
+                return Err(cx.err(
+                    format!("{f}.face_radius"),
+                    format!("must exceed the bushing radius {rb} m, got {r} m"),
+                ));
+            }
+            r
+        }
+        (None, Some(_)) => {
+            return Err(cx.err(
+                format!("{f}.face_radius"),
+                "missing: axial contact needs the bushing end-face outer radius (m)",
+            ));
+        }
+        (None, None) => rb,
+    };
+    Ok(Geometry::Revolute {
+        journal_radius: rj,
+        bushing_radius: rb,
+        bushing_length: lb,
+        face_radius,
+        journal_length,
+    })
+}

@@ -1,0 +1,197 @@
+//! The passes of the scene compiler behind [`crate::model::Model::compile`].
+//!
+//! Each pass reads one part of the (already `disable`-edited, see [`crate::disable`]) scene,
+//! validates it and produces its part of the model; a later pass sees only what the earlier ones
+//! produced. In order:
+//!
+//! 1. finite numbers ([`check_finite`]): the raw TOML tree holds no NaN or infinity;
+//! 2. bodies ([`bodies::compile`]): the [`Body`](crate::model::Body) list, the initial state as
+//!    declared, the name index and the frames that resolve named points and axes;
+//! 3. joints ([`joints::compile`]): the [`Joint`](crate::model::Joint) list, the constraint
+//!    primitives and rows of the ideal joints, and each joint's frame (kept for the drives);
+//! 4. clearance elements ([`clearance::compile`], called by the joints pass for a joint with a
+//!    `clearance` block): the geometry, the normal and friction laws ([`laws`]), the
+//!    [`Clearance`](crate::clearance::Clearance) element and the rows it leaves to the joint;
+//! 5. drives ([`drives::compile`]): one [`Drive`](crate::model::Drive) and one row each, after
+//!    the joint rows;
+//! 6. springs and loads ([`forces::springs`], [`forces::loads`]);
+//! 7. solver settings and outputs ([`settings::settings`], [`settings::outputs`]), and the
+//!    [`Effects`](crate::model::Effects) the model simulates ([`settings::effects`]).
+//!
+//! Every error names the file and the field path (`joints[3].axis_a`); the first error found
+//! stops the compilation.
+
+pub(crate) mod bodies;
+pub(crate) mod clearance;
+pub(crate) mod drives;
+pub(crate) mod forces;
+pub(crate) mod joints;
+pub(crate) mod laws;
+pub(crate) mod settings;
+
+use std::path::Path;
+
+use nalgebra::Vector3;
+
+use crate::error::{Error, Result};
+use crate::model::{Effects, Model, State};
+use crate::scene::SceneFile;
+
+// The entry point lives here, not in `model`, so that `model` (the compiled types) does not
+// import its own compiler.
+impl Model {
+    /// Validates and compiles a scene; returns the model and the initial state as declared
+    /// (not yet assembled onto the constraints: see [`Model::assemble`]).
+    pub fn compile(scene: &SceneFile) -> Result<(Model, State)> {
+        let cx = Ctx::new(&scene.path);
+        // Disabled effects are removed from the scene before anything is compiled.
+        let (spec, disabled) = crate::disable::apply(&scene.spec)
+            .map_err(|(field, message)| cx.err(field, message))?;
+        let spec = &spec;
+        check_finite(&scene.text, &scene.path, &cx)?;
+        let bodies = bodies::compile(spec, &cx)?;
+        let mut rows = joints::Rows::default();
+        let joints = joints::compile(spec, &bodies, &mut rows, &cx)?;
+        let joint_rows = rows.n;
+        let drives = drives::compile(spec, &joints, &mut rows, &cx)?;
+        let springs = forces::springs(spec, &bodies, &cx)?;
+        let loads = forces::loads(spec, &bodies, &cx)?;
+        let settings = settings::settings(&spec.solver, &drives, &cx)?;
+        let outputs = settings::outputs(
+            &spec.output,
+            &settings,
+            &bodies.bodies,
+            &joints.joints,
+            &drives,
+            &cx,
+        )?;
+        let (prims, n_rows) = (rows.prims, rows.n);
+        let y = bodies.y;
+        let bodies = bodies.bodies;
+        let blocks: Vec<_> = prims.iter().map(|(p, r0)| p.row_block(*r0)).collect();
+        let coupling = crate::coupling::Coupling::new(bodies.len(), &blocks, n_rows);
+        let mut model = Model {
+            name: scene.name(),
+            file: scene.path.clone(),
+            description: spec.description.clone(),
+            bodies,
+            joints: joints.joints,
+            drives,
+            springs,
+            loads,
+            gravity: spec.gravity.map(v3),
+            prims,
+            clearances: joints.clearances,
+            n_contacts: joints.n_contacts,
+            joint_rows,
+            n_rows,
+            coupling,
+            effects: Effects::default(),
+            disabled,
+            settings,
+            outputs,
+            warnings: cx.into_warnings(),
+        };
+        model.effects = settings::effects(&model);
+        let state = State {
+            t: model.settings.start_time,
+            y,
+        };
+        Ok((model, state))
+    }
+}
+
+/// The file being compiled, and the warnings found so far.
+pub(crate) struct Ctx<'a> {
+    file: &'a Path,
+    warnings: std::cell::RefCell<Vec<String>>,
+}
+
+impl<'a> Ctx<'a> {
+    pub(crate) fn new(file: &'a Path) -> Self {
+        Ctx {
+            file,
+            warnings: Default::default(),
+        }
+    }
+
+    /// Records a warning about `field`.
+    pub(crate) fn warn(&self, field: impl std::fmt::Display, message: impl std::fmt::Display) {
+        self.warnings
+            .borrow_mut()
+            .push(format!("{}: {field}: {message}", self.file.display()));
+    }
+
+    /// An error about `field`.
+    pub(crate) fn err(&self, field: impl Into<String>, message: impl Into<String>) -> Error {
+        Error::Invalid {
+            file: self.file.to_path_buf(),
+            field: field.into(),
+            message: message.into(),
+        }
+    }
+
+    /// The warnings recorded, in order.
+    pub(crate) fn into_warnings(self) -> Vec<String> {
+        self.warnings.into_inner()
+    }
+}
+
+pub(crate) fn v3(a: [f64; 3]) -> Vector3<f64> {
+    Vector3::new(a[0], a[1], a[2])
+}
+
+/// `v` when it is given and positive; `what` describes it when it is missing.
+pub(crate) fn positive(v: Option<f64>, field: String, what: &str, cx: &Ctx) -> Result<f64> {
+    match v {
+        None => Err(cx.err(field, format!("missing: {what}"))),
+        Some(x) if x > 0.0 => Ok(x),
+        Some(x) => Err(cx.err(field, format!("must be positive, got {x}"))),
+    }
+}
+
+/// Declared names for an error message ("none" for none).
+pub(crate) fn list<'a>(it: impl Iterator<Item = &'a String>) -> String {
+    let v: Vec<&str> = it.map(|s| s.as_str()).collect();
+    if v.is_empty() {
+        "none".into()
+    } else {
+        v.join(", ")
+    }
+}
+
+/// Pass 1: parses the scene text as a raw TOML tree and rejects NaN and infinities anywhere in
+/// it, naming the field path.
+pub(crate) fn check_finite(text: &str, file: &Path, cx: &Ctx) -> Result<()> {
+    let raw: toml::Value = toml::from_str(text).map_err(|e| Error::Parse {
+        file: file.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    finite(&raw, "", cx)
+}
+
+fn finite(v: &toml::Value, path: &str, cx: &Ctx) -> Result<()> {
+    match v {
+        toml::Value::Float(f) if !f.is_finite() => {
+            Err(cx.err(path, format!("must be a finite number, got {f}")))
+        }
+        toml::Value::Array(a) => {
+            for (i, x) in a.iter().enumerate() {
+                finite(x, &format!("{path}[{i}]"), cx)?;
+            }
+            Ok(())
+        }
+        toml::Value::Table(t) => {
+            for (k, x) in t {
+                let p = if path.is_empty() {
+                    k.clone()
+                } else {
+                    format!("{path}.{k}")
+                };
+                finite(x, &p, cx)?;
+            }
+            Ok(())
+        }
+        _ => Ok(()),
+    }
+}
