@@ -18,9 +18,10 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use jointplay_analysis::figures::{circle, study_figures};
 use jointplay_analysis::h5::{Meta, StudyMeta, read_series, write_run, write_study};
 use jointplay_analysis::nlfigures::render;
-use jointplay_analysis::nonlinear::{Loaded, Options, Progress, execute, is_analysis};
+use jointplay_analysis::nonlinear::{Loaded, Options, execute, is_analysis};
 use jointplay_analysis::plot::{Format, Panel, Series, figure};
 use jointplay_analysis::precision;
+use jointplay_analysis::progress::Progress;
 use jointplay_analysis::report::{self, markdown};
 use jointplay_analysis::run::Recording;
 use jointplay_analysis::run::{RunResult, simulate};
@@ -379,11 +380,13 @@ fn run_study(path: &Path, out: &Path, plots: bool, quiet: bool) -> Result<()> {
         bar.set_draw_target(ProgressDrawTarget::stderr());
     }
     bar.tick();
-    let done = |label: &str| {
-        bar.inc(1);
-        bar.set_message(format!("{label} done"));
+    let progress = |p: Progress| {
+        if let Progress::Done { job, ok: true } = p {
+            bar.inc(1);
+            bar.set_message(format!("{} done", study.cases[job].label));
+        }
     };
-    let results = study.run(&done);
+    let results = study.run(&progress);
     bar.finish_and_clear();
     let results = results?;
     // Keep every finished case even when others fail: they are written, the failures are
@@ -613,17 +616,18 @@ fn precision_cmd(path: &Path, out: &Path, plots: bool, quiet: bool) -> Result<()
     };
     let start = Instant::now();
     let mut p = precision::Precision::new(study)?;
-    let mut report = |pr: precision::Progress| {
+    let mut report = |pr: Progress| {
         if quiet {
             return;
         }
         let el = start.elapsed().as_secs_f64();
         match pr {
-            precision::Progress::Reference => eprintln!("[{el:7.1} s] reference"),
-            precision::Progress::Check => eprintln!("[{el:7.1} s] check of the reference"),
-            precision::Progress::Run { done, total, what } => {
+            Progress::Reference => eprintln!("[{el:7.1} s] reference"),
+            Progress::Check => eprintln!("[{el:7.1} s] check of the reference"),
+            Progress::Run { done, total, what } => {
                 eprintln!("[{el:7.1} s] run {}/{total}: {what}", done + 1)
             }
+            Progress::Start { .. } | Progress::Fraction { .. } | Progress::Done { .. } => {}
         }
     };
     let o = p
@@ -680,6 +684,7 @@ fn run_analysis(path: &Path, out: &Path, plots: bool, quiet: bool, opts: Options
                 s.0.remove(&job);
                 s.1 += 1;
             }
+            Progress::Reference | Progress::Check | Progress::Run { .. } => {}
         }
         let running: f64 = s.0.values().sum();
         let frac = (s.1 as f64 + running) / s.2.max(1) as f64;

@@ -10,6 +10,8 @@
 //! by path; [`systems`] holds the built-in reference ODEs (Duffing, pendulum, Lorenz); and
 //! [`nonlinear`] reads analysis studies, runs their sweeps in parallel and streams them to HDF5;
 //! [`precision`] measures what accuracy costs: every integrator against a tight reference.
+//!
+//! Around them: [`progress`] is the one type in which every long computation reports its progress.
 
 pub mod figures;
 pub mod h5;
@@ -18,6 +20,7 @@ pub mod nonlinear;
 pub mod observe;
 pub mod plot;
 pub mod precision;
+pub mod progress;
 pub mod report;
 pub mod run;
 pub mod sections;
