@@ -26,10 +26,10 @@ use jointplay_analysis::report::{self, markdown};
 use jointplay_analysis::run::Recording;
 use jointplay_analysis::run::{RunResult, simulate};
 use jointplay_analysis::study::{Study, is_study};
-use jointplay_solver::model::{GROUND, Model};
+use jointplay_analysis::summary::Summary;
+use jointplay_solver::model::Model;
 use jointplay_solver::ode::Method;
-use jointplay_solver::profile::Profile;
-use jointplay_solver::scene::{DriveCoordinate, SceneSpec};
+use jointplay_solver::scene::SceneSpec;
 
 #[derive(Parser)]
 #[command(
@@ -167,168 +167,15 @@ fn method_text(m: &Method) -> String {
     m.describe()
 }
 
-fn body_name(m: &Model, b: usize) -> &str {
-    if b == GROUND {
-        "ground"
-    } else {
-        &m.bodies[b].name
-    }
-}
-
-fn profile_text(p: &Profile) -> String {
-    match p {
-        Profile::ConstantRate { initial, rate } => format!("constant rate {rate} from {initial}"),
-        Profile::Harmonic {
-            mean,
-            amplitude,
-            omega,
-            phase,
-        } => {
-            format!("harmonic {mean} + {amplitude} sin({omega} t + {phase})")
-        }
-        Profile::Spline(_) => "tabulated (natural cubic spline)".into(),
-        Profile::LegLength { omega, .. } => {
-            format!("leg length of a harmonic path, omega {omega} rad/s")
-        }
-    }
-}
-
 fn check(path: &Path) -> Result<()> {
     let scene = SceneSpec::load(path)?;
     let (model, mut state) = Model::compile(&scene)?;
     for w in &model.warnings {
         eprintln!("warning: {w}");
     }
-    let report = model.assemble(&mut state)?;
-    let st = model.structure(state.t, &state.y);
-    println!("scene        {} ({})", model.name, path.display());
-    if let Some(d) = &model.description {
-        println!("description  {d}");
+    for line in Summary::new(path, &model, &mut state)?.lines() {
+        println!("{line}");
     }
-    println!("bodies       {}", model.nb());
-    for b in &model.bodies {
-        let d = b.inertia.diagonal();
-        println!(
-            "  {:<14} mass {:>9.4} kg   inertia diag [{:.4e}, {:.4e}, {:.4e}] kg m^2",
-            b.name, b.mass, d.x, d.y, d.z
-        );
-    }
-    println!(
-        "coordinates  {} (6 velocity coordinates per body; positions carry Euler parameters)",
-        st.n_coords
-    );
-    println!(
-        "joints       {} ({} constraint rows)",
-        model.joints.len(),
-        model.joint_rows
-    );
-    for j in &model.joints {
-        println!(
-            "  {:<14} {:<11} {} -> {}   {} rows",
-            j.name,
-            j.kind.name(),
-            body_name(&model, j.body_a),
-            body_name(&model, j.body_b),
-            j.rows.len()
-        );
-    }
-    println!("drives       {}", model.drives.len());
-    for d in &model.drives {
-        let period = d
-            .profile
-            .period()
-            .map(|p| format!(", period {p:.6} s"))
-            .unwrap_or_default();
-        println!(
-            "  {:<14} joint {} {}, {}{}",
-            d.name,
-            model.joints[d.joint].name,
-            match d.coordinate {
-                DriveCoordinate::Translation => "translation (m)",
-                DriveCoordinate::Rotation => "rotation (rad)",
-            },
-            profile_text(&d.profile),
-            period
-        );
-    }
-    println!(
-        "constraints  {} rows, numerical rank {} at the assembled initial state (joints: {} rows, rank {})",
-        model.n_rows, st.rank, st.joint_rows, st.joint_rank
-    );
-    println!(
-        "degrees of freedom  {} ({} coordinates - joint rank {})",
-        st.dof, st.n_coords, st.joint_rank
-    );
-    println!("redundant joint rows  {}", st.redundant_joint_rows);
-    println!(
-        "redundant drives  {}{}",
-        st.redundant_drives,
-        if st.redundant_drives > 0 {
-            format!(
-                " ({} drives for {} degrees of freedom: redundant actuation, minimum-norm actuator forces)",
-                st.drive_rows, st.dof
-            )
-        } else {
-            String::new()
-        }
-    );
-    println!("free degrees of freedom  {}", st.remaining_dof);
-    println!(
-        "assembly     {} Newton iterations, residual {:.2e} -> {:.2e} (m, rad); velocity residual {:.2e} -> {:.2e}",
-        report.iterations,
-        report.initial_residual,
-        report.final_residual,
-        report.initial_velocity_residual,
-        report.final_velocity_residual
-    );
-    println!("effects simulated");
-    for e in model.effects.describe(&model) {
-        if let Some(sub) = e.strip_prefix("    ") {
-            println!("      {sub}");
-        } else {
-            println!("  - {e}");
-        }
-    }
-    if !model.disabled.is_empty() {
-        println!("effects disabled (scene's disable list; not evaluated, not stored)");
-        for d in &model.disabled {
-            println!("  - {d}");
-        }
-    }
-    let s = &model.settings;
-    let periods = s
-        .period
-        .map(|p| {
-            format!(
-                " ({:.4} drive periods of {p:.6} s)",
-                (s.end_time - s.start_time) / p
-            )
-        })
-        .unwrap_or_default();
-    println!(
-        "solver       {}, Baumgarte alpha {} 1/s, beta {} 1/s",
-        method_text(&s.method),
-        s.alpha,
-        s.beta
-    );
-    println!(
-        "span         {} s to {} s{}",
-        s.start_time, s.end_time, periods
-    );
-    let o = &model.outputs;
-    println!(
-        "output       every {:e} s: {} bodies, {} joints, {} drives{}{}",
-        o.interval,
-        o.bodies.len(),
-        o.joints.len(),
-        o.drives.len(),
-        if o.accelerations {
-            ", accelerations"
-        } else {
-            ""
-        },
-        if o.diagnostics { ", diagnostics" } else { "" }
-    );
     Ok(())
 }
 

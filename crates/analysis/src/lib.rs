@@ -11,7 +11,8 @@
 //! [`nonlinear`] reads analysis studies, runs their sweeps in parallel and streams them to HDF5;
 //! [`precision`] measures what accuracy costs: every integrator against a tight reference.
 //!
-//! Around them: [`progress`] is the one type in which every long computation reports its progress.
+//! Around them: [`summary`] is the compiled summary of a scene (what `jointplay check` prints);
+//! [`progress`] is the one type in which every long computation reports its progress.
 
 pub mod figures;
 pub mod h5;
@@ -25,6 +26,7 @@ pub mod report;
 pub mod run;
 pub mod sections;
 pub mod study;
+pub mod summary;
 pub mod systems;
 
 use std::path::PathBuf;
