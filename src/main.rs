@@ -17,15 +17,16 @@ use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use jointplay_analysis::figures::{circle, study_figures};
 use jointplay_analysis::h5::{Meta, StudyMeta, read_series, write_run, write_study};
+use jointplay_analysis::inputs::Input;
 use jointplay_analysis::nlfigures::render;
-use jointplay_analysis::nonlinear::{Loaded, Options, execute, is_analysis};
+use jointplay_analysis::nonlinear::{Loaded, Options, execute};
 use jointplay_analysis::plot::{Format, Panel, Series, figure};
 use jointplay_analysis::precision;
 use jointplay_analysis::progress::Progress;
 use jointplay_analysis::report::{self, markdown};
 use jointplay_analysis::run::Recording;
 use jointplay_analysis::run::{RunResult, simulate};
-use jointplay_analysis::study::{Study, is_study};
+use jointplay_analysis::study::Study;
 use jointplay_analysis::summary::Summary;
 use jointplay_solver::model::Model;
 use jointplay_solver::ode::Method;
@@ -334,9 +335,8 @@ fn run_study(path: &Path, out: &Path, plots: bool, quiet: bool) -> Result<()> {
 }
 
 fn run(path: &Path, out: &Path, plots: bool, quiet: bool, opts: Options) -> Result<()> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    if is_analysis(&text) {
+    let (kind, _) = Input::read(path)?;
+    if kind.is_analysis() {
         return run_analysis(path, out, plots, quiet, opts);
     }
     if opts.resume || opts.max_jobs.is_some() {
@@ -345,7 +345,7 @@ fn run(path: &Path, out: &Path, plots: bool, quiet: bool, opts: Options) -> Resu
             path.display()
         );
     }
-    if is_study(&text) {
+    if kind == Input::Comparison {
         return run_study(path, out, plots, quiet);
     }
     let scene = SceneSpec::load(path)?;
@@ -449,17 +449,13 @@ fn plot_cmd(file: &Path, format: &str, out: Option<&Path>) -> Result<()> {
 /// Work-precision of a scene or an analysis study: the table on standard output and in
 /// DIR/<name>.md, the numbers in DIR/<name>.h5, the figure drawn from that file.
 fn precision_cmd(path: &Path, out: &Path, plots: bool, quiet: bool) -> Result<()> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    let study = if is_analysis(&text) {
-        Loaded::parse(&text, path)?
-    } else if is_study(&text) {
-        anyhow::bail!(
+    let study = match Input::read(path)? {
+        (Input::Analysis | Input::Precision, text) => Loaded::parse(&text, path)?,
+        (Input::Comparison, _) => anyhow::bail!(
             "{}: a comparison study has several cases; give one scene or an analysis study",
             path.display()
-        );
-    } else {
-        precision::scene_study(path)?
+        ),
+        (Input::Scene, _) => precision::scene_study(path)?,
     };
     let start = Instant::now();
     let mut p = precision::Precision::new(study)?;

@@ -12,10 +12,12 @@
 //! [`precision`] measures what accuracy costs: every integrator against a tight reference.
 //!
 //! Around them: [`summary`] is the compiled summary of a scene (what `jointplay check` prints);
-//! [`progress`] is the one type in which every long computation reports its progress.
+//! [`inputs`] tells what kind of TOML input or written HDF5 file a path is; [`progress`] is the one
+//! type in which every long computation reports its progress.
 
 pub mod figures;
 pub mod h5;
+pub mod inputs;
 pub mod nlfigures;
 pub mod nonlinear;
 pub mod observe;
@@ -50,6 +52,8 @@ pub enum Error {
     Case { label: String, inner: Box<Error> },
     #[error("{file}: plot: {message}")]
     Plot { file: PathBuf, message: String },
+    #[error("reading {file}: {message}")]
+    Read { file: PathBuf, message: String },
 }
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;
