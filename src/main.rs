@@ -15,8 +15,9 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use jointplay_analysis::figures::{circle, study_figures};
-use jointplay_analysis::h5::{Meta, StudyMeta, read_series, write_run, write_study};
+use jointplay_analysis::comparison::Comparison;
+use jointplay_analysis::figures::circle;
+use jointplay_analysis::h5::{Meta, read_series, write_run};
 use jointplay_analysis::inputs::Input;
 use jointplay_analysis::nlfigures::render;
 use jointplay_analysis::nonlinear::{Loaded, Options, execute};
@@ -24,13 +25,14 @@ use jointplay_analysis::plot::{Format, Panel, Series, figure};
 use jointplay_analysis::precision;
 use jointplay_analysis::progress::Progress;
 use jointplay_analysis::report::{self, markdown};
-use jointplay_analysis::run::Recording;
 use jointplay_analysis::run::{RunResult, simulate};
 use jointplay_analysis::study::Study;
 use jointplay_analysis::summary::Summary;
 use jointplay_solver::model::Model;
-use jointplay_solver::ode::Method;
 use jointplay_solver::scene::SceneSpec;
+
+/// The program version written into every output file.
+const VERSION: &str = env!("CARGO_PKG_VERSION");
 
 #[derive(Parser)]
 #[command(
@@ -164,10 +166,6 @@ fn main() {
     }
 }
 
-fn method_text(m: &Method) -> String {
-    m.describe()
-}
-
 fn check(path: &Path) -> Result<()> {
     let scene = SceneSpec::load(path)?;
     let (model, mut state) = Model::compile(&scene)?;
@@ -192,20 +190,6 @@ fn report_cmd(file: &Path, out: Option<&Path>) -> Result<()> {
     Ok(())
 }
 
-fn meta_of<'a>(model: &'a Model, file: &'a Path, text: &'a str) -> Meta<'a> {
-    Meta {
-        scene_name: &model.name,
-        scene_file: file,
-        scene_text: text,
-        program_version: env!("CARGO_PKG_VERSION"),
-        integrator: method_text(&model.settings.method),
-        baumgarte_alpha: model.settings.alpha,
-        baumgarte_beta: model.settings.beta,
-        drive_period: model.settings.period,
-        scene_warnings: &model.warnings,
-    }
-}
-
 /// A hidden progress bar of `len` steps drawn with `template` (shown by the caller on stderr).
 fn progress_bar(len: u64, template: &str) -> ProgressBar {
     let bar = ProgressBar::with_draw_target(Some(len), ProgressDrawTarget::hidden());
@@ -218,10 +202,8 @@ fn progress_bar(len: u64, template: &str) -> ProgressBar {
 
 fn run_study(path: &Path, out: &Path, plots: bool, quiet: bool) -> Result<()> {
     let study = Study::load(path)?;
-    let start = Instant::now();
-    let n = study.cases.len();
     let bar = progress_bar(
-        n as u64,
+        study.cases.len() as u64,
         "[{elapsed_precise}] {bar:40} {pos}/{len} cases (eta {eta}) {msg}",
     );
     if !quiet {
@@ -234,103 +216,26 @@ fn run_study(path: &Path, out: &Path, plots: bool, quiet: bool) -> Result<()> {
             bar.set_message(format!("{} done", study.cases[job].label));
         }
     };
-    let results = study.run(&progress);
+    let cases = Comparison::run(&study, &progress);
     bar.finish_and_clear();
-    let results = results?;
-    // Keep every finished case even when others fail: they are written, the failures are
+    // Every finished case is kept even when others fail: they are written, the failures are
     // recorded in the file and reported, and the program exits with an error.
-    let mut runs = Vec::new();
-    let mut failed = Vec::new();
-    for (r, c) in results.into_iter().zip(&study.cases) {
-        match r {
-            Ok(run) => {
-                for w in run.model.warnings.iter() {
-                    eprintln!("warning: case {}: {w}", c.label);
-                }
-                for w in &run.result.warnings {
-                    eprintln!("warning: case {}: {}", c.label, w.message);
-                }
-                runs.push((run, c))
-            }
-            // The error names the case.
-            Err(e) => failed.push((c.label.clone(), e.to_string())),
-        }
+    let cases = cases?;
+    for w in cases.warnings() {
+        eprintln!("warning: {w}");
     }
-    let failures = || {
-        failed
-            .iter()
-            .map(|f| f.1.as_str())
-            .collect::<Vec<_>>()
-            .join("\n  ")
-    };
-    if runs.is_empty() {
-        anyhow::bail!(
-            "running study {}: every case failed:\n  {}",
-            path.display(),
-            failures()
-        );
+    let file = cases.write(out, VERSION)?;
+    for line in cases.lines() {
+        println!("{line}");
     }
-    let wall = start.elapsed().as_secs_f64();
-    let metas: Vec<(String, Meta, &RunResult)> = runs
-        .iter()
-        .map(|(r, c)| {
-            (
-                r.label.clone(),
-                meta_of(&r.model, &c.scene.path, &c.scene.text),
-                &r.result,
-            )
-        })
-        .collect();
-    let smeta = StudyMeta {
-        study_name: &study.spec.study.name,
-        study_file: path,
-        study_text: &study.text,
-        program_version: env!("CARGO_PKG_VERSION"),
-    };
-    let file = write_study(out, &smeta, &metas, &failed)?;
-    println!(
-        "study        {} ({}), {n} cases",
-        study.spec.study.name,
-        path.display()
-    );
-    for (r, _) in &runs {
-        let st = &r.result.stats;
-        let w = st.wall.as_secs_f64();
-        println!(
-            "  {:<14} {} steps, {} RHS evaluations, {:.1} s ({:.0} RHS/s)",
-            r.label,
-            st.accepted,
-            st.rhs_evals,
-            w,
-            st.rhs_evals as f64 / w.max(1e-9)
-        );
-    }
-    println!(
-        "wall time    {wall:.1} s for the study on {} threads",
-        rayon::current_num_threads()
-    );
     println!("wrote        {}", file.display());
-    let md_path = out.join(format!("{}.md", study.spec.study.name));
-    std::fs::write(&md_path, markdown(&report::compute(&file)?))
-        .with_context(|| format!("writing {}", md_path.display()))?;
-    println!("wrote        {}", md_path.display());
+    println!("wrote        {}", cases.write_table(&file, out)?.display());
     if plots {
-        let recs: Vec<(&str, &Recording)> = runs
-            .iter()
-            .map(|(r, _)| (r.label.as_str(), &r.result.recording))
-            .collect();
-        for f in study_figures(out, &study.spec.study.name, &study.spec.report, &recs)? {
+        for f in cases.figures(out)? {
             println!("wrote        {}", f.display());
         }
     }
-    if !failed.is_empty() {
-        anyhow::bail!(
-            "{} of {n} cases of study {} failed (the others are written; the file records the failures):\n  {}",
-            failed.len(),
-            path.display(),
-            failures()
-        );
-    }
+    cases.finish()?;
     Ok(())
 }
 
@@ -372,7 +277,7 @@ fn run(path: &Path, out: &Path, plots: bool, quiet: bool, opts: Options) -> Resu
     for w in &result.warnings {
         eprintln!("warning: {}: {}", path.display(), w.message);
     }
-    let meta = meta_of(&model, path, &scene.text);
+    let meta = Meta::of(&model, path, &scene.text, VERSION);
     let file = write_run(out, &meta, &result)?;
     if let Some(s) = &result.stopped {
         anyhow::bail!(
@@ -392,7 +297,7 @@ fn run(path: &Path, out: &Path, plots: bool, quiet: bool, opts: Options) -> Resu
         model.settings.end_time,
         result.recording.time.len()
     );
-    println!("integrator   {}", method_text(&model.settings.method));
+    println!("integrator   {}", model.settings.method.describe());
     println!(
         "steps        {} accepted, {} rejected",
         st.accepted, st.rejected
@@ -537,7 +442,7 @@ fn run_analysis(path: &Path, out: &Path, plots: bool, quiet: bool, opts: Options
             bar.set_draw_target(ProgressDrawTarget::stderr());
         }
     };
-    let res = execute(&st, out, opts, env!("CARGO_PKG_VERSION"), &progress);
+    let res = execute(&st, out, opts, VERSION, &progress);
     bar.finish_and_clear();
     let o = res.with_context(|| format!("running {}", path.display()))?;
     for w in &o.warnings {

@@ -12,9 +12,11 @@
 //! [`precision`] measures what accuracy costs: every integrator against a tight reference.
 //!
 //! Around them: [`summary`] is the compiled summary of a scene (what `jointplay check` prints);
-//! [`inputs`] tells what kind of TOML input or written HDF5 file a path is; [`progress`] is the one
-//! type in which every long computation reports its progress.
+//! [`inputs`] tells what kind of TOML input or written HDF5 file a path is; [`comparison`] runs a
+//! comparison study end to end (its file, its table, its figures); [`progress`] is the one type in
+//! which every long computation reports its progress.
 
+pub mod comparison;
 pub mod figures;
 pub mod h5;
 pub mod inputs;
@@ -54,6 +56,25 @@ pub enum Error {
     Plot { file: PathBuf, message: String },
     #[error("reading {file}: {message}")]
     Read { file: PathBuf, message: String },
+    #[error("writing {file}: {message}")]
+    Write { file: PathBuf, message: String },
+    /// No case of a comparison study finished; one message per case.
+    #[error("running study {file}: every case failed:\n  {}", .failures.join("\n  "))]
+    EveryCaseFailed {
+        file: PathBuf,
+        failures: Vec<String>,
+    },
+    /// Some cases of a comparison study failed (the others are written); one message per failure.
+    #[error(
+        "{} of {cases} cases of study {file} failed (the others are written; the file records the failures):\n  {}",
+        .failures.len(),
+        .failures.join("\n  ")
+    )]
+    CasesFailed {
+        file: PathBuf,
+        cases: usize,
+        failures: Vec<String>,
+    },
 }
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;
