@@ -16,16 +16,15 @@ use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use jointplay_analysis::comparison::Comparison;
-use jointplay_analysis::figures::circle;
+use jointplay_analysis::figures::{redraw, run_figures};
 use jointplay_analysis::h5::{Meta, read_series, write_run};
 use jointplay_analysis::inputs::Input;
-use jointplay_analysis::nlfigures::render;
 use jointplay_analysis::nonlinear::{Loaded, Options, execute};
 use jointplay_analysis::plot::{Format, Panel, Series, figure};
 use jointplay_analysis::precision;
 use jointplay_analysis::progress::Progress;
 use jointplay_analysis::report::{self, markdown};
-use jointplay_analysis::run::{RunResult, simulate};
+use jointplay_analysis::run::simulate;
 use jointplay_analysis::study::Study;
 use jointplay_analysis::summary::Summary;
 use jointplay_solver::model::Model;
@@ -318,34 +317,20 @@ fn run(path: &Path, out: &Path, plots: bool, quiet: bool, opts: Options) -> Resu
     }
     println!("wrote        {}", file.display());
     if plots {
-        for f in figures(out, &model.name, &result)? {
+        for f in run_figures(out, &model.name, &result)? {
             println!("wrote        {}", f.display());
         }
     }
     Ok(())
 }
 
-fn formats(s: &str) -> Result<Vec<Format>> {
-    Ok(match s {
-        "png" => vec![Format::Png],
-        "svg" => vec![Format::Svg],
-        "both" => vec![Format::Png, Format::Svg],
-        other => anyhow::bail!("--format {other}: use png, svg or both"),
-    })
-}
-
 fn plot_cmd(file: &Path, format: &str, out: Option<&Path>) -> Result<()> {
     let dir = out
         .map(Path::to_path_buf)
         .unwrap_or_else(|| file.parent().unwrap_or(Path::new(".")).to_path_buf());
-    if precision::is_precision_file(file) {
-        let o = precision::Outcome::read(file)?;
-        for f in o.figures(&dir.join(&o.name), &formats(format)?)? {
-            println!("wrote        {}", f.display());
-        }
-        return Ok(());
-    }
-    for f in render(file, &dir, &formats(format)?)? {
+    let formats =
+        Format::list(format).with_context(|| format!("--format {format}: use png, svg or both"))?;
+    for f in redraw(file, &dir, &formats)? {
         println!("wrote        {}", f.display());
     }
     Ok(())
@@ -387,8 +372,7 @@ fn precision_cmd(path: &Path, out: &Path, plots: bool, quiet: bool) -> Result<()
     std::fs::write(&md, &table).with_context(|| format!("writing {}", md.display()))?;
     let mut figs = Vec::new();
     if plots {
-        figs = precision::Outcome::read(&file)?
-            .figures(&out.join(&o.name), &[Format::Png, Format::Svg])?;
+        figs = redraw(&file, out, &[Format::Png, Format::Svg])?;
     }
     print!("{table}");
     println!();
@@ -474,7 +458,7 @@ fn run_analysis(path: &Path, out: &Path, plots: bool, quiet: bool, opts: Options
     println!("wall time    {:.3} s", o.wall);
     println!("wrote        {}", o.file.display());
     if plots {
-        for f in render(&o.file, out, &[Format::Png, Format::Svg])? {
+        for f in redraw(&o.file, out, &[Format::Png, Format::Svg])? {
             println!("wrote        {}", f.display());
         }
     }
@@ -553,146 +537,4 @@ fn compare(
         );
     }
     Ok(())
-}
-
-fn figures(out: &Path, name: &str, run: &RunResult) -> Result<Vec<PathBuf>> {
-    let rec = &run.recording;
-    let t = &rec.time;
-    let comp = |v: &[[f64; 3]], k: usize| v.iter().map(|p| p[k]).collect::<Vec<_>>();
-    let mut files = Vec::new();
-    let mut sets: Vec<(String, Vec<Panel>)> = Vec::new();
-    let body_panels: Vec<Panel> = rec
-        .bodies
-        .iter()
-        .take(12)
-        .map(|b| Panel {
-            title: format!("{}: centre of mass", b.name),
-            x_label: "time t (s)".into(),
-            y_label: "position (m)".into(),
-            series: ["x", "y", "z"]
-                .iter()
-                .enumerate()
-                .map(|(k, l)| Series {
-                    label: (*l).into(),
-                    x: t.clone(),
-                    y: comp(&b.position, k),
-                })
-                .collect(),
-            ..Panel::default()
-        })
-        .collect();
-    sets.push((format!("{name}-positions"), body_panels));
-    if !rec.drives.is_empty() {
-        sets.push((
-            format!("{name}-drives"),
-            vec![Panel {
-                title: "Actuator forces".into(),
-                x_label: "time t (s)".into(),
-                y_label: if rec.drives.iter().all(|d| d.rotational) {
-                    "torque (N m)"
-                } else {
-                    "force (N) or torque (N m)"
-                }
-                .into(),
-                series: rec
-                    .drives
-                    .iter()
-                    .map(|d| Series {
-                        label: d.name.clone(),
-                        x: t.clone(),
-                        y: d.force.clone(),
-                    })
-                    .collect(),
-                ..Panel::default()
-            }],
-        ));
-    }
-    if let Some(d) = &rec.diagnostics {
-        let mut panels = vec![Panel {
-            title: "Constraint drift".into(),
-            x_label: "time t (s)".into(),
-            y_label: "residual (m, rad; m/s, rad/s)".into(),
-            series: vec![
-                Series {
-                    label: "position |Phi|".into(),
-                    x: t.clone(),
-                    y: d.constraint_drift.clone(),
-                },
-                Series {
-                    label: "velocity |Phi'|".into(),
-                    x: t.clone(),
-                    y: d.velocity_drift.clone(),
-                },
-            ],
-            log_y: true,
-            ..Panel::default()
-        }];
-        if !d.energy.is_empty() {
-            panels.push(Panel {
-                title: format!(
-                    "Mechanical energy change (E(0) = {:.6e} J)",
-                    d.energy.first().copied().unwrap_or(0.0)
-                ),
-                x_label: "time t (s)".into(),
-                y_label: "E - E(0) (J)".into(),
-                series: vec![Series {
-                    label: "energy".into(),
-                    x: t.clone(),
-                    y: d.energy.iter().map(|e| e - d.energy[0]).collect(),
-                }],
-                ..Panel::default()
-            });
-        }
-        sets.push((format!("{name}-diagnostics"), panels));
-    }
-    for c in &rec.clearances {
-        let nc = c.contacts.len();
-        let lim = 1.25 * c.radial_clearance * 1e3;
-        let orbit = Panel {
-            x_range: Some((-lim, lim)),
-            y_range: Some((-lim, lim)),
-            ..Panel::new(
-                format!("{}: journal-centre orbit", c.name),
-                "eccentricity along u (mm)",
-                "eccentricity along w (mm)",
-                vec![
-                    Series {
-                        label: "journal centre".into(),
-                        x: c.radial_eccentricity.iter().map(|e| e[0] * 1e3).collect(),
-                        y: c.radial_eccentricity.iter().map(|e| e[1] * 1e3).collect(),
-                    },
-                    circle(c.radial_clearance * 1e3),
-                ],
-            )
-        };
-        let force = Panel::new(
-            format!("{}: normal contact force", c.name),
-            "time t (s)",
-            "normal force (N)",
-            c.contacts
-                .iter()
-                .enumerate()
-                .map(|(k, n)| Series {
-                    label: n.clone(),
-                    x: t.clone(),
-                    y: c.normal_force.iter().skip(k).step_by(nc).copied().collect(),
-                })
-                .collect(),
-        );
-        sets.push((format!("{name}-{}-clearance", c.name), vec![orbit, force]));
-    }
-    for (stem, panels) in sets {
-        if panels.is_empty() {
-            continue;
-        }
-        let cols = if panels.len() > 4 {
-            3
-        } else {
-            panels.len().min(2)
-        };
-        for fmt in [Format::Png, Format::Svg] {
-            files.push(figure(&out.join(&stem), fmt, &panels, cols)?);
-        }
-    }
-    Ok(files)
 }
