@@ -16,11 +16,11 @@ use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use jointplay_analysis::comparison::Comparison;
-use jointplay_analysis::figures::{redraw, run_figures};
-use jointplay_analysis::h5::{Meta, read_series, write_run};
+use jointplay_analysis::figures::{overlay, redraw, run_figures};
+use jointplay_analysis::h5::{Meta, write_run};
 use jointplay_analysis::inputs::Input;
 use jointplay_analysis::nonlinear::{Loaded, Options, execute};
-use jointplay_analysis::plot::{Format, Panel, Series, figure};
+use jointplay_analysis::plot::{Format, figure};
 use jointplay_analysis::precision;
 use jointplay_analysis::progress::Progress;
 use jointplay_analysis::report::{self, markdown};
@@ -497,36 +497,7 @@ fn compare(
     out: &Path,
     title: Option<String>,
 ) -> Result<()> {
-    let mut series = Vec::new();
-    let mut unit = String::new();
-    for f in files {
-        let d = read_series(f, dataset, component)?;
-        unit = d.unit.clone();
-        let label = if d.scene_name.is_empty() {
-            f.display().to_string()
-        } else {
-            d.scene_name
-        };
-        series.push(Series {
-            label,
-            x: d.time,
-            y: d.values,
-        });
-    }
-    let comp = ["x", "y", "z", "w"].get(component).copied().unwrap_or("?");
-    let panel = Panel::new(
-        title.unwrap_or_else(|| format!("{dataset} [{comp}]")),
-        "time t (s)",
-        format!(
-            "{} ({unit})",
-            dataset
-                .rsplit('/')
-                .next()
-                .unwrap_or(dataset)
-                .replace('_', " ")
-        ),
-        series,
-    );
+    let panel = overlay(files, dataset, component, title)?;
     if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }

@@ -14,11 +14,13 @@
 //!   revolutes in the plane normal to the bushing axis.
 //!
 //! [`redraw`] draws again, from the file alone, the figures of a work-precision or an analysis
-//! file, telling which it is from the file itself.
+//! file, telling which it is from the file itself. [`overlay`] puts one recorded quantity of
+//! several run files in one panel.
 
 use std::path::{Path, PathBuf};
 
 use crate::Result;
+use crate::h5::read_series;
 use crate::inputs::Output;
 use crate::nlfigures::render;
 use crate::plot::{Format, Panel, Series, figure};
@@ -378,6 +380,47 @@ pub fn redraw(file: &Path, dir: &Path, formats: &[Format]) -> Result<Vec<PathBuf
     render(file, dir, formats)
 }
 
+/// One panel overlaying column `component` of `dataset` (1-D datasets ignore it) from each run
+/// file against time, each series labelled with its scene's name (the file name when the file
+/// has none); titled `title`, or by default the dataset path and the component.
+pub fn overlay(
+    files: &[PathBuf],
+    dataset: &str,
+    component: usize,
+    title: Option<String>,
+) -> Result<Panel> {
+    let mut series = Vec::new();
+    let mut unit = String::new();
+    for f in files {
+        let d = read_series(f, dataset, component)?;
+        unit = d.unit.clone();
+        let label = if d.scene_name.is_empty() {
+            f.display().to_string()
+        } else {
+            d.scene_name
+        };
+        series.push(Series {
+            label,
+            x: d.time,
+            y: d.values,
+        });
+    }
+    let comp = ["x", "y", "z", "w"].get(component).copied().unwrap_or("?");
+    Ok(Panel::new(
+        title.unwrap_or_else(|| format!("{dataset} [{comp}]")),
+        "time t (s)",
+        format!(
+            "{} ({unit})",
+            dataset
+                .rsplit('/')
+                .next()
+                .unwrap_or(dataset)
+                .replace('_', " ")
+        ),
+        series,
+    ))
+}
+
 #[cfg(test)]
 mod tests {
     use std::path::PathBuf;
@@ -474,6 +517,33 @@ path = "v"
             msg.contains("pendulum.h5") && msg.contains("not a nonlinear-analysis file"),
             "{msg}"
         );
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn an_overlay_has_one_series_per_file_named_by_its_scene() {
+        let dir = tmp("overlay");
+        let mut files = Vec::new();
+        for (name, span) in [("pendulum.toml", 0.01), ("slider-crank.toml", 0.002)] {
+            let (model, run, path, text) = short_run(name, span);
+            files.push(write_run(&dir, &Meta::of(&model, &path, &text, "test"), &run).unwrap());
+        }
+        let p = overlay(&files, "time", 0, None).unwrap();
+        assert_eq!(p.title, "time [x]");
+        assert_eq!(p.x_label, "time t (s)");
+        assert_eq!(p.y_label, "time (s)");
+        let labels: Vec<&str> = p.series.iter().map(|s| s.label.as_str()).collect();
+        assert_eq!(labels, ["pendulum", "slider-crank"]);
+        assert!(p.series.iter().all(|s| s.x == s.y && !s.x.is_empty()));
+        let p = overlay(&files[..1], "bodies/bob/position", 1, Some("bob".into())).unwrap();
+        assert_eq!(
+            (p.title.as_str(), p.y_label.as_str()),
+            ("bob", "position (m)")
+        );
+        let msg = overlay(&files, "bodies/bob/position", 1, None)
+            .unwrap_err()
+            .to_string();
+        assert!(msg.contains("slider-crank.h5"), "{msg}");
         let _ = std::fs::remove_dir_all(&dir);
     }
 }
