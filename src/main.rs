@@ -15,20 +15,23 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use jointplay_analysis::figures::{circle, study_figures};
-use jointplay_analysis::h5::{Meta, StudyMeta, read_series, write_run, write_study};
-use jointplay_analysis::nlfigures::render;
-use jointplay_analysis::nonlinear::{Loaded, Options, Progress, execute, is_analysis};
-use jointplay_analysis::plot::{Format, Panel, Series, figure};
+use jointplay_analysis::comparison::Comparison;
+use jointplay_analysis::figures::{overlay, redraw, run_figures};
+use jointplay_analysis::h5::{Meta, write_run};
+use jointplay_analysis::inputs::Input;
+use jointplay_analysis::nonlinear::{Loaded, Options, execute};
+use jointplay_analysis::plot::{Format, figure};
 use jointplay_analysis::precision;
+use jointplay_analysis::progress::Progress;
 use jointplay_analysis::report::{self, markdown};
-use jointplay_analysis::run::Recording;
-use jointplay_analysis::run::{RunResult, simulate};
-use jointplay_analysis::study::{Study, is_study};
-use jointplay_solver::model::{GROUND, Model};
-use jointplay_solver::ode::Method;
-use jointplay_solver::profile::Profile;
-use jointplay_solver::scene::{DriveCoordinate, SceneSpec};
+use jointplay_analysis::run::simulate;
+use jointplay_analysis::study::Study;
+use jointplay_analysis::summary::Summary;
+use jointplay_solver::model::Model;
+use jointplay_solver::scene::SceneSpec;
+
+/// The program version written into every output file.
+const VERSION: &str = env!("CARGO_PKG_VERSION");
 
 #[derive(Parser)]
 #[command(
@@ -162,172 +165,15 @@ fn main() {
     }
 }
 
-fn method_text(m: &Method) -> String {
-    m.describe()
-}
-
-fn body_name(m: &Model, b: usize) -> &str {
-    if b == GROUND {
-        "ground"
-    } else {
-        &m.bodies[b].name
-    }
-}
-
-fn profile_text(p: &Profile) -> String {
-    match p {
-        Profile::ConstantRate { initial, rate } => format!("constant rate {rate} from {initial}"),
-        Profile::Harmonic {
-            mean,
-            amplitude,
-            omega,
-            phase,
-        } => {
-            format!("harmonic {mean} + {amplitude} sin({omega} t + {phase})")
-        }
-        Profile::Spline(_) => "tabulated (natural cubic spline)".into(),
-        Profile::LegLength { omega, .. } => {
-            format!("leg length of a harmonic path, omega {omega} rad/s")
-        }
-    }
-}
-
 fn check(path: &Path) -> Result<()> {
     let scene = SceneSpec::load(path)?;
     let (model, mut state) = Model::compile(&scene)?;
     for w in &model.warnings {
         eprintln!("warning: {w}");
     }
-    let report = model.assemble(&mut state)?;
-    let st = model.structure(state.t, &state.y);
-    println!("scene        {} ({})", model.name, path.display());
-    if let Some(d) = &model.description {
-        println!("description  {d}");
+    for line in Summary::new(path, &model, &mut state)?.lines() {
+        println!("{line}");
     }
-    println!("bodies       {}", model.nb());
-    for b in &model.bodies {
-        let d = b.inertia.diagonal();
-        println!(
-            "  {:<14} mass {:>9.4} kg   inertia diag [{:.4e}, {:.4e}, {:.4e}] kg m^2",
-            b.name, b.mass, d.x, d.y, d.z
-        );
-    }
-    println!(
-        "coordinates  {} (6 velocity coordinates per body; positions carry Euler parameters)",
-        st.n_coords
-    );
-    println!(
-        "joints       {} ({} constraint rows)",
-        model.joints.len(),
-        model.joint_rows
-    );
-    for j in &model.joints {
-        println!(
-            "  {:<14} {:<11} {} -> {}   {} rows",
-            j.name,
-            j.kind.name(),
-            body_name(&model, j.body_a),
-            body_name(&model, j.body_b),
-            j.rows.len()
-        );
-    }
-    println!("drives       {}", model.drives.len());
-    for d in &model.drives {
-        let period = d
-            .profile
-            .period()
-            .map(|p| format!(", period {p:.6} s"))
-            .unwrap_or_default();
-        println!(
-            "  {:<14} joint {} {}, {}{}",
-            d.name,
-            model.joints[d.joint].name,
-            match d.coordinate {
-                DriveCoordinate::Translation => "translation (m)",
-                DriveCoordinate::Rotation => "rotation (rad)",
-            },
-            profile_text(&d.profile),
-            period
-        );
-    }
-    println!(
-        "constraints  {} rows, numerical rank {} at the assembled initial state (joints: {} rows, rank {})",
-        model.n_rows, st.rank, st.joint_rows, st.joint_rank
-    );
-    println!(
-        "degrees of freedom  {} ({} coordinates - joint rank {})",
-        st.dof, st.n_coords, st.joint_rank
-    );
-    println!("redundant joint rows  {}", st.redundant_joint_rows);
-    println!(
-        "redundant drives  {}{}",
-        st.redundant_drives,
-        if st.redundant_drives > 0 {
-            format!(
-                " ({} drives for {} degrees of freedom: redundant actuation, minimum-norm actuator forces)",
-                st.drive_rows, st.dof
-            )
-        } else {
-            String::new()
-        }
-    );
-    println!("free degrees of freedom  {}", st.remaining_dof);
-    println!(
-        "assembly     {} Newton iterations, residual {:.2e} -> {:.2e} (m, rad); velocity residual {:.2e} -> {:.2e}",
-        report.iterations,
-        report.initial_residual,
-        report.final_residual,
-        report.initial_velocity_residual,
-        report.final_velocity_residual
-    );
-    println!("effects simulated");
-    for e in model.effects.describe(&model) {
-        if let Some(sub) = e.strip_prefix("    ") {
-            println!("      {sub}");
-        } else {
-            println!("  - {e}");
-        }
-    }
-    if !model.disabled.is_empty() {
-        println!("effects disabled (scene's disable list; not evaluated, not stored)");
-        for d in &model.disabled {
-            println!("  - {d}");
-        }
-    }
-    let s = &model.settings;
-    let periods = s
-        .period
-        .map(|p| {
-            format!(
-                " ({:.4} drive periods of {p:.6} s)",
-                (s.end_time - s.start_time) / p
-            )
-        })
-        .unwrap_or_default();
-    println!(
-        "solver       {}, Baumgarte alpha {} 1/s, beta {} 1/s",
-        method_text(&s.method),
-        s.alpha,
-        s.beta
-    );
-    println!(
-        "span         {} s to {} s{}",
-        s.start_time, s.end_time, periods
-    );
-    let o = &model.outputs;
-    println!(
-        "output       every {:e} s: {} bodies, {} joints, {} drives{}{}",
-        o.interval,
-        o.bodies.len(),
-        o.joints.len(),
-        o.drives.len(),
-        if o.accelerations {
-            ", accelerations"
-        } else {
-            ""
-        },
-        if o.diagnostics { ", diagnostics" } else { "" }
-    );
     Ok(())
 }
 
@@ -343,20 +189,6 @@ fn report_cmd(file: &Path, out: Option<&Path>) -> Result<()> {
     Ok(())
 }
 
-fn meta_of<'a>(model: &'a Model, file: &'a Path, text: &'a str) -> Meta<'a> {
-    Meta {
-        scene_name: &model.name,
-        scene_file: file,
-        scene_text: text,
-        program_version: env!("CARGO_PKG_VERSION"),
-        integrator: method_text(&model.settings.method),
-        baumgarte_alpha: model.settings.alpha,
-        baumgarte_beta: model.settings.beta,
-        drive_period: model.settings.period,
-        scene_warnings: &model.warnings,
-    }
-}
-
 /// A hidden progress bar of `len` steps drawn with `template` (shown by the caller on stderr).
 fn progress_bar(len: u64, template: &str) -> ProgressBar {
     let bar = ProgressBar::with_draw_target(Some(len), ProgressDrawTarget::hidden());
@@ -369,124 +201,46 @@ fn progress_bar(len: u64, template: &str) -> ProgressBar {
 
 fn run_study(path: &Path, out: &Path, plots: bool, quiet: bool) -> Result<()> {
     let study = Study::load(path)?;
-    let start = Instant::now();
-    let n = study.cases.len();
     let bar = progress_bar(
-        n as u64,
+        study.cases.len() as u64,
         "[{elapsed_precise}] {bar:40} {pos}/{len} cases (eta {eta}) {msg}",
     );
     if !quiet {
         bar.set_draw_target(ProgressDrawTarget::stderr());
     }
     bar.tick();
-    let done = |label: &str| {
-        bar.inc(1);
-        bar.set_message(format!("{label} done"));
-    };
-    let results = study.run(&done);
-    bar.finish_and_clear();
-    let results = results?;
-    // Keep every finished case even when others fail: they are written, the failures are
-    // recorded in the file and reported, and the program exits with an error.
-    let mut runs = Vec::new();
-    let mut failed = Vec::new();
-    for (r, c) in results.into_iter().zip(&study.cases) {
-        match r {
-            Ok(run) => {
-                for w in run.model.warnings.iter() {
-                    eprintln!("warning: case {}: {w}", c.label);
-                }
-                for w in &run.result.warnings {
-                    eprintln!("warning: case {}: {}", c.label, w.message);
-                }
-                runs.push((run, c))
-            }
-            // The error names the case.
-            Err(e) => failed.push((c.label.clone(), e.to_string())),
+    let progress = |p: Progress| {
+        if let Progress::Done { job, ok: true } = p {
+            bar.inc(1);
+            bar.set_message(format!("{} done", study.cases[job].label));
         }
-    }
-    let failures = || {
-        failed
-            .iter()
-            .map(|f| f.1.as_str())
-            .collect::<Vec<_>>()
-            .join("\n  ")
     };
-    if runs.is_empty() {
-        anyhow::bail!(
-            "running study {}: every case failed:\n  {}",
-            path.display(),
-            failures()
-        );
+    let cases = Comparison::run(&study, &progress);
+    bar.finish_and_clear();
+    // Every finished case is kept even when others fail: they are written, the failures are
+    // recorded in the file and reported, and the program exits with an error.
+    let cases = cases?;
+    for w in cases.warnings() {
+        eprintln!("warning: {w}");
     }
-    let wall = start.elapsed().as_secs_f64();
-    let metas: Vec<(String, Meta, &RunResult)> = runs
-        .iter()
-        .map(|(r, c)| {
-            (
-                r.label.clone(),
-                meta_of(&r.model, &c.scene.path, &c.scene.text),
-                &r.result,
-            )
-        })
-        .collect();
-    let smeta = StudyMeta {
-        study_name: &study.spec.study.name,
-        study_file: path,
-        study_text: &study.text,
-        program_version: env!("CARGO_PKG_VERSION"),
-    };
-    let file = write_study(out, &smeta, &metas, &failed)?;
-    println!(
-        "study        {} ({}), {n} cases",
-        study.spec.study.name,
-        path.display()
-    );
-    for (r, _) in &runs {
-        let st = &r.result.stats;
-        let w = st.wall.as_secs_f64();
-        println!(
-            "  {:<14} {} steps, {} RHS evaluations, {:.1} s ({:.0} RHS/s)",
-            r.label,
-            st.accepted,
-            st.rhs_evals,
-            w,
-            st.rhs_evals as f64 / w.max(1e-9)
-        );
+    let file = cases.write(out, VERSION)?;
+    for line in cases.lines() {
+        println!("{line}");
     }
-    println!(
-        "wall time    {wall:.1} s for the study on {} threads",
-        rayon::current_num_threads()
-    );
     println!("wrote        {}", file.display());
-    let md_path = out.join(format!("{}.md", study.spec.study.name));
-    std::fs::write(&md_path, markdown(&report::compute(&file)?))
-        .with_context(|| format!("writing {}", md_path.display()))?;
-    println!("wrote        {}", md_path.display());
+    println!("wrote        {}", cases.write_table(&file, out)?.display());
     if plots {
-        let recs: Vec<(&str, &Recording)> = runs
-            .iter()
-            .map(|(r, _)| (r.label.as_str(), &r.result.recording))
-            .collect();
-        for f in study_figures(out, &study.spec.study.name, &study.spec.report, &recs)? {
+        for f in cases.figures(out)? {
             println!("wrote        {}", f.display());
         }
     }
-    if !failed.is_empty() {
-        anyhow::bail!(
-            "{} of {n} cases of study {} failed (the others are written; the file records the failures):\n  {}",
-            failed.len(),
-            path.display(),
-            failures()
-        );
-    }
+    cases.finish()?;
     Ok(())
 }
 
 fn run(path: &Path, out: &Path, plots: bool, quiet: bool, opts: Options) -> Result<()> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    if is_analysis(&text) {
+    let (kind, _) = Input::read(path)?;
+    if kind.is_analysis() {
         return run_analysis(path, out, plots, quiet, opts);
     }
     if opts.resume || opts.max_jobs.is_some() {
@@ -495,7 +249,7 @@ fn run(path: &Path, out: &Path, plots: bool, quiet: bool, opts: Options) -> Resu
             path.display()
         );
     }
-    if is_study(&text) {
+    if kind == Input::Comparison {
         return run_study(path, out, plots, quiet);
     }
     let scene = SceneSpec::load(path)?;
@@ -522,7 +276,7 @@ fn run(path: &Path, out: &Path, plots: bool, quiet: bool, opts: Options) -> Resu
     for w in &result.warnings {
         eprintln!("warning: {}: {}", path.display(), w.message);
     }
-    let meta = meta_of(&model, path, &scene.text);
+    let meta = Meta::of(&model, path, &scene.text, VERSION);
     let file = write_run(out, &meta, &result)?;
     if let Some(s) = &result.stopped {
         anyhow::bail!(
@@ -542,7 +296,7 @@ fn run(path: &Path, out: &Path, plots: bool, quiet: bool, opts: Options) -> Resu
         model.settings.end_time,
         result.recording.time.len()
     );
-    println!("integrator   {}", method_text(&model.settings.method));
+    println!("integrator   {}", model.settings.method.describe());
     println!(
         "steps        {} accepted, {} rejected",
         st.accepted, st.rejected
@@ -563,34 +317,20 @@ fn run(path: &Path, out: &Path, plots: bool, quiet: bool, opts: Options) -> Resu
     }
     println!("wrote        {}", file.display());
     if plots {
-        for f in figures(out, &model.name, &result)? {
+        for f in run_figures(out, &model.name, &result)? {
             println!("wrote        {}", f.display());
         }
     }
     Ok(())
 }
 
-fn formats(s: &str) -> Result<Vec<Format>> {
-    Ok(match s {
-        "png" => vec![Format::Png],
-        "svg" => vec![Format::Svg],
-        "both" => vec![Format::Png, Format::Svg],
-        other => anyhow::bail!("--format {other}: use png, svg or both"),
-    })
-}
-
 fn plot_cmd(file: &Path, format: &str, out: Option<&Path>) -> Result<()> {
     let dir = out
         .map(Path::to_path_buf)
         .unwrap_or_else(|| file.parent().unwrap_or(Path::new(".")).to_path_buf());
-    if precision::is_precision_file(file) {
-        let o = precision::Outcome::read(file)?;
-        for f in o.figures(&dir.join(&o.name), &formats(format)?)? {
-            println!("wrote        {}", f.display());
-        }
-        return Ok(());
-    }
-    for f in render(file, &dir, &formats(format)?)? {
+    let formats =
+        Format::list(format).with_context(|| format!("--format {format}: use png, svg or both"))?;
+    for f in redraw(file, &dir, &formats)? {
         println!("wrote        {}", f.display());
     }
     Ok(())
@@ -599,31 +339,28 @@ fn plot_cmd(file: &Path, format: &str, out: Option<&Path>) -> Result<()> {
 /// Work-precision of a scene or an analysis study: the table on standard output and in
 /// DIR/<name>.md, the numbers in DIR/<name>.h5, the figure drawn from that file.
 fn precision_cmd(path: &Path, out: &Path, plots: bool, quiet: bool) -> Result<()> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
-    let study = if is_analysis(&text) {
-        Loaded::parse(&text, path)?
-    } else if is_study(&text) {
-        anyhow::bail!(
+    let study = match Input::read(path)? {
+        (Input::Analysis | Input::Precision, text) => Loaded::parse(&text, path)?,
+        (Input::Comparison, _) => anyhow::bail!(
             "{}: a comparison study has several cases; give one scene or an analysis study",
             path.display()
-        );
-    } else {
-        precision::scene_study(path)?
+        ),
+        (Input::Scene, _) => precision::scene_study(path)?,
     };
     let start = Instant::now();
     let mut p = precision::Precision::new(study)?;
-    let mut report = |pr: precision::Progress| {
+    let mut report = |pr: Progress| {
         if quiet {
             return;
         }
         let el = start.elapsed().as_secs_f64();
         match pr {
-            precision::Progress::Reference => eprintln!("[{el:7.1} s] reference"),
-            precision::Progress::Check => eprintln!("[{el:7.1} s] check of the reference"),
-            precision::Progress::Run { done, total, what } => {
+            Progress::Reference => eprintln!("[{el:7.1} s] reference"),
+            Progress::Check => eprintln!("[{el:7.1} s] check of the reference"),
+            Progress::Run { done, total, what } => {
                 eprintln!("[{el:7.1} s] run {}/{total}: {what}", done + 1)
             }
+            Progress::Start { .. } | Progress::Fraction { .. } | Progress::Done { .. } => {}
         }
     };
     let o = p
@@ -635,8 +372,7 @@ fn precision_cmd(path: &Path, out: &Path, plots: bool, quiet: bool) -> Result<()
     std::fs::write(&md, &table).with_context(|| format!("writing {}", md.display()))?;
     let mut figs = Vec::new();
     if plots {
-        figs = precision::Outcome::read(&file)?
-            .figures(&out.join(&o.name), &[Format::Png, Format::Svg])?;
+        figs = redraw(&file, out, &[Format::Png, Format::Svg])?;
     }
     print!("{table}");
     println!();
@@ -680,6 +416,7 @@ fn run_analysis(path: &Path, out: &Path, plots: bool, quiet: bool, opts: Options
                 s.0.remove(&job);
                 s.1 += 1;
             }
+            Progress::Reference | Progress::Check | Progress::Run { .. } => {}
         }
         let running: f64 = s.0.values().sum();
         let frac = (s.1 as f64 + running) / s.2.max(1) as f64;
@@ -689,7 +426,7 @@ fn run_analysis(path: &Path, out: &Path, plots: bool, quiet: bool, opts: Options
             bar.set_draw_target(ProgressDrawTarget::stderr());
         }
     };
-    let res = execute(&st, out, opts, env!("CARGO_PKG_VERSION"), &progress);
+    let res = execute(&st, out, opts, VERSION, &progress);
     bar.finish_and_clear();
     let o = res.with_context(|| format!("running {}", path.display()))?;
     for w in &o.warnings {
@@ -721,7 +458,7 @@ fn run_analysis(path: &Path, out: &Path, plots: bool, quiet: bool, opts: Options
     println!("wall time    {:.3} s", o.wall);
     println!("wrote        {}", o.file.display());
     if plots {
-        for f in render(&o.file, out, &[Format::Png, Format::Svg])? {
+        for f in redraw(&o.file, out, &[Format::Png, Format::Svg])? {
             println!("wrote        {}", f.display());
         }
     }
@@ -760,36 +497,7 @@ fn compare(
     out: &Path,
     title: Option<String>,
 ) -> Result<()> {
-    let mut series = Vec::new();
-    let mut unit = String::new();
-    for f in files {
-        let d = read_series(f, dataset, component)?;
-        unit = d.unit.clone();
-        let label = if d.scene_name.is_empty() {
-            f.display().to_string()
-        } else {
-            d.scene_name
-        };
-        series.push(Series {
-            label,
-            x: d.time,
-            y: d.values,
-        });
-    }
-    let comp = ["x", "y", "z", "w"].get(component).copied().unwrap_or("?");
-    let panel = Panel::new(
-        title.unwrap_or_else(|| format!("{dataset} [{comp}]")),
-        "time t (s)",
-        format!(
-            "{} ({unit})",
-            dataset
-                .rsplit('/')
-                .next()
-                .unwrap_or(dataset)
-                .replace('_', " ")
-        ),
-        series,
-    );
+    let panel = overlay(files, dataset, component, title)?;
     if let Some(dir) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
         std::fs::create_dir_all(dir).with_context(|| format!("creating {}", dir.display()))?;
     }
@@ -800,146 +508,4 @@ fn compare(
         );
     }
     Ok(())
-}
-
-fn figures(out: &Path, name: &str, run: &RunResult) -> Result<Vec<PathBuf>> {
-    let rec = &run.recording;
-    let t = &rec.time;
-    let comp = |v: &[[f64; 3]], k: usize| v.iter().map(|p| p[k]).collect::<Vec<_>>();
-    let mut files = Vec::new();
-    let mut sets: Vec<(String, Vec<Panel>)> = Vec::new();
-    let body_panels: Vec<Panel> = rec
-        .bodies
-        .iter()
-        .take(12)
-        .map(|b| Panel {
-            title: format!("{}: centre of mass", b.name),
-            x_label: "time t (s)".into(),
-            y_label: "position (m)".into(),
-            series: ["x", "y", "z"]
-                .iter()
-                .enumerate()
-                .map(|(k, l)| Series {
-                    label: (*l).into(),
-                    x: t.clone(),
-                    y: comp(&b.position, k),
-                })
-                .collect(),
-            ..Panel::default()
-        })
-        .collect();
-    sets.push((format!("{name}-positions"), body_panels));
-    if !rec.drives.is_empty() {
-        sets.push((
-            format!("{name}-drives"),
-            vec![Panel {
-                title: "Actuator forces".into(),
-                x_label: "time t (s)".into(),
-                y_label: if rec.drives.iter().all(|d| d.rotational) {
-                    "torque (N m)"
-                } else {
-                    "force (N) or torque (N m)"
-                }
-                .into(),
-                series: rec
-                    .drives
-                    .iter()
-                    .map(|d| Series {
-                        label: d.name.clone(),
-                        x: t.clone(),
-                        y: d.force.clone(),
-                    })
-                    .collect(),
-                ..Panel::default()
-            }],
-        ));
-    }
-    if let Some(d) = &rec.diagnostics {
-        let mut panels = vec![Panel {
-            title: "Constraint drift".into(),
-            x_label: "time t (s)".into(),
-            y_label: "residual (m, rad; m/s, rad/s)".into(),
-            series: vec![
-                Series {
-                    label: "position |Phi|".into(),
-                    x: t.clone(),
-                    y: d.constraint_drift.clone(),
-                },
-                Series {
-                    label: "velocity |Phi'|".into(),
-                    x: t.clone(),
-                    y: d.velocity_drift.clone(),
-                },
-            ],
-            log_y: true,
-            ..Panel::default()
-        }];
-        if !d.energy.is_empty() {
-            panels.push(Panel {
-                title: format!(
-                    "Mechanical energy change (E(0) = {:.6e} J)",
-                    d.energy.first().copied().unwrap_or(0.0)
-                ),
-                x_label: "time t (s)".into(),
-                y_label: "E - E(0) (J)".into(),
-                series: vec![Series {
-                    label: "energy".into(),
-                    x: t.clone(),
-                    y: d.energy.iter().map(|e| e - d.energy[0]).collect(),
-                }],
-                ..Panel::default()
-            });
-        }
-        sets.push((format!("{name}-diagnostics"), panels));
-    }
-    for c in &rec.clearances {
-        let nc = c.contacts.len();
-        let lim = 1.25 * c.radial_clearance * 1e3;
-        let orbit = Panel {
-            x_range: Some((-lim, lim)),
-            y_range: Some((-lim, lim)),
-            ..Panel::new(
-                format!("{}: journal-centre orbit", c.name),
-                "eccentricity along u (mm)",
-                "eccentricity along w (mm)",
-                vec![
-                    Series {
-                        label: "journal centre".into(),
-                        x: c.radial_eccentricity.iter().map(|e| e[0] * 1e3).collect(),
-                        y: c.radial_eccentricity.iter().map(|e| e[1] * 1e3).collect(),
-                    },
-                    circle(c.radial_clearance * 1e3),
-                ],
-            )
-        };
-        let force = Panel::new(
-            format!("{}: normal contact force", c.name),
-            "time t (s)",
-            "normal force (N)",
-            c.contacts
-                .iter()
-                .enumerate()
-                .map(|(k, n)| Series {
-                    label: n.clone(),
-                    x: t.clone(),
-                    y: c.normal_force.iter().skip(k).step_by(nc).copied().collect(),
-                })
-                .collect(),
-        );
-        sets.push((format!("{name}-{}-clearance", c.name), vec![orbit, force]));
-    }
-    for (stem, panels) in sets {
-        if panels.is_empty() {
-            continue;
-        }
-        let cols = if panels.len() > 4 {
-            3
-        } else {
-            panels.len().min(2)
-        };
-        for fmt in [Format::Png, Format::Svg] {
-            files.push(figure(&out.join(&stem), fmt, &panels, cols)?);
-        }
-    }
-    Ok(files)
 }

@@ -7,6 +7,7 @@
 use std::path::{Path, PathBuf};
 
 use hdf5::types::VarLenUnicode;
+use jointplay_solver::model::Model;
 use ndarray::{Array1, Array2};
 
 use crate::run::RunResult;
@@ -27,6 +28,29 @@ pub struct Meta<'a> {
     pub drive_period: Option<f64>,
     /// Warnings found while compiling the scene.
     pub scene_warnings: &'a [String],
+}
+
+impl<'a> Meta<'a> {
+    /// The metadata of a run of `model`, compiled from the scene file `file` whose text is
+    /// `text`; `program_version` is the version of the program writing the file.
+    pub fn of(
+        model: &'a Model,
+        file: &'a Path,
+        text: &'a str,
+        program_version: &'a str,
+    ) -> Meta<'a> {
+        Meta {
+            scene_name: &model.name,
+            scene_file: file,
+            scene_text: text,
+            program_version,
+            integrator: model.settings.method.describe(),
+            baumgarte_alpha: model.settings.alpha,
+            baumgarte_beta: model.settings.beta,
+            drive_period: model.settings.period,
+            scene_warnings: &model.warnings,
+        }
+    }
 }
 
 pub(crate) fn h5err(file: &Path) -> impl Fn(hdf5::Error) -> Error + '_ {
@@ -507,4 +531,32 @@ pub fn read_series(path: &Path, dataset: &str, component: usize) -> Result<Serie
         time,
         values,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::PathBuf;
+
+    use jointplay_solver::scene::SceneSpec;
+
+    use super::*;
+
+    #[test]
+    fn the_metadata_of_a_run_comes_from_the_compiled_model() {
+        let path =
+            PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../data/scenes/4ups-rpu.toml");
+        let scene = SceneSpec::load(&path).unwrap();
+        let (model, _) = Model::compile(&scene).unwrap();
+        let m = Meta::of(&model, &path, &scene.text, "9.9.9");
+        assert_eq!(m.scene_name, "4ups-rpu");
+        assert_eq!(m.scene_file, path);
+        assert_eq!(m.scene_text, scene.text);
+        assert_eq!(m.program_version, "9.9.9");
+        assert_eq!(m.integrator, "rk4, fixed step 1e-4 s");
+        assert_eq!((m.baumgarte_alpha, m.baumgarte_beta), (5.0, 5.0));
+        // The drives move at omega = 3.14 rad/s: period 2 pi / 3.14 s.
+        let period = m.drive_period.unwrap();
+        assert!((period - 2.001014).abs() < 1e-6, "{period}");
+        assert_eq!(m.scene_warnings, model.warnings.as_slice());
+    }
 }

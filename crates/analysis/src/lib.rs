@@ -9,20 +9,30 @@
 //! stroboscopic and hyperplane Poincare sections; [`observe`] addresses a mechanism's quantities
 //! by path; [`systems`] holds the built-in reference ODEs (Duffing, pendulum, Lorenz); and
 //! [`nonlinear`] reads analysis studies, runs their sweeps in parallel and streams them to HDF5;
+//! [`hybrid`] saves and loads the hybrid state of a run (continue a run as if it never stopped);
 //! [`precision`] measures what accuracy costs: every integrator against a tight reference.
+//!
+//! Around them: [`summary`] is the compiled summary of a scene (what `jointplay check` prints);
+//! [`inputs`] tells what kind of TOML input or written HDF5 file a path is; [`comparison`] runs a
+//! comparison study end to end (its file, its table, its figures); [`progress`] is the one type in
+//! which every long computation reports its progress.
 
+pub mod comparison;
 pub mod figures;
 pub mod h5;
 pub mod hybrid;
+pub mod inputs;
 pub mod nlfigures;
 pub mod nonlinear;
 pub mod observe;
 pub mod plot;
 pub mod precision;
+pub mod progress;
 pub mod report;
 pub mod run;
 pub mod sections;
 pub mod study;
+pub mod summary;
 pub mod systems;
 
 use std::path::PathBuf;
@@ -46,6 +56,27 @@ pub enum Error {
     Case { label: String, inner: Box<Error> },
     #[error("{file}: plot: {message}")]
     Plot { file: PathBuf, message: String },
+    #[error("reading {file}: {message}")]
+    Read { file: PathBuf, message: String },
+    #[error("writing {file}: {message}")]
+    Write { file: PathBuf, message: String },
+    /// No case of a comparison study finished; one message per case.
+    #[error("running study {file}: every case failed:\n  {}", .failures.join("\n  "))]
+    EveryCaseFailed {
+        file: PathBuf,
+        failures: Vec<String>,
+    },
+    /// Some cases of a comparison study failed (the others are written); one message per failure.
+    #[error(
+        "{} of {cases} cases of study {file} failed (the others are written; the file records the failures):\n  {}",
+        .failures.len(),
+        .failures.join("\n  ")
+    )]
+    CasesFailed {
+        file: PathBuf,
+        cases: usize,
+        failures: Vec<String>,
+    },
 }
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;

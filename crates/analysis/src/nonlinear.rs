@@ -36,6 +36,7 @@ use toml::{Table, Value};
 use crate::h5::{f64_attr, h5err, str_attr, u8_attr_set, u64_attr, write_atomically, write1};
 use crate::hybrid;
 use crate::observe::Observable;
+use crate::progress::Progress;
 use crate::sections::{Direction, Hyperplane, Observed, Plan, Trace, trace_partial};
 use crate::study::{edit, edited_scene, invalid};
 use crate::systems::{Builtin, SystemSpec};
@@ -878,17 +879,6 @@ impl Loaded {
     ) -> Result<JobResult> {
         self.run_job(Some(value), Some(start), progress)
     }
-}
-
-/// Progress reports of [`execute`].
-#[derive(Debug, Clone, Copy)]
-pub enum Progress {
-    /// `total` jobs, of which `pending` will run now.
-    Start { total: usize, pending: usize },
-    /// Job `job` has done `fraction` of its span.
-    Fraction { job: usize, fraction: f64 },
-    /// Job `job` finished (`ok` false: failed).
-    Done { job: usize, ok: bool },
 }
 
 /// Reports of one job's fraction done, at most one per thousandth of its span.

@@ -100,6 +100,19 @@ pub enum Format {
     Svg,
 }
 
+impl Format {
+    /// The formats named by `name`: `png`, `svg` or `both` (PNG then SVG); None for any other
+    /// name.
+    pub fn list(name: &str) -> Option<Vec<Format>> {
+        match name {
+            "png" => Some(vec![Format::Png]),
+            "svg" => Some(vec![Format::Svg]),
+            "both" => Some(vec![Format::Png, Format::Svg]),
+            _ => None,
+        }
+    }
+}
+
 /// Dot colours: red first, so section points stand out over a blue trajectory.
 const POINT_COLORS: [RGBColor; 4] = [
     RGBColor(214, 39, 40),
@@ -373,4 +386,18 @@ pub fn figure(
         message,
     })?;
     Ok(path)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn format_names_give_their_formats_in_order() {
+        assert_eq!(Format::list("png"), Some(vec![Format::Png]));
+        assert_eq!(Format::list("svg"), Some(vec![Format::Svg]));
+        assert_eq!(Format::list("both"), Some(vec![Format::Png, Format::Svg]));
+        assert_eq!(Format::list("pdf"), None);
+        assert_eq!(Format::list("PNG"), None);
+    }
 }

@@ -48,6 +48,7 @@ use crate::h5::{f64_attr, h5err, str_attr, u64_attr, write_atomically, write1};
 use crate::nonlinear::{Loaded, MechFlow, SysFlow, Target};
 use crate::observe::Observable;
 use crate::plot::{Format, Panel, Series, figure};
+use crate::progress::Progress;
 use crate::sections::Observed;
 use crate::study::invalid;
 use crate::{Error, Result};
@@ -390,17 +391,6 @@ pub struct Precision {
     check: Method,
     families: Vec<(String, Vec<Method>)>,
     min_time: f64,
-}
-
-/// Progress reports of [`Precision::execute`].
-pub enum Progress<'a> {
-    Reference,
-    Check,
-    Run {
-        done: usize,
-        total: usize,
-        what: &'a str,
-    },
 }
 
 impl Precision {

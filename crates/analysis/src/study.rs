@@ -25,6 +25,7 @@ use rayon::prelude::*;
 use serde::Deserialize;
 use toml::{Table, Value};
 
+use crate::progress::Progress;
 use crate::run::{RunResult, simulate};
 use crate::{Error, Result};
 
@@ -321,26 +322,34 @@ pub struct CaseRun {
 
 impl Study {
     /// Compiles every case, so that a bad one fails before any simulation starts, then runs
-    /// them in parallel over rayon's thread pool; `done` is called with the label of each case as
-    /// it finishes. The runs come back in the order of the cases, each failure wrapped with its
-    /// case's label.
-    pub fn run(&self, done: &(dyn Fn(&str) + Sync)) -> Result<Vec<Result<CaseRun>>> {
+    /// them in parallel over rayon's thread pool. `progress` is told [`Progress::Start`] once the
+    /// cases compile and [`Progress::Done`] as each case ends, its job being the case's index.
+    /// The runs come back in the order of the cases, each failure wrapped with its case's label.
+    pub fn run(&self, progress: &(dyn Fn(Progress) + Sync)) -> Result<Vec<Result<CaseRun>>> {
         let compiled = self
             .cases
             .iter()
             .map(|c| Model::compile(&c.scene))
             .collect::<Result<Vec<_>, _>>()?;
+        let n = self.cases.len();
+        progress(Progress::Start {
+            total: n,
+            pending: n,
+        });
         Ok(compiled
             .into_par_iter()
-            .zip(&self.cases)
-            .map(|((model, state), c)| {
+            .zip(self.cases.par_iter().enumerate())
+            .map(|((model, state), (job, c))| {
                 let result = simulate(&model, state, &mut |_| {})
                     .and_then(RunResult::finished)
-                    .map_err(|e| Error::Case {
-                        label: c.label.clone(),
-                        inner: Box::new(e),
+                    .map_err(|e| {
+                        progress(Progress::Done { job, ok: false });
+                        Error::Case {
+                            label: c.label.clone(),
+                            inner: Box::new(e),
+                        }
                     })?;
-                done(&c.label);
+                progress(Progress::Done { job, ok: true });
                 Ok(CaseRun {
                     label: c.label.clone(),
                     model,

@@ -81,6 +81,28 @@ impl Profile {
         }
     }
 
+    /// One line for people: the kind of motion and its parameters, e.g.
+    /// "harmonic 0 + 0.1 sin(2 t + 0)".
+    pub fn describe(&self) -> String {
+        match self {
+            Profile::ConstantRate { initial, rate } => {
+                format!("constant rate {rate} from {initial}")
+            }
+            Profile::Harmonic {
+                mean,
+                amplitude,
+                omega,
+                phase,
+            } => {
+                format!("harmonic {mean} + {amplitude} sin({omega} t + {phase})")
+            }
+            Profile::Spline(_) => "tabulated (natural cubic spline)".into(),
+            Profile::LegLength { omega, .. } => {
+                format!("leg length of a harmonic path, omega {omega} rad/s")
+            }
+        }
+    }
+
     /// The period of the motion (s) when it has one.
     pub fn period(&self) -> Option<f64> {
         match self {
@@ -231,6 +253,36 @@ mod tests {
             check_derivatives(&harm, t);
             check_derivatives(&sp, t);
         }
+    }
+
+    #[test]
+    fn describe_names_the_motion_and_its_parameters() {
+        let rate = Profile::ConstantRate {
+            initial: 0.5,
+            rate: 2.0,
+        };
+        assert_eq!(rate.describe(), "constant rate 2 from 0.5");
+        let harm = Profile::Harmonic {
+            mean: 1.0,
+            amplitude: 0.2,
+            omega: 2.5,
+            phase: 0.0,
+        };
+        assert_eq!(harm.describe(), "harmonic 1 + 0.2 sin(2.5 t + 0)");
+        let sp = Profile::Spline(Spline::new(vec![0.0, 1.0], vec![0.0, 1.0]));
+        assert_eq!(sp.describe(), "tabulated (natural cubic spline)");
+        let leg = Profile::LegLength {
+            anchor: Vector3::zeros(),
+            center: Vector3::x(),
+            cos_amp: Vector3::zeros(),
+            sin_amp: Vector3::zeros(),
+            omega: 3.0,
+            offset: 0.0,
+        };
+        assert_eq!(
+            leg.describe(),
+            "leg length of a harmonic path, omega 3 rad/s"
+        );
     }
 
     #[test]
