@@ -18,13 +18,14 @@ use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use jointplay_analysis::comparison::Comparison;
 use jointplay_analysis::figures::{overlay, redraw, run_figures};
 use jointplay_analysis::h5::{Meta, write_run};
+use jointplay_analysis::hybrid::read_run_file;
 use jointplay_analysis::inputs::Input;
 use jointplay_analysis::nonlinear::{Loaded, Options, execute};
 use jointplay_analysis::plot::{Format, figure};
 use jointplay_analysis::precision;
 use jointplay_analysis::progress::Progress;
 use jointplay_analysis::report::{self, markdown};
-use jointplay_analysis::run::simulate;
+use jointplay_analysis::run::{resume, simulate};
 use jointplay_analysis::study::Study;
 use jointplay_analysis::summary::Summary;
 use jointplay_solver::model::Model;
@@ -73,6 +74,10 @@ enum Command {
         /// Analysis sweeps: stop after this many values have finished (resume later).
         #[arg(long)]
         max_jobs: Option<usize>,
+        /// Scenes: continue from the final state of a run file of this scene (written by
+        /// `jointplay run`) to the scene's end time, as if the run had never stopped.
+        #[arg(long, value_name = "RUN.h5")]
+        from: Option<PathBuf>,
     },
     /// Redraw every figure of a nonlinear-analysis or work-precision file without simulating
     /// again.
@@ -142,7 +147,15 @@ fn main() {
             quiet,
             resume,
             max_jobs,
-        } => run(&scene, &out, !no_plots, quiet, Options { resume, max_jobs }),
+            from,
+        } => run(
+            &scene,
+            &out,
+            !no_plots,
+            quiet,
+            Options { resume, max_jobs },
+            from.as_deref(),
+        ),
         Command::Plot { file, format, out } => plot_cmd(&file, &format, out.as_deref()),
         Command::Report { file, out } => report_cmd(&file, out.as_deref()),
         Command::Precision {
@@ -238,8 +251,21 @@ fn run_study(path: &Path, out: &Path, plots: bool, quiet: bool) -> Result<()> {
     Ok(())
 }
 
-fn run(path: &Path, out: &Path, plots: bool, quiet: bool, opts: Options) -> Result<()> {
+fn run(
+    path: &Path,
+    out: &Path,
+    plots: bool,
+    quiet: bool,
+    opts: Options,
+    from: Option<&Path>,
+) -> Result<()> {
     let (kind, _) = Input::read(path)?;
+    if from.is_some() && kind != Input::Scene {
+        anyhow::bail!(
+            "{}: --from continues a scene's run; this is a study",
+            path.display()
+        );
+    }
     if kind.is_analysis() {
         return run_analysis(path, out, plots, quiet, opts);
     }
@@ -270,8 +296,11 @@ fn run(path: &Path, out: &Path, plots: bool, quiet: bool, opts: Options) -> Resu
         }
         bar.set_position((f * 1000.0) as u64);
     };
-    let result = simulate(&model, state, &mut progress)
-        .with_context(|| format!("simulating {}", path.display()))?;
+    let result = match from {
+        None => simulate(&model, state, &mut progress),
+        Some(f) => resume(&model, read_run_file(f)?, &mut progress),
+    }
+    .with_context(|| format!("simulating {}", path.display()))?;
     bar.finish_and_clear();
     for w in &result.warnings {
         eprintln!("warning: {}: {}", path.display(), w.message);

@@ -1212,3 +1212,74 @@ fn a_work_precision_run_whose_every_method_diverges_lists_the_failures_and_finis
     assert!(read_runs(&dir.path().join("wp.h5"), "position_error")[0].is_nan());
     assert!(dir.path().join("wp.svg").exists());
 }
+
+/// `run --from` continues a run from its file as if it had never stopped: the mixed-clearance
+/// 4-UPS/RPU to 0.5 s equals the run to 0.25 s continued from its file to 0.5 s, bit for bit
+/// (a step of 2^-14 s puts both end times on the RK4 grid exactly).
+#[test]
+fn run_from_a_file_continues_the_run_bit_for_bit() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(scenes().join("4ups-rpu-mixed.toml"))
+        .unwrap()
+        .replace("step = 1e-4", "step = 6.103515625e-5");
+    let scene = |end: &str| {
+        let p = dir.path().join(format!("end-{end}.toml"));
+        std::fs::write(
+            &p,
+            text.replace("periods = 2.0", &format!("end_time = {end}")),
+        )
+        .unwrap();
+        p
+    };
+    let (half, whole) = (scene("0.25"), scene("0.5"));
+    let run = |scene: &Path, out: &str, from: Option<&Path>| {
+        let mut cmd = bin();
+        cmd.args(["run", "--no-plots", "-q"])
+            .arg(scene)
+            .arg("--out")
+            .arg(dir.path().join(out));
+        if let Some(f) = from {
+            cmd.arg("--from").arg(f);
+        }
+        let o = cmd.output().unwrap();
+        assert!(o.status.success(), "{:?}", text(&o));
+        hdf5::File::open(dir.path().join(out).join("4ups-rpu-mixed.h5")).unwrap()
+    };
+    let a = run(&whole, "a", None);
+    let _b = run(&half, "b", None);
+    let c = run(
+        &whole,
+        "c",
+        Some(&dir.path().join("b").join("4ups-rpu-mixed.h5")),
+    );
+    let bits = |f: &hdf5::File, name: &str| -> Vec<u64> {
+        let v: Vec<f64> = f.dataset(name).unwrap().read_raw().unwrap();
+        v.iter().map(|x| x.to_bits()).collect()
+    };
+    for name in ["final_state", "final_onset", "final_time", "final_stepper"] {
+        assert_eq!(bits(&c, name), bits(&a, name), "{name}");
+    }
+    // The continued file records from 0.25 s on: its samples are the tail of the whole run's.
+    let (ta, tc) = (bits(&a, "time"), bits(&c, "time"));
+    assert_eq!(f64::from_bits(tc[0]), 0.25);
+    assert_eq!(tc, ta[ta.len() - tc.len()..]);
+    let (pa, pc) = (
+        bits(&a, "bodies/platform/position"),
+        bits(&c, "bodies/platform/position"),
+    );
+    assert_eq!(pc, pa[pa.len() - pc.len()..]);
+    // A run file that stopped early, or a study, is refused with the reason.
+    let o = bin()
+        .args(["run", "--no-plots", "-q"])
+        .arg(scenes().join("../../analyses/duffing/cascade.toml"))
+        .arg("--from")
+        .arg(dir.path().join("b").join("4ups-rpu-mixed.h5"))
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    assert!(
+        text(&o).1.contains("--from continues a scene's run"),
+        "{:?}",
+        text(&o)
+    );
+}

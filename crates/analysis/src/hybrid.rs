@@ -17,12 +17,15 @@
 //! system). `final_stepper` holds NaN for the parts a method did not use (the grid of an
 //! adaptive method, the next step of a fixed-step one).
 
+use std::path::Path;
+
 use hdf5::Group;
 use ndarray::{Array1, Array2, s};
 
 use jointplay_solver::state::{HybridState, StepperMemory};
 
-use crate::h5::{str_attr, write1};
+use crate::h5::{h5err, str_attr, write1};
+use crate::{Error, Result};
 
 /// Column descriptions of `final_stepper`, in order.
 const STEPPER: &str = "integrator memory: [grid origin (s), grid step (s), grid points reached, \
@@ -105,6 +108,35 @@ pub fn read_state(g: &Group) -> hdf5::Result<HybridState> {
         onset: g.dataset("final_onset")?.read_raw()?,
         warned: warned.iter().map(|&w| w != 0).collect(),
         stepper: stepper_from(&g.dataset("final_stepper")?.read_raw::<f64>()?)?,
+    })
+}
+
+/// The final state of the run file `path` (written by `jointplay run SCENE`), to continue the
+/// run from. A run that stopped early is refused: its last state is where it failed.
+pub fn read_run_file(path: &Path) -> Result<HybridState> {
+    let e = h5err(path);
+    let file = hdf5::File::open(path).map_err(&e)?;
+    let complete: u8 = file
+        .attr("complete")
+        .and_then(|a| a.read_scalar())
+        .map_err(|_| Error::Io {
+            file: path.to_path_buf(),
+            message: "not a run file of jointplay (no 'complete' attribute)".into(),
+        })?;
+    if complete != 1 {
+        return Err(Error::Io {
+            file: path.to_path_buf(),
+            message: "the run stopped before its end time: its last state is where it failed, \
+                      not a state to continue from"
+                .into(),
+        });
+    }
+    read_state(&file).map_err(|err| Error::Io {
+        file: path.to_path_buf(),
+        message: format!(
+            "no final state to continue from ({err}); files written before the \
+                          hybrid state was saved cannot be continued"
+        ),
     })
 }
 

@@ -19,6 +19,7 @@
 
 pub mod comparison;
 pub mod figures;
+pub mod flow;
 pub mod h5;
 pub mod hybrid;
 pub mod inputs;

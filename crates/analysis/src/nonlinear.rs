@@ -23,9 +23,7 @@ use std::sync::mpsc;
 use std::time::Instant;
 
 use hdf5::types::VarLenUnicode;
-use jointplay_solver::dynamics::Mechanism;
-use jointplay_solver::model::{Model, State};
-use jointplay_solver::ode::OdeSystem;
+use jointplay_solver::model::Model;
 use jointplay_solver::scene::{SceneFile, SceneSpec};
 use jointplay_solver::state::HybridState;
 use ndarray::{Array1, s};
@@ -33,14 +31,16 @@ use rayon::prelude::*;
 use serde::Deserialize;
 use toml::{Table, Value};
 
+use crate::flow::{Flow, Target};
 use crate::h5::{f64_attr, h5err, str_attr, u8_attr_set, u64_attr, write_atomically, write1};
 use crate::hybrid;
 use crate::observe::Observable;
 use crate::progress::Progress;
-use crate::sections::{Direction, Hyperplane, Observed, Plan, Trace, trace_partial};
+use crate::sections::{Direction, Hyperplane, Plan, Trace, trace_partial};
 use crate::study::{edit, edited_scene, invalid};
-use crate::systems::{Builtin, SystemSpec};
+use crate::systems::SystemSpec;
 use crate::{Error, Result};
+use jointplay_solver::ode::OdeSystem;
 
 /// A nonlinear-analysis study file.
 #[derive(Debug, Clone, Deserialize)]
@@ -644,112 +644,6 @@ impl Loaded {
     }
 }
 
-/// A compiled flow with its observables.
-pub(crate) enum Target {
-    Scene {
-        model: Box<Model>,
-        state: State,
-        obs: Vec<Observable>,
-        period: f64,
-    },
-    System {
-        sys: SystemSpec,
-        obs: Vec<Observable>,
-        period: f64,
-    },
-}
-
-pub(crate) struct MechFlow<'m> {
-    pub(crate) mech: Mechanism<'m>,
-    pub(crate) obs: &'m [Observable],
-    pub(crate) dynamics: bool,
-}
-
-impl OdeSystem for MechFlow<'_> {
-    fn dim(&self) -> usize {
-        self.mech.dim()
-    }
-    fn rhs(&mut self, t: f64, y: &[f64], d: &mut [f64]) {
-        self.mech.rhs(t, y, d)
-    }
-    fn step_accepted(&mut self, t0: f64, y0: &[f64], t1: f64, y1: &[f64]) -> bool {
-        self.mech.step_accepted(t0, y0, t1, y1)
-    }
-    fn check_step(&mut self, t: f64, y: &[f64]) -> Option<String> {
-        self.mech.check_step(t, y)
-    }
-    fn explain_non_finite(&mut self, t: f64, y: &[f64], component: usize) -> String {
-        self.mech.explain_non_finite(t, y, component)
-    }
-    fn load_memory(&mut self, state: &HybridState) -> jointplay_solver::Result<()> {
-        self.mech.load_memory(state)
-    }
-    fn save_memory(&self, state: &mut HybridState) {
-        self.mech.save_memory(state)
-    }
-}
-
-impl Observed for MechFlow<'_> {
-    fn n_obs(&self) -> usize {
-        self.obs.len()
-    }
-    fn observe(&mut self, t: f64, y: &[f64], out: &mut [f64]) {
-        let m = self.mech.model;
-        if self.dynamics {
-            m.accelerations(t, y, &mut self.mech.ws);
-        } else {
-            m.kinematics(y, &mut self.mech.ws);
-        }
-        for (o, v) in self.obs.iter().zip(out) {
-            *v = o.eval_model(m, &self.mech.ws, t, y);
-        }
-    }
-    fn obs_name(&self, i: usize) -> String {
-        self.obs[i].path.clone()
-    }
-    fn observe_only(&mut self, t: f64, y: &[f64], which: &[usize], out: &mut [f64]) {
-        // A full model evaluation only when one of these observables needs it: a section on
-        // positions or velocities costs the kinematics alone.
-        let m = self.mech.model;
-        if which.iter().any(|&i| self.obs[i].needs_dynamics()) {
-            m.accelerations(t, y, &mut self.mech.ws);
-        } else {
-            m.kinematics(y, &mut self.mech.ws);
-        }
-        for &i in which {
-            out[i] = self.obs[i].eval_model(m, &self.mech.ws, t, y);
-        }
-    }
-}
-
-pub(crate) struct SysFlow<'a> {
-    pub(crate) sys: Builtin,
-    pub(crate) obs: &'a [Observable],
-}
-
-impl OdeSystem for SysFlow<'_> {
-    fn dim(&self) -> usize {
-        self.sys.dim()
-    }
-    fn rhs(&mut self, t: f64, y: &[f64], d: &mut [f64]) {
-        self.sys.rhs(t, y, d)
-    }
-}
-
-impl Observed for SysFlow<'_> {
-    fn n_obs(&self) -> usize {
-        self.obs.len()
-    }
-    fn observe(&mut self, _t: f64, y: &[f64], out: &mut [f64]) {
-        for (o, v) in self.obs.iter().zip(out) {
-            *v = o.eval_system(y);
-        }
-    }
-    fn obs_name(&self, i: usize) -> String {
-        self.obs[i].path.clone()
-    }
-}
-
 /// What one job produced, with the units of the observables.
 #[derive(Debug, Clone)]
 pub struct JobResult {
@@ -795,67 +689,24 @@ impl Loaded {
     ) -> Result<(JobResult, Option<Error>)> {
         let t0 = Instant::now();
         let target = self.target(value)?;
-        match target {
-            Target::Scene {
-                model,
-                mut state,
-                obs,
-                period,
-            } => {
-                if let Some(s) = start {
-                    state.y.copy_from_slice(&s.y);
-                }
-                model.assemble(&mut state)?;
-                let plan = self.plan(model.settings.method, state.t, period);
-                let mut flow = MechFlow {
-                    mech: Mechanism::new(&model),
-                    dynamics: obs.iter().any(|o| o.needs_dynamics()),
-                    obs: &obs,
-                };
-                let mut hs = HybridState::new(state.t, state.y);
-                if let Some(s) = start {
-                    hs.onset.clone_from(&s.onset);
-                }
-                flow.mech.load_memory(&hs)?;
-                flow.mech.check_initial(hs.t, &hs.y)?;
-                let (tr, res) = trace_partial(&mut flow, &plan, &mut hs, progress);
-                let r = JobResult {
-                    warnings: model
-                        .warnings
-                        .iter()
-                        .cloned()
-                        .chain(flow.mech.warnings.iter().map(|w| w.message.clone()))
-                        .collect(),
-                    trace: tr,
-                    units: obs.iter().map(|o| o.unit.clone()).collect(),
-                    integrator: plan.method.describe(),
-                    period,
-                    start: plan.start,
-                    wall: t0.elapsed().as_secs_f64(),
-                };
-                Ok((r, res.err()))
-            }
-            Target::System { sys, obs, period } => {
-                let y = start.map_or_else(|| sys.initial.clone(), |s| s.y.clone());
-                let plan = self.plan(sys.method, sys.start_time, period);
-                let mut flow = SysFlow {
-                    sys: sys.builtin,
-                    obs: &obs,
-                };
-                let mut hs = HybridState::new(plan.start, y);
-                let (tr, res) = trace_partial(&mut flow, &plan, &mut hs, progress);
-                let r = JobResult {
-                    warnings: Vec::new(),
-                    trace: tr,
-                    units: obs.iter().map(|o| o.unit.clone()).collect(),
-                    integrator: plan.method.describe(),
-                    period,
-                    start: plan.start,
-                    wall: t0.elapsed().as_secs_f64(),
-                };
-                Ok((r, res.err()))
-            }
+        let mut flow = target.flow();
+        let mut state = flow.initial_state(start.map(|s| s.y.as_slice()))?;
+        if let Some(s) = start {
+            state.onset.clone_from(&s.onset);
         }
+        flow.prepare(&state)?;
+        let plan = self.plan(flow.method(), state.t, flow.period());
+        let (tr, res) = trace_partial(&mut flow, &plan, &mut state, progress);
+        let r = JobResult {
+            warnings: [flow.compile_warnings(), flow.warnings()].concat(),
+            trace: tr,
+            units: flow.observable_units(),
+            integrator: plan.method.describe(),
+            period: flow.period(),
+            start: plan.start,
+            wall: t0.elapsed().as_secs_f64(),
+        };
+        Ok((r, res.err()))
     }
 
     /// Runs the single run of a study without a sweep and returns its result.
@@ -1215,35 +1066,21 @@ fn create_sweep_file(
     let e = h5err(path);
     // Probe run to learn the units, period and state size without simulating: build job 0.
     let target = st.target(Some(st.jobs[0].0))?;
-    let (units, shape, method, period, start): (Vec<String>, _, _, f64, f64) = match &target {
-        Target::Scene {
-            model,
-            state,
-            obs,
-            period,
-        } => (
-            obs.iter().map(|o| o.unit.clone()).collect(),
-            hybrid::StateShape {
-                dim: state.y.len(),
-                contacts: model.n_contacts,
-                clearances: model.clearances.len(),
-            },
-            model.settings.method,
-            *period,
-            state.t,
-        ),
-        Target::System { sys, obs, period } => (
-            obs.iter().map(|o| o.unit.clone()).collect(),
-            hybrid::StateShape {
-                dim: sys.initial.len(),
-                contacts: 0,
-                clearances: 0,
-            },
-            sys.method,
-            *period,
-            sys.start_time,
-        ),
+    let flow = target.flow();
+    // The memory of a new run has the sizes of the flow's memory (contacts, clearance joints).
+    let mut memory = HybridState::default();
+    flow.save_memory(&mut memory);
+    let shape = hybrid::StateShape {
+        dim: flow.dim(),
+        contacts: memory.onset.len(),
+        clearances: memory.warned.len(),
     };
+    let (units, method, period, start) = (
+        flow.observable_units(),
+        flow.method(),
+        flow.period(),
+        flow.start_time(),
+    );
     let n = st.jobs.len();
     let plan = st.plan(method, start, period);
     let (kept, hl) = (plan.kept(), plan.history_len());

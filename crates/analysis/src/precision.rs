@@ -35,17 +35,17 @@
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
-use jointplay_solver::dynamics::Mechanism;
 use jointplay_solver::model::Model;
-use jointplay_solver::ode::{Flow, Method, OdeSystem, Stats, advance};
+use jointplay_solver::ode::{Flow, Method, Stats, advance};
 use jointplay_solver::state::HybridState;
 use serde::Deserialize;
 
 use hdf5::types::VarLenUnicode;
 use ndarray::Array1;
 
+use crate::flow::{Flow as _, Target};
 use crate::h5::{f64_attr, h5err, str_attr, u64_attr, write_atomically, write1};
-use crate::nonlinear::{Loaded, MechFlow, SysFlow, Target};
+use crate::nonlinear::Loaded;
 use crate::observe::Observable;
 use crate::plot::{Format, Panel, Series, figure};
 use crate::progress::Progress;
@@ -165,7 +165,8 @@ fn default_family(family: &str, base_step: f64) -> Option<Vec<f64>> {
 /// A loaded flow, ready for repeated runs.
 struct Runner {
     target: Target,
-    y0: Vec<f64>,
+    /// The flow's initial state (assembled, for a mechanism).
+    start: HybridState,
     period: f64,
 }
 
@@ -208,78 +209,39 @@ fn observed_leg<F: Observed>(
 
 impl Runner {
     fn obs(&self) -> &[Observable] {
-        match &self.target {
-            Target::Scene { obs, .. } | Target::System { obs, .. } => obs,
-        }
+        self.target.observables()
     }
 
     /// Integrates from `start` to `t_end` as a new run of `method` (the contact-onset history
     /// carries over, the integrator and the guards start afresh: [`HybridState::for_new_run`]).
     fn leg(&mut self, method: Method, start: &HybridState, t_end: f64, samples: &[f64]) -> Leg {
         let mut state = start.for_new_run();
-        match &mut self.target {
-            Target::Scene { model, obs, .. } => {
-                // The guards of a fixed-step method look at every stage: the model must know
-                // which method runs.
-                model.settings.method = method;
-                let model: &Model = model;
-                let mut flow = MechFlow {
-                    mech: Mechanism::new(model),
-                    dynamics: obs.iter().any(|o| o.needs_dynamics()),
-                    obs,
-                };
-                if let Err(e) = flow
-                    .mech
-                    .load_memory(&state)
-                    .and_then(|()| flow.mech.check_initial(state.t, &state.y))
-                {
-                    return Leg {
-                        samples: Vec::new(),
-                        stats: Stats::default(),
-                        failure: Some(e.to_string()),
-                        warnings: Vec::new(),
-                        state,
-                    };
-                }
-                let (samples, stats, failure) =
-                    observed_leg(&mut flow, method, &mut state, t_end, samples);
-                Leg {
-                    samples,
-                    stats,
-                    failure,
-                    warnings: flow
-                        .mech
-                        .warnings
-                        .iter()
-                        .map(|w| w.message.clone())
-                        .collect(),
-                    state,
-                }
-            }
-            Target::System { sys, obs, .. } => {
-                let mut flow = SysFlow {
-                    sys: sys.builtin,
-                    obs,
-                };
-                let (samples, stats, failure) =
-                    observed_leg(&mut flow, method, &mut state, t_end, samples);
-                Leg {
-                    samples,
-                    stats,
-                    failure,
-                    warnings: Vec::new(),
-                    state,
-                }
-            }
+        // The guards of a fixed-step method look at every stage: the flow must know which
+        // method runs.
+        self.target.set_method(method);
+        let mut flow = self.target.flow();
+        if let Err(e) = flow.prepare(&state) {
+            return Leg {
+                samples: Vec::new(),
+                stats: Stats::default(),
+                failure: Some(e.to_string()),
+                warnings: Vec::new(),
+                state,
+            };
+        }
+        let (samples, stats, failure) = observed_leg(&mut flow, method, &mut state, t_end, samples);
+        Leg {
+            samples,
+            stats,
+            failure,
+            warnings: flow.warnings(),
+            state,
         }
     }
 
     /// The flow's own method (its step is the base of the default fixed steps).
     fn own_method(&self) -> Method {
-        match &self.target {
-            Target::Scene { model, .. } => model.settings.method,
-            Target::System { sys, .. } => sys.method,
-        }
+        self.target.flow().method()
     }
 }
 
@@ -407,20 +369,16 @@ impl Precision {
         }
         let spec = study.spec.precision.clone().unwrap_or_default();
         let target = study.target(None)?;
-        let (y0, t0, period) = match &target {
-            Target::Scene {
-                model,
-                state,
-                period,
-                ..
-            } => {
-                let mut state = state.clone();
-                model.assemble(&mut state)?;
-                (state.y, state.t, *period)
-            }
-            Target::System { sys, period, .. } => (sys.initial.clone(), sys.start_time, *period),
+        let (start, period) = {
+            let flow = target.flow();
+            (flow.initial_state(None)?, flow.period())
         };
-        let runner = Runner { target, y0, period };
+        let t0 = start.t;
+        let runner = Runner {
+            target,
+            start,
+            period,
+        };
         let a = &study.spec.analysis;
         if a.samples_per_period == 0 {
             return Err(invalid(
@@ -619,7 +577,7 @@ impl Precision {
     fn reference(&mut self) -> Result<Reference> {
         let t = self.times.clone();
         let method = self.reference;
-        let mut state = HybridState::new(t.start, self.runner.y0.clone());
+        let mut state = self.runner.start.clone();
         let mut states = Vec::with_capacity(t.strobe.len());
         let mut strobe = Vec::new();
         let mut windows = Vec::new();
@@ -667,8 +625,8 @@ impl Precision {
     /// One tested method: the continuous run (repeated while short) and the restarts.
     fn measure(&mut self, method: Method, r: &Reference, timed: bool) -> RunRecord {
         let (samples, strobe_idx, last_idx) = self.times.merged();
-        let (t0, t_end) = (self.times.start, self.times.end());
-        let start = HybridState::new(t0, self.runner.y0.clone());
+        let t_end = self.times.end();
+        let start = self.runner.start.clone();
         let mut leg = self.runner.leg(method, &start, t_end, &samples);
         let mut best = leg.stats.wall.as_secs_f64();
         let mut total = best;
