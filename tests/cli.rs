@@ -1219,14 +1219,14 @@ fn a_work_precision_run_whose_every_method_diverges_lists_the_failures_and_finis
 #[test]
 fn run_from_a_file_continues_the_run_bit_for_bit() {
     let dir = tempfile::tempdir().unwrap();
-    let text = std::fs::read_to_string(scenes().join("4ups-rpu-mixed.toml"))
+    let source = std::fs::read_to_string(scenes().join("4ups-rpu-mixed.toml"))
         .unwrap()
         .replace("step = 1e-4", "step = 6.103515625e-5");
     let scene = |end: &str| {
         let p = dir.path().join(format!("end-{end}.toml"));
         std::fs::write(
             &p,
-            text.replace("periods = 2.0", &format!("end_time = {end}")),
+            source.replace("periods = 2.0", &format!("end_time = {end}")),
         )
         .unwrap();
         p
