@@ -303,7 +303,8 @@ impl Flow for SysFlow<'_> {
 
 /// Either flow, for analyses compiled once for both.
 pub enum AnyFlow<'a> {
-    Mechanism(MechFlow<'a>),
+    /// Boxed: a mechanism's flow carries its workspace, a system's a few numbers.
+    Mechanism(Box<MechFlow<'a>>),
     System(SysFlow<'a>),
 }
 
@@ -398,7 +399,7 @@ impl Target {
                 state,
                 obs,
                 period,
-            } => AnyFlow::Mechanism(MechFlow::new(model, state, obs, *period)),
+            } => AnyFlow::Mechanism(Box::new(MechFlow::new(model, state, obs, *period))),
             Target::System { sys, obs, period } => AnyFlow::System(SysFlow::new(sys, obs, *period)),
         }
     }

@@ -54,6 +54,8 @@
 //!
 //! Every law keeps |F_T| <= mu F_N.
 
+use serde::{Deserialize, Serialize};
+
 /// Kinds of hysteresis damping factor D(c_e).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Damping {
@@ -406,6 +408,179 @@ impl FrictionLaw {
             FrictionLaw::Threlfall { mu, v0 } => format!("Threlfall, mu = {mu}, v0 = {v0:e} m/s"),
         }
     }
+}
+
+// ---------------------------------------------------------------------------------------------
+// The laws' fields in the scene file (`normal = { law = "...", ... }`, `friction = { ... }`):
+// each law takes exactly its own fields; compile/laws.rs validates them and builds the law.
+
+/// Elastic contact model.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ContactModel {
+    /// F = K delta^exponent, K given or from the point-contact formula (paper eq. 49).
+    #[default]
+    Point,
+    /// Johnson's line contact of a journal in a bearing over `contact_length` (planar revolute
+    /// joints; needs youngs_modulus and poisson_ratio).
+    Line,
+}
+
+/// Normal-contact law of a clearance joint: `law` names it, the other fields are its own (a
+/// field the law does not take is rejected). The laws and their sources are in
+/// [`crate::contact`].
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(tag = "law", rename_all = "snake_case", deny_unknown_fields)]
+pub enum NormalSpec {
+    /// Hertz (Hertz 1882; Johnson, *Contact Mechanics*, 1985, ch. 4): the elastic force alone.
+    Hertz(ElasticSpec),
+    /// Lankarani & Nikravesh, J. Mech. Des. 112:369-376 (1990).
+    LankaraniNikravesh(DampedSpec),
+    /// Hunt & Crossley, J. Appl. Mech. 42:440-445 (1975).
+    HuntCrossley(DampedSpec),
+    /// Flores, Machado, Silva & Martins, Multibody Syst. Dyn. 25:357-375 (2011).
+    Flores(DampedSpec),
+    /// Gonthier, McPhee, Lange & Piedboeuf, Multibody Syst. Dyn. 11:209-233 (2004).
+    Gonthier(DampedSpec),
+    /// Carvalho & Martins, Mech. Mach. Theory 139:174-194 (2019).
+    CarvalhoMartins(DampedSpec),
+    /// MSC ADAMS IMPACT function: K delta^n with damping ramped up to `max_damping` over
+    /// `full_damping_penetration`.
+    Impact(ImpactSpec),
+}
+
+impl NormalSpec {
+    /// The elastic part of the law (the whole of Hertz).
+    pub fn elastic(&self) -> ElasticSpec {
+        match self {
+            NormalSpec::Hertz(e) => e.clone(),
+            NormalSpec::LankaraniNikravesh(d)
+            | NormalSpec::HuntCrossley(d)
+            | NormalSpec::Flores(d)
+            | NormalSpec::Gonthier(d)
+            | NormalSpec::CarvalhoMartins(d) => d.elastic(),
+            NormalSpec::Impact(i) => i.elastic(),
+        }
+    }
+}
+
+/// The elastic force of a normal law: point contact K delta^n (K given, or from youngs_modulus
+/// and poisson_ratio) or line contact. The fields of `law = "hertz"`.
+#[derive(Debug, Clone, Default, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ElasticSpec {
+    /// Elastic model: point (default) or line.
+    #[serde(default)]
+    pub contact: ContactModel,
+    /// Line contact: axial length of the journal-bearing contact (m).
+    #[serde(default)]
+    pub contact_length: Option<f64>,
+    /// Generalised stiffness K (N/m^exponent); or give youngs_modulus and poisson_ratio.
+    #[serde(default)]
+    pub stiffness: Option<f64>,
+    /// Young's modulus of both bodies (Pa), for K from the point-contact formula.
+    #[serde(default)]
+    pub youngs_modulus: Option<f64>,
+    /// Poisson's ratio of both bodies.
+    #[serde(default)]
+    pub poisson_ratio: Option<f64>,
+    /// Exponent n (default 1.5, Hertz point contact).
+    #[serde(default)]
+    pub exponent: Option<f64>,
+}
+
+/// The fields of a hysteresis-damped law of the Hunt-Crossley family: the elastic fields of
+/// [`ElasticSpec`], the coefficient of restitution and the onset-velocity floor.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct DampedSpec {
+    #[serde(default)]
+    pub contact: ContactModel,
+    #[serde(default)]
+    pub contact_length: Option<f64>,
+    #[serde(default)]
+    pub stiffness: Option<f64>,
+    #[serde(default)]
+    pub youngs_modulus: Option<f64>,
+    #[serde(default)]
+    pub poisson_ratio: Option<f64>,
+    #[serde(default)]
+    pub exponent: Option<f64>,
+    /// Coefficient of restitution c_e, in (0, 1].
+    #[serde(default)]
+    pub restitution: Option<f64>,
+    /// Floor of the onset approach velocity (m/s); default 1e-3.
+    #[serde(default)]
+    pub onset_velocity_floor: Option<f64>,
+}
+
+impl DampedSpec {
+    /// The elastic fields.
+    pub fn elastic(&self) -> ElasticSpec {
+        ElasticSpec {
+            contact: self.contact,
+            contact_length: self.contact_length,
+            stiffness: self.stiffness,
+            youngs_modulus: self.youngs_modulus,
+            poisson_ratio: self.poisson_ratio,
+            exponent: self.exponent,
+        }
+    }
+}
+
+/// The fields of the IMPACT law: the elastic fields of [`ElasticSpec`] and the damping ramp.
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct ImpactSpec {
+    #[serde(default)]
+    pub contact: ContactModel,
+    #[serde(default)]
+    pub contact_length: Option<f64>,
+    #[serde(default)]
+    pub stiffness: Option<f64>,
+    #[serde(default)]
+    pub youngs_modulus: Option<f64>,
+    #[serde(default)]
+    pub poisson_ratio: Option<f64>,
+    #[serde(default)]
+    pub exponent: Option<f64>,
+    /// Maximum damping coefficient (N s/m).
+    #[serde(default)]
+    pub max_damping: Option<f64>,
+    /// Penetration at which the damping reaches max_damping (m).
+    #[serde(default)]
+    pub full_damping_penetration: Option<f64>,
+}
+
+impl ImpactSpec {
+    /// The elastic fields.
+    pub fn elastic(&self) -> ElasticSpec {
+        ElasticSpec {
+            contact: self.contact,
+            contact_length: self.contact_length,
+            stiffness: self.stiffness,
+            youngs_modulus: self.youngs_modulus,
+            poisson_ratio: self.poisson_ratio,
+            exponent: self.exponent,
+        }
+    }
+}
+
+/// Friction law of a clearance joint.
+#[derive(Debug, Clone, Default, Deserialize, Serialize)]
+#[serde(tag = "law", rename_all = "snake_case", deny_unknown_fields)]
+pub enum FrictionSpec {
+    #[default]
+    None,
+    /// Coulomb, regularised linearly below `regularisation_velocity` (m/s).
+    Coulomb {
+        coefficient: f64,
+        regularisation_velocity: f64,
+    },
+    /// Ambrosio's modified Coulomb: no friction below v0, full above v1 (m/s).
+    Ambrosio { coefficient: f64, v0: f64, v1: f64 },
+    /// Threlfall: mu (1 - exp(-3 |v| / v0)).
+    Threlfall { coefficient: f64, v0: f64 },
 }
 
 #[cfg(test)]
