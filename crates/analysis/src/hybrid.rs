@@ -116,6 +116,14 @@ pub fn read_state(g: &Group) -> hdf5::Result<HybridState> {
 pub fn read_run_file(path: &Path) -> Result<HybridState> {
     let e = h5err(path);
     let file = hdf5::File::open(path).map_err(&e)?;
+    if file.attr("kind").is_ok() {
+        return Err(Error::Io {
+            file: path.to_path_buf(),
+            message: "an analysis or work-precision file: a run continues from a run file \
+                      written by `jointplay run SCENE`"
+                .into(),
+        });
+    }
     let complete: u8 = file
         .attr("complete")
         .and_then(|a| a.read_scalar())
