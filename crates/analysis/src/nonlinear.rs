@@ -836,6 +836,15 @@ pub fn execute(
                 ),
             });
         }
+        if file.dataset("sweep/final_time").is_err() {
+            return Err(Error::Io {
+                file: path.clone(),
+                message: "written by an earlier jointplay that did not save each job's hybrid \
+                          state (sweep/final_time, final_onset, ...): remove it or run without \
+                          --resume"
+                    .into(),
+            });
+        }
         let done = file
             .dataset("sweep/done")
             .and_then(|d| d.read_raw::<u8>())
