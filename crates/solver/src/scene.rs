@@ -864,6 +864,64 @@ clearance = {{ ball_radius = 0.01, radial_clearance = 1e-4, normal = {normal} }}
         }
     }
 
+    /// A scene's `[solver]` table with `integrator = name` and the given other keys.
+    fn solver(name: &str, keys: &str) -> Result<SolverSpec> {
+        let text = format!("[solver]\nintegrator = \"{name}\"\n{keys}\nend_time = 1.0\n");
+        SceneSpec::parse(&text, Path::new("solver.toml")).map(|s| s.solver)
+    }
+
+    /// The integrator names scenes accept, each giving its method: rk4 at its fixed step, the
+    /// others adaptive with the tolerances and step bound. An unknown name is rejected with the
+    /// list of the known ones, and the name is written back as it was read.
+    #[test]
+    fn every_scene_integrator_name_is_accepted() {
+        let accepted = [
+            ("rk4", "rk4, fixed step 2e-3 s"),
+            ("dopri5", "dopri5, rtol 1e-7, atol 1e-9, max step 1e-1 s"),
+            ("dop853", "dop853, rtol 1e-7, atol 1e-9, max step 1e-1 s"),
+            (
+                "rosenbrock23",
+                "rosenbrock23, rtol 1e-7, atol 1e-9, max step 1e-1 s",
+            ),
+        ];
+        for (name, described) in accepted {
+            let sv = solver(
+                name,
+                "step = 2e-3\nrtol = 1e-7\natol = 1e-9\nmax_step = 0.1",
+            )
+            .unwrap();
+            let method = sv
+                .integrator
+                .method(sv.step, sv.rtol, sv.atol, sv.max_step.unwrap());
+            assert_eq!(
+                (method.family(), method.describe().as_str()),
+                (name, described)
+            );
+            let written = toml::to_string(&sv).unwrap();
+            assert!(
+                written.contains(&format!("integrator = \"{name}\"")),
+                "{written}"
+            );
+        }
+        assert_eq!(
+            SolverSpec::default()
+                .integrator
+                .method(1e-3, 1e-6, 1e-9, 1.0)
+                .family(),
+            "rk4"
+        );
+        for name in ["dopri5_fixed", "rk45", "DOPRI5"] {
+            let err = solver(name, "").unwrap_err().to_string();
+            assert!(
+                err.starts_with("solver.toml: solver.integrator: TOML parse error at line 2, column 14")
+                    && err.contains(&format!(
+                        "unknown variant `{name}`, expected one of `rk4`, `dopri5`, `dop853`, `rosenbrock23`"
+                    )),
+                "{name}: {err}"
+            );
+        }
+    }
+
     #[test]
     fn a_field_the_friction_law_does_not_take_names_its_path() {
         let err = scene(
