@@ -1359,3 +1359,42 @@ pub fn scene_study(scene: &Path) -> Result<Loaded> {
     }
     Loaded::parse(&text, scene)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use jointplay_solver::ode::INTEGRATORS;
+
+    /// Every registered integrator is in the default runs, and the defaults are those the
+    /// published work-precision tables were made with: rk4 at 4 to 1/8 times the flow's own step,
+    /// dopri5 at rtol 1e-3 to 1e-10, dop853 at 1e-4 to 1e-11, rosenbrock23 at 1e-2 to 1e-6; the
+    /// fixed-step dopri5 is left out.
+    #[test]
+    fn every_registered_integrator_is_in_the_default_runs() {
+        let runs = default_runs(2e-3);
+        for integrator in INTEGRATORS {
+            assert!(
+                runs.iter().any(|(f, _)| std::ptr::eq(
+                    Method::of_family(f, 1e-3, 1e-9).unwrap().integrator(),
+                    *integrator
+                )),
+                "{} is in no default run",
+                integrator.name
+            );
+        }
+        let decades = |a: i32, b: i32| (a..=b).map(|e| 10f64.powi(-e)).collect::<Vec<_>>();
+        let want: Vec<(&str, Vec<f64>)> = vec![
+            (
+                "rk4",
+                [4.0, 2.0, 1.0, 0.5, 0.25, 0.125]
+                    .iter()
+                    .map(|f| f * 2e-3)
+                    .collect(),
+            ),
+            ("dopri5", decades(3, 10)),
+            ("dop853", decades(4, 11)),
+            ("rosenbrock23", decades(2, 6)),
+        ];
+        assert_eq!(runs, want);
+    }
+}

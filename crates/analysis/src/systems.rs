@@ -374,6 +374,17 @@ mod tests {
     }
 
     #[test]
+    fn every_fixed_step_integrator_needs_its_step() {
+        let fixed = INTEGRATORS.iter().filter(|i| i.adaptive.is_none());
+        for name in fixed.map(|i| i.name) {
+            let e = solver(&format!("integrator = \"{name}\"")).unwrap_err();
+            assert_eq!(e, ("solver.step".into(), format!("{name} needs a step")));
+            let m = solver(&format!("integrator = \"{name}\", step = 0.01")).unwrap();
+            assert_eq!((m.family(), m.fixed_step()), (name, Some(0.01)));
+        }
+    }
+
+    #[test]
     fn every_adaptive_integrator_is_selectable_with_its_tolerances() {
         let adaptive = INTEGRATORS.iter().filter(|i| i.adaptive.is_some());
         for family in adaptive.map(|i| i.name) {

@@ -947,6 +947,19 @@ clearance = {{ ball_radius = 0.01, radial_clearance = 1e-4, normal = {normal} }}
         }
     }
 
+    /// Every registered integrator is a scene integrator under its name.
+    #[test]
+    fn every_registered_integrator_parses_from_its_name() {
+        for &integrator in crate::ode::INTEGRATORS {
+            let sv = solver(integrator.name, "").unwrap();
+            assert!(
+                std::ptr::eq(sv.integrator.0, integrator),
+                "{}",
+                integrator.name
+            );
+        }
+    }
+
     #[test]
     fn a_field_the_friction_law_does_not_take_names_its_path() {
         let err = scene(
