@@ -1,11 +1,11 @@
 #!/usr/bin/env python3
-"""Writes crates/solver/src/ode/dop853.rs: the DOP853 tableau, error and dense-output coefficients.
+"""Writes crates/solver/src/ode/dop853/coefficients.rs: the DOP853 tableau, error and dense-output coefficients.
 
 The numbers are SciPy's (scipy/integrate/_ivp/dop853_coefficients.py, transcribed from Hairer's
 Fortran code DOP853). Every double is printed with Python's shortest round-trip repr, which Rust
 parses back to the same double, and only nonzero entries are kept, as (stage index, coefficient).
 
-    python3 scripts/dop853_coefficients.py > crates/solver/src/ode/dop853.rs && cargo fmt
+    python3 scripts/dop853_coefficients.py > crates/solver/src/ode/dop853/coefficients.rs && cargo fmt
 """
 from scipy.integrate._ivp import dop853_coefficients as c
 

@@ -146,20 +146,15 @@ pub struct Outcome {
     pub period: f64,
 }
 
-/// Default settings of a family: steps as fractions of the flow's own step or period, tolerances
-/// by decades. A family not listed here is left out of the defaults.
-fn default_family(family: &str, base_step: f64) -> Option<Vec<f64>> {
-    let decades = |a: i32, b: i32| (a..=b).map(|e| 10f64.powi(-e)).collect::<Vec<_>>();
-    Some(match family {
-        "rk4" => [4.0, 2.0, 1.0, 0.5, 0.25, 0.125]
-            .iter()
-            .map(|f| f * base_step)
-            .collect(),
-        "dopri5" => decades(3, 10),
-        "dop853" => decades(4, 11),
-        "rosenbrock23" => decades(2, 6),
-        _ => return None,
-    })
+/// The default runs: each family with the settings its integrator's descriptor gives for them
+/// ([`Method::default_settings`]: steps as multiples of `base_step`, the flow's own step or
+/// 1/1000 of its period; tolerances by decades), in registry order; a family whose descriptor
+/// gives none is left out.
+fn default_runs(base_step: f64) -> Vec<(&'static str, Vec<f64>)> {
+    Method::families()
+        .map(|f| (f, Method::default_settings(f, base_step)))
+        .filter(|(_, settings)| !settings.is_empty())
+        .collect()
 }
 
 /// A loaded flow, ready for repeated runs.
@@ -479,7 +474,7 @@ impl Precision {
                     field,
                     format!(
                         "unknown integrator '{name}' (known: {})",
-                        Method::FAMILIES.join(", ")
+                        Method::families().collect::<Vec<_>>().join(", ")
                     ),
                 )
             })
@@ -520,14 +515,12 @@ impl Precision {
         let base_step = runner.own_method().fixed_step().unwrap_or(period / 1000.0);
         let mut families = Vec::new();
         if spec.methods.is_empty() {
-            for f in Method::FAMILIES {
-                if let Some(settings) = default_family(f, base_step) {
-                    let ms = settings
-                        .iter()
-                        .map(|s| method_of("precision.methods", f, *s, atol_scale))
-                        .collect::<Result<Vec<_>>>()?;
-                    families.push((f.to_string(), ms));
-                }
+            for (f, settings) in default_runs(base_step) {
+                let ms = settings
+                    .iter()
+                    .map(|s| method_of("precision.methods", f, *s, atol_scale))
+                    .collect::<Result<Vec<_>>>()?;
+                families.push((f.to_string(), ms));
             }
         } else {
             for (i, f) in spec.methods.iter().enumerate() {
@@ -1323,4 +1316,48 @@ pub fn scene_study(scene: &Path) -> Result<Loaded> {
         );
     }
     Loaded::parse(&text, scene)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use jointplay_solver::ode::INTEGRATORS;
+
+    /// Every registered integrator is in the default runs, and the defaults of the published
+    /// work-precision tables are kept: rk4 at 4 to 1/8 times the flow's own step, dopri5 at rtol
+    /// 1e-3 to 1e-10, dop853 at 1e-4 to 1e-11, rosenbrock23 at 1e-2 to 1e-6, in this order; the
+    /// fixed-step dopri5 is left out.
+    #[test]
+    fn every_registered_integrator_is_in_the_default_runs() {
+        let runs = default_runs(2e-3);
+        for integrator in INTEGRATORS {
+            assert!(
+                runs.iter().any(|(f, _)| std::ptr::eq(
+                    Method::of_family(f, 1e-3, 1e-9).unwrap().integrator(),
+                    *integrator
+                )),
+                "{} is in no default run",
+                integrator.name
+            );
+        }
+        let decades = |a: i32, b: i32| (a..=b).map(|e| 10f64.powi(-e)).collect::<Vec<_>>();
+        let want: Vec<(&str, Vec<f64>)> = vec![
+            (
+                "rk4",
+                [4.0, 2.0, 1.0, 0.5, 0.25, 0.125]
+                    .iter()
+                    .map(|f| f * 2e-3)
+                    .collect(),
+            ),
+            ("dopri5", decades(3, 10)),
+            ("dop853", decades(4, 11)),
+            ("rosenbrock23", decades(2, 6)),
+        ];
+        let known = ["rk4", "dopri5", "dopri5_fixed", "dop853", "rosenbrock23"];
+        let kept: Vec<_> = runs
+            .into_iter()
+            .filter(|(f, _)| known.contains(f))
+            .collect();
+        assert_eq!(kept, want);
+    }
 }

@@ -19,6 +19,7 @@
 
 use std::f64::consts::PI;
 
+use jointplay_solver::ode::dopri5::DOPRI5;
 use jointplay_solver::ode::{Method, OdeSystem};
 use jointplay_solver::scene::IntegratorKind;
 use serde::Deserialize;
@@ -64,7 +65,7 @@ pub struct OdeSolverSpec {
 }
 
 fn dopri5() -> IntegratorKind {
-    IntegratorKind::Dopri5
+    IntegratorKind(&DOPRI5)
 }
 fn default_rtol() -> f64 {
     1e-10
@@ -76,7 +77,7 @@ fn default_atol() -> f64 {
 impl Default for OdeSolverSpec {
     fn default() -> Self {
         OdeSolverSpec {
-            integrator: IntegratorKind::Dopri5,
+            integrator: dopri5(),
             step: None,
             rtol: default_rtol(),
             atol: default_atol(),
@@ -209,12 +210,15 @@ impl SystemSpec {
                 .try_into()
                 .map_err(|e: toml::de::Error| ("solver".to_string(), e.message().to_string()))?,
         };
-        // rk4 needs its step; the adaptive integrators share their settings and checks.
+        // A fixed-step integrator needs its step; the adaptive ones share their settings and
+        // checks.
         let max_step = solver.max_step.unwrap_or(f64::INFINITY);
-        let step = if solver.integrator == IntegratorKind::Rk4 {
-            let step = solver
-                .step
-                .ok_or(("solver.step".to_string(), "rk4 needs a step".to_string()))?;
+        let integrator = solver.integrator.0;
+        let step = if integrator.adaptive.is_none() {
+            let step = solver.step.ok_or((
+                "solver.step".to_string(),
+                format!("{} needs a step", integrator.name),
+            ))?;
             if !(step > 0.0 && step.is_finite()) {
                 return Err(("solver.step".into(), "must be positive".into()));
             }
@@ -360,6 +364,7 @@ impl OdeSystem for Builtin {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use jointplay_solver::ode::INTEGRATORS;
 
     fn solver(text: &str) -> Result<Method, (String, String)> {
         let t: Table = format!("kind = \"duffing\"\nsolver = {{ {text} }}")
@@ -369,8 +374,20 @@ mod tests {
     }
 
     #[test]
+    fn every_fixed_step_integrator_needs_its_step() {
+        let fixed = INTEGRATORS.iter().filter(|i| i.adaptive.is_none());
+        for name in fixed.map(|i| i.name) {
+            let e = solver(&format!("integrator = \"{name}\"")).unwrap_err();
+            assert_eq!(e, ("solver.step".into(), format!("{name} needs a step")));
+            let m = solver(&format!("integrator = \"{name}\", step = 0.01")).unwrap();
+            assert_eq!((m.family(), m.fixed_step()), (name, Some(0.01)));
+        }
+    }
+
+    #[test]
     fn every_adaptive_integrator_is_selectable_with_its_tolerances() {
-        for family in ["dopri5", "dop853", "rosenbrock23"] {
+        let adaptive = INTEGRATORS.iter().filter(|i| i.adaptive.is_some());
+        for family in adaptive.map(|i| i.name) {
             let m = solver(&format!(
                 "integrator = \"{family}\", rtol = 1e-7, atol = 1e-9, max_step = 0.1"
             ))

@@ -1,37 +1,13 @@
 //! Time integration of first-order ODE systems `y' = f(t, y)`; knows no mechanics.
 //!
 //! * [`OdeSystem`]: the only thing an integrator needs: a dimension and a right-hand side.
-//! * [`Method::Rk4`]: the classical fixed-step Runge-Kutta method of order 4 (Kutta 1901), with a
-//!   cubic Hermite dense output built from the end-point values and slopes (local interpolation
-//!   error O(h^4), the order of the method itself).
-//! * [`Method::Dopri5`]: the embedded Dormand-Prince 5(4) pair (Dormand & Prince, J. Comput. Appl.
-//!   Math. 6:19-26, 1980) with local extrapolation (the order-5 solution is propagated), first-same-
-//!   as-last stage reuse, a PI step-size controller and Hairer's order-4 continuous extension
-//!   (Hairer, Norsett & Wanner, *Solving ODEs I*, 2nd ed., section II.6, code DOPRI5).
-//!   [`Method::Dopri5Fixed`] takes the same tableau at a fixed step (for convergence studies).
-//!   6 right-hand-side evaluations per step.
-//! * [`Method::Dop853`]: Hairer's DOP853 (Hairer, Norsett & Wanner, *Solving ODEs I*, 2nd ed.,
-//!   section II.10, code DOP853), the explicit Runge-Kutta pair of order 8 of Prince & Dormand
-//!   (J. Comput. Appl. Math. 7:67-75, 1981) with Hairer's error estimate built from embedded
-//!   solutions of orders 5 and 3, and an order-7 continuous extension. 12 evaluations per step
-//!   (the 13th stage, f at the new state, is the next step's first), plus 3 in a step whose
-//!   continuous extension is needed (a sample inside it, or a step observer). Those 3 stages
-//!   are evaluated after [`OdeSystem::step_accepted`], so in a step where a system's discrete
-//!   history changes (a contact begins) they see the new history and the other 12 the old: the
-//!   interpolant inside that one step is then of lower order. At tight
-//!   tolerances it takes several times fewer evaluations than DOPRI5 (4.4x on the harmonic
-//!   oscillator at rtol 1e-10). Coefficients generated from SciPy's `dop853_coefficients.py`
-//!   by `scripts/dop853_coefficients.py`.
-//! * [`Method::Rosenbrock23`]: the modified Rosenbrock triple of Shampine & Reichelt (The MATLAB
-//!   ODE Suite, SIAM J. Sci. Comput. 18(1):1-22, 1997; MATLAB's ode23s), linearly implicit and
-//!   L-stable, for stiff systems: order 2, with an order-3 solution for the error estimate and an
-//!   order-2 continuous extension from its stages. Each step solves three linear systems with one
-//!   LU factorisation of W = I - h d df/dy (d = 1/(2 + sqrt 2)) and takes 2 evaluations (the
-//!   third, f at the new state, is the next step's first); df/dy and df/dt are formed by forward
-//!   differences at each step start, n + 1 more evaluations for n states (counted in
-//!   [`Stats::rhs_evals`]; [`Stats::jacobians`] counts the Jacobians), kept for the retries after
-//!   a rejected step. On y' = -1e6 (y - cos t) - sin t it takes 310 steps where DOPRI5, held at its
-//!   stability limit, takes 302 424.
+//! * [`Integrator`]: one integration scheme (stepper, error estimate, dense output) and how
+//!   scenes, studies and the step loop use it. Each lives in its own submodule, whose docs give
+//!   the scheme and its source, and is listed once in [`INTEGRATORS`], the registry.
+//! * [`Method`]: an integrator at an [`Accuracy`]: a fixed step, or tolerances for the error
+//!   control. Scenes select an integrator by its name (`integrator = "dopri5"`,
+//!   [`Integrator::method`]: adaptive when the integrator has error control), studies a method
+//!   by its family name and setting ([`Method::of_family`]).
 //!
 //! The adaptive methods share one step-size controller. The error norm is the root mean square
 //! of the error estimate scaled per component by `atol + rtol * max(|y_old|, |y_new|)` (DOP853
@@ -39,23 +15,54 @@
 //! norm is at most 1 and the next step follows the PI rule `h * 0.9 err^(-0.7/q) err_prev^(0.4/q)`
 //! (a PI controller of Gustafsson's form; Hairer's codes use other exponents), at most 10 times larger (not larger right after a
 //! rejection); a rejected step is retried with `h * 0.9 err^(-1/q)`, at least 5 times smaller.
-//! Here the estimate is O(h^q): q = 5 for DOPRI5, 8 for DOP853, 3 for Rosenbrock23 (the PI rule
-//! with q = 3, rather than ode23s's plain err^(-1/3): the smoother step sequence suits stiff
-//! problems). The initial step follows Hairer's HINIT with the same q.
+//! Here the estimate is O(h^q), q the integrator's [`Adaptive::control_order`]: 5 for DOPRI5,
+//! 8 for DOP853, 3 for Rosenbrock23. The initial step follows Hairer's HINIT with the same q.
 //!
 //! [`integrate`] advances from `t0` to `t_end`, and hands the observer the state at each requested
 //! sample time, evaluated on the dense output: the step sequence does not depend on the sampling.
 //! The last step is shortened so that `t_end` is reached exactly. A non-finite state stops the run
 //! with [`crate::Error::Diverged`] naming the time.
+//!
+//! # Adding an integrator
+//!
+//! 1. A file `ode/<name>.rs` (copy `dopri5.rs` for an explicit pair, `rosenbrock23.rs` for a
+//!    linearly implicit method) with the scheme's citation, a stepper implementing `Stepper`
+//!    (`step` leaves the new state in `Work::y_new`, f at it in stage `fsal` and, when adaptive,
+//!    the error estimate in `Work::tmp`; `eval` is the dense output) and its descriptor, a
+//!    `pub static` [`Integrator`]: the name scenes use, order, stage count, FSAL stage,
+//!    stability function, whether it runs adaptive ([`Adaptive`]: control order, default
+//!    tolerances of work-precision studies) and/or at a fixed step ([`Fixed`]: family name,
+//!    default steps).
+//! 2. Its `pub mod <name>;` line and one line in [`INTEGRATORS`]. Scenes, studies, the scene
+//!    compiler's checks and the default work-precision runs follow from the descriptor; the
+//!    registry test (`every_registered_integrator_is_complete`) checks the descriptor against
+//!    the stepper.
+//! 3. Tests of the scheme itself, copied from those of a similar one: the observed order at a
+//!    fixed step (`dop853_fixed_step_converges_with_order_eight`), the error estimate
+//!    (`rosenbrock23_error_estimate_is_of_order_three`) and the dense output
+//!    (`dop853_dense_output_has_order_seven`).
 
+use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
-use nalgebra::{DMatrix, DVectorViewMut, Dyn, LU};
+use nalgebra::{DMatrix, Dyn, LU};
 
 use crate::error::{Error, Result};
 use crate::state::{HybridState, StepperMemory};
 
-mod dop853;
+pub mod dop853;
+pub mod dopri5;
+pub mod rk4;
+pub mod rosenbrock23;
+
+/// Every integrator, in the order of the lists shown to users (known names, study families,
+/// default work-precision runs): the registry.
+pub static INTEGRATORS: &[&Integrator] = &[
+    &rk4::RK4,
+    &dopri5::DOPRI5,
+    &dop853::DOP853,
+    &rosenbrock23::ROSENBROCK23,
+];
 
 /// A first-order system `y' = f(t, y)`.
 pub trait OdeSystem {
@@ -98,53 +105,173 @@ pub trait OdeSystem {
     fn save_memory(&self, _state: &mut HybridState) {}
 }
 
-/// Integration method and its accuracy settings.
+/// An integration scheme and how it is used: the descriptor each integrator file defines and
+/// [`INTEGRATORS`] lists. An integrator runs adaptive, at a fixed step, or both.
+pub struct Integrator {
+    /// The name scenes select it by (`integrator = "dopri5"`), and the family name of its
+    /// adaptive method in studies.
+    pub name: &'static str,
+    /// Order of the propagated solution.
+    pub order: u32,
+    /// Its run with error control; None for a fixed-step scheme.
+    pub adaptive: Option<Adaptive>,
+    /// Its run at a fixed step; None for a scheme that runs only with error control.
+    pub fixed: Option<Fixed>,
+    /// The stability function R(z) of the propagated solution at z = h lambda = (re, im), as
+    /// (re, im): one step multiplies the mode `exp(lambda t)` of a linear system by R(z).
+    pub stability: fn(f64, f64) -> (f64, f64),
+    /// Stage vectors in [`Work::k`].
+    stages: usize,
+    /// Dense-output coefficient vectors in [`Work::cont`].
+    dense_len: usize,
+    /// The stage holding f(t + h, y_new) after a step: the next step's first stage (FSAL).
+    fsal: usize,
+    /// Whether the stepper needs a Jacobian and its factorisation ([`Work::lin`]).
+    jacobian: bool,
+    stepper: &'static dyn Stepper,
+}
+
+/// An integrator's run with error control.
+#[derive(Debug, Clone, Copy)]
+pub struct Adaptive {
+    /// The exponent q of the step-size control: the local error estimate is O(h^q), so a step
+    /// scaled by err^(-1/q) would meet the tolerance exactly.
+    pub control_order: f64,
+    /// The relative tolerances of the default work-precision runs: 10^-a to 10^-b for (a, b).
+    pub default_decades: (i32, i32),
+}
+
+/// An integrator's run at a fixed step.
+#[derive(Debug, Clone, Copy)]
+pub struct Fixed {
+    /// The family name of the fixed-step method in studies; the integrator's name when it has
+    /// no error control (scenes then select this method by that name).
+    pub family: &'static str,
+    /// The steps of the default work-precision runs, as multiples of the flow's own step (or of
+    /// 1/1000 of its period); empty when this method is left out of the default runs.
+    pub default_steps: &'static [f64],
+}
+
+impl Integrator {
+    /// The integrator of this name; None for a name not in [`INTEGRATORS`].
+    pub fn named(name: &str) -> Option<&'static Integrator> {
+        INTEGRATORS.iter().copied().find(|i| i.name == name)
+    }
+
+    /// The names of all integrators, in registry order.
+    pub fn names() -> &'static [&'static str] {
+        static NAMES: OnceLock<Vec<&'static str>> = OnceLock::new();
+        NAMES.get_or_init(|| INTEGRATORS.iter().map(|i| i.name).collect())
+    }
+
+    /// The method a scene selects with this integrator: with error control (the tolerances and
+    /// step bound (s)) when it has it, else at the fixed `step` (s); the other settings are
+    /// ignored. The callers check the values.
+    pub fn method(&'static self, step: f64, rtol: f64, atol: f64, max_step: f64) -> Method {
+        let accuracy = if self.adaptive.is_some() {
+            Accuracy::Adaptive {
+                rtol,
+                atol,
+                max_step,
+            }
+        } else {
+            Accuracy::Fixed { step }
+        };
+        Method {
+            integrator: self,
+            accuracy,
+        }
+    }
+}
+
+impl std::fmt::Debug for Integrator {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name)
+    }
+}
+
+/// The accuracy settings of a [`Method`].
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub enum Method {
-    /// Classical RK4 with fixed step `step` (s).
-    Rk4 { step: f64 },
-    /// Dormand-Prince 5(4), adaptive. Error per component is measured against
+pub enum Accuracy {
+    /// A fixed step `step` (s), no error control.
+    Fixed { step: f64 },
+    /// Error control: the error per component is measured against
     /// `atol + rtol * max(|y_old|, |y_new|)`; `max_step` bounds the step (s).
-    Dopri5 { rtol: f64, atol: f64, max_step: f64 },
-    /// Dormand-Prince 5th-order solution at a fixed step (no error control).
-    Dopri5Fixed { step: f64 },
-    /// Hairer's DOP853: explicit Runge-Kutta 8(5,3), adaptive, with an order-7 dense output.
-    /// Tolerances and step bound as for [`Method::Dopri5`].
-    Dop853 { rtol: f64, atol: f64, max_step: f64 },
-    /// Shampine & Reichelt's modified Rosenbrock triple (MATLAB's ode23s), linearly implicit,
-    /// adaptive, order 2 with an order-3 error estimate, for stiff systems (such as stiff
-    /// contact). Tolerances and step bound as for [`Method::Dopri5`].
-    Rosenbrock23 { rtol: f64, atol: f64, max_step: f64 },
+    Adaptive { rtol: f64, atol: f64, max_step: f64 },
+}
+
+/// Integration method: an integrator and its accuracy settings. Built only for a way the
+/// integrator runs (a fixed step for an integrator with [`Integrator::fixed`], tolerances for
+/// one with [`Integrator::adaptive`]).
+#[derive(Clone, Copy)]
+pub struct Method {
+    integrator: &'static Integrator,
+    accuracy: Accuracy,
+}
+
+impl PartialEq for Method {
+    fn eq(&self, other: &Self) -> bool {
+        std::ptr::eq(self.integrator, other.integrator) && self.accuracy == other.accuracy
+    }
+}
+
+impl std::fmt::Debug for Method {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "{} {:?}", self.family(), self.accuracy)
+    }
 }
 
 impl Method {
+    /// `integrator` at the fixed step `step` (s); None when it runs only with error control.
+    pub fn fixed(integrator: &'static Integrator, step: f64) -> Option<Method> {
+        integrator.fixed.map(|_| Method {
+            integrator,
+            accuracy: Accuracy::Fixed { step },
+        })
+    }
+
+    /// `integrator` with error control at the tolerances `rtol`, `atol` and the step bound
+    /// `max_step` (s); None when it runs only at a fixed step.
+    pub fn adaptive(
+        integrator: &'static Integrator,
+        rtol: f64,
+        atol: f64,
+        max_step: f64,
+    ) -> Option<Method> {
+        integrator.adaptive.map(|_| Method {
+            integrator,
+            accuracy: Accuracy::Adaptive {
+                rtol,
+                atol,
+                max_step,
+            },
+        })
+    }
+
+    /// The integrator.
+    pub fn integrator(&self) -> &'static Integrator {
+        self.integrator
+    }
+
+    /// The accuracy settings.
+    pub fn accuracy(&self) -> Accuracy {
+        self.accuracy
+    }
+
     /// Human-readable settings, e.g. "rk4, fixed step 1e-4 s".
     pub fn describe(&self) -> String {
-        match self {
-            Method::Rk4 { step } => format!("rk4, fixed step {step:e} s"),
-            Method::Dopri5 {
+        let name = self.integrator.name;
+        match self.accuracy {
+            Accuracy::Fixed { step } if self.integrator.adaptive.is_none() => {
+                format!("{name}, fixed step {step:e} s")
+            }
+            Accuracy::Fixed { step } => format!("{name} (fixed step {step:e} s)"),
+            Accuracy::Adaptive {
                 rtol,
                 atol,
                 max_step,
             } => {
-                let mut s = format!("dopri5, rtol {rtol:e}, atol {atol:e}");
-                if max_step.is_finite() {
-                    s += &format!(", max step {max_step:e} s");
-                }
-                s
-            }
-            Method::Dopri5Fixed { step } => format!("dopri5 (fixed step {step:e} s)"),
-            Method::Dop853 {
-                rtol,
-                atol,
-                max_step,
-            }
-            | Method::Rosenbrock23 {
-                rtol,
-                atol,
-                max_step,
-            } => {
-                let mut s = format!("{}, rtol {rtol:e}, atol {atol:e}", self.family());
+                let mut s = format!("{name}, rtol {rtol:e}, atol {atol:e}");
                 if max_step.is_finite() {
                     s += &format!(", max step {max_step:e} s");
                 }
@@ -155,80 +282,70 @@ impl Method {
 
     /// The family name scenes and studies use for this method ("rk4", "dopri5", ...).
     pub fn family(&self) -> &'static str {
-        match self {
-            Method::Rk4 { .. } => "rk4",
-            Method::Dopri5 { .. } => "dopri5",
-            Method::Dopri5Fixed { .. } => "dopri5_fixed",
-            Method::Dop853 { .. } => "dop853",
-            Method::Rosenbrock23 { .. } => "rosenbrock23",
+        match self.accuracy {
+            Accuracy::Fixed { .. } => self
+                .integrator
+                .fixed
+                .map_or(self.integrator.name, |f| f.family),
+            Accuracy::Adaptive { .. } => self.integrator.name,
         }
     }
 
-    /// Every family name accepted by [`Method::of_family`].
-    pub const FAMILIES: &'static [&'static str] =
-        &["rk4", "dopri5", "dopri5_fixed", "dop853", "rosenbrock23"];
+    /// Every family name accepted by [`Method::of_family`], integrator by integrator in registry
+    /// order (the adaptive method before the fixed-step one).
+    pub fn families() -> impl Iterator<Item = &'static str> {
+        INTEGRATORS.iter().flat_map(|i| {
+            let adaptive = i.adaptive.map(|_| i.name);
+            adaptive.into_iter().chain(i.fixed.map(|f| f.family))
+        })
+    }
 
     /// The member of family `name` at accuracy `setting`: the step (s) of a fixed-step family,
     /// the relative tolerance of an adaptive one (with absolute tolerance `atol` and no step
     /// bound). None for an unknown family.
     pub fn of_family(name: &str, setting: f64, atol: f64) -> Option<Method> {
-        Some(match name {
-            "rk4" => Method::Rk4 { step: setting },
-            "dopri5" => Method::Dopri5 {
-                rtol: setting,
-                atol,
-                max_step: f64::INFINITY,
-            },
-            "dopri5_fixed" => Method::Dopri5Fixed { step: setting },
-            "dop853" => Method::Dop853 {
-                rtol: setting,
-                atol,
-                max_step: f64::INFINITY,
-            },
-            "rosenbrock23" => Method::Rosenbrock23 {
-                rtol: setting,
-                atol,
-                max_step: f64::INFINITY,
-            },
-            _ => return None,
+        INTEGRATORS.iter().find_map(|&i| {
+            if i.adaptive.is_some() && i.name == name {
+                Method::adaptive(i, setting, atol, f64::INFINITY)
+            } else if i.fixed.is_some_and(|f| f.family == name) {
+                Method::fixed(i, setting)
+            } else {
+                None
+            }
         })
+    }
+
+    /// The settings of family `name` in the default work-precision runs (see
+    /// [`Method::of_family`]): fixed steps as multiples of `base_step` (s), tolerances by
+    /// decades. Empty for a family left out of those runs, and for an unknown one.
+    pub fn default_settings(name: &str, base_step: f64) -> Vec<f64> {
+        let Some(m) = Method::of_family(name, 1.0, 1.0) else {
+            return Vec::new();
+        };
+        match m.accuracy {
+            Accuracy::Adaptive { .. } => m.integrator.adaptive.map_or(Vec::new(), |a| {
+                let (first, last) = a.default_decades;
+                (first..=last).map(|e| 10f64.powi(-e)).collect()
+            }),
+            Accuracy::Fixed { .. } => m.integrator.fixed.map_or(Vec::new(), |f| {
+                f.default_steps.iter().map(|s| s * base_step).collect()
+            }),
+        }
     }
 
     /// The accuracy setting of [`Method::of_family`]: the step or the relative tolerance.
     pub fn setting(&self) -> f64 {
-        match *self {
-            Method::Rk4 { step } | Method::Dopri5Fixed { step } => step,
-            Method::Dopri5 { rtol, .. }
-            | Method::Dop853 { rtol, .. }
-            | Method::Rosenbrock23 { rtol, .. } => rtol,
-        }
-    }
-
-    /// The stepper of this method.
-    fn scheme(&self) -> Scheme {
-        match self {
-            Method::Rk4 { .. } => Scheme::Rk4,
-            Method::Dopri5 { .. } | Method::Dopri5Fixed { .. } => Scheme::Dopri5,
-            Method::Dop853 { .. } => Scheme::Dop853,
-            Method::Rosenbrock23 { .. } => Scheme::Rosenbrock23,
+        match self.accuracy {
+            Accuracy::Fixed { step } => step,
+            Accuracy::Adaptive { rtol, .. } => rtol,
         }
     }
 
     /// (rtol, atol, max_step) of an adaptive method; None for fixed-step methods.
     fn tolerances(&self) -> Option<(f64, f64, f64)> {
-        match *self {
-            Method::Rk4 { .. } | Method::Dopri5Fixed { .. } => None,
-            Method::Dopri5 {
-                rtol,
-                atol,
-                max_step,
-            }
-            | Method::Dop853 {
-                rtol,
-                atol,
-                max_step,
-            }
-            | Method::Rosenbrock23 {
+        match self.accuracy {
+            Accuracy::Fixed { .. } => None,
+            Accuracy::Adaptive {
                 rtol,
                 atol,
                 max_step,
@@ -236,43 +353,29 @@ impl Method {
         }
     }
 
+    /// The exponent q of the step-size control of an adaptive method.
+    fn control_order(&self) -> f64 {
+        self.integrator
+            .adaptive
+            .expect("an adaptive method's integrator has error control")
+            .control_order
+    }
+
     /// The fixed step (s) of a fixed-step method; None for adaptive methods.
     pub fn fixed_step(&self) -> Option<f64> {
-        match *self {
-            Method::Rk4 { step } | Method::Dopri5Fixed { step } => Some(step),
-            Method::Dopri5 { .. } | Method::Dop853 { .. } | Method::Rosenbrock23 { .. } => None,
+        match self.accuracy {
+            Accuracy::Fixed { step } => Some(step),
+            Accuracy::Adaptive { .. } => None,
         }
     }
 
-    /// |R(z)|, the modulus of the stability function of a fixed-step method at z = h lambda
-    /// (given as real and imaginary part): the factor by which one step multiplies the mode
-    /// `exp(lambda t)` of a linear system. RK4: R(z) = sum_{k<=4} z^k / k!. The propagated 5th-
-    /// order solution of Dormand-Prince: R(z) = sum_{k<=5} z^k / k! + z^6 / 600 (the last
-    /// coefficient is b^T A^5 1 of the tableau). None for adaptive methods, whose error control
-    /// keeps them stable.
+    /// |R(z)|, the modulus of the stability function ([`Integrator::stability`]) of a fixed-step
+    /// method at z = h lambda (given as real and imaginary part): the factor by which one step
+    /// multiplies the mode `exp(lambda t)` of a linear system. None for adaptive methods, whose
+    /// error control keeps them stable.
     pub fn amplification(&self, re: f64, im: f64) -> Option<f64> {
-        let coeffs: &[f64] = match self {
-            Method::Rk4 { .. } => &[1.0, 1.0, 0.5, 1.0 / 6.0, 1.0 / 24.0],
-            Method::Dopri5Fixed { .. } => &[
-                1.0,
-                1.0,
-                0.5,
-                1.0 / 6.0,
-                1.0 / 24.0,
-                1.0 / 120.0,
-                1.0 / 600.0,
-            ],
-            Method::Dopri5 { .. } | Method::Dop853 { .. } | Method::Rosenbrock23 { .. } => {
-                return None;
-            }
-        };
-        // Horner's scheme in complex arithmetic.
-        let (mut pr, mut pi) = (0.0, 0.0);
-        for &c in coeffs.iter().rev() {
-            let r = pr * re - pi * im + c;
-            pi = pr * im + pi * re;
-            pr = r;
-        }
+        self.fixed_step()?;
+        let (pr, pi) = (self.integrator.stability)(re, im);
         Some(pr.hypot(pi))
     }
 
@@ -324,45 +427,18 @@ pub enum Flow {
     Stop,
 }
 
-// Dormand-Prince 5(4) tableau.
-const C2: f64 = 1.0 / 5.0;
-const C3: f64 = 3.0 / 10.0;
-const C4: f64 = 4.0 / 5.0;
-const C5: f64 = 8.0 / 9.0;
-const A21: f64 = 1.0 / 5.0;
-const A31: f64 = 3.0 / 40.0;
-const A32: f64 = 9.0 / 40.0;
-const A41: f64 = 44.0 / 45.0;
-const A42: f64 = -56.0 / 15.0;
-const A43: f64 = 32.0 / 9.0;
-const A51: f64 = 19372.0 / 6561.0;
-const A52: f64 = -25360.0 / 2187.0;
-const A53: f64 = 64448.0 / 6561.0;
-const A54: f64 = -212.0 / 729.0;
-const A61: f64 = 9017.0 / 3168.0;
-const A62: f64 = -355.0 / 33.0;
-const A63: f64 = 46732.0 / 5247.0;
-const A64: f64 = 49.0 / 176.0;
-const A65: f64 = -5103.0 / 18656.0;
-const A71: f64 = 35.0 / 384.0;
-const A73: f64 = 500.0 / 1113.0;
-const A74: f64 = 125.0 / 192.0;
-const A75: f64 = -2187.0 / 6784.0;
-const A76: f64 = 11.0 / 84.0;
-// Error coefficients b - b_hat.
-const E1: f64 = 71.0 / 57600.0;
-const E3: f64 = -71.0 / 16695.0;
-const E4: f64 = 71.0 / 1920.0;
-const E5: f64 = -17253.0 / 339200.0;
-const E6: f64 = 22.0 / 525.0;
-const E7: f64 = -1.0 / 40.0;
-// Dense output coefficients (Hairer's DOPRI5, CONTD5).
-const D1: f64 = -12715105075.0 / 11282082432.0;
-const D3: f64 = 87487479700.0 / 32700410799.0;
-const D4: f64 = -10690763975.0 / 1880347072.0;
-const D5: f64 = 701980252875.0 / 199316789632.0;
-const D6: f64 = -1453857185.0 / 822651844.0;
-const D7: f64 = 69997945.0 / 29380423.0;
+/// The value at z = (re, im) of the polynomial with coefficients `coeffs` (constant first), by
+/// Horner's scheme in complex arithmetic: the stability function of an explicit method given as
+/// its polynomial.
+fn polynomial(coeffs: &[f64], re: f64, im: f64) -> (f64, f64) {
+    let (mut pr, mut pi) = (0.0, 0.0);
+    for &c in coeffs.iter().rev() {
+        let r = pr * re - pi * im + c;
+        pi = pr * im + pi * re;
+        pr = r;
+    }
+    (pr, pi)
+}
 
 /// Scratch memory of one integrator, allocated once per run.
 struct Work {
@@ -373,19 +449,19 @@ struct Work {
     /// Dense-output coefficients of the last step (5 vectors for DOPRI5; none for the schemes
     /// that interpolate from their stages directly).
     cont: Vec<Vec<f64>>,
-    /// Jacobian and factorisation of the Rosenbrock scheme.
-    ros: Option<RosWork>,
+    /// Jacobian and factorisation of a linearly implicit scheme.
+    lin: Option<LinearWork>,
 }
 
 impl Work {
-    fn new(n: usize, scheme: Scheme) -> Self {
+    fn new(n: usize, integrator: &Integrator) -> Self {
         let v = |count: usize| vec![vec![0.0; n]; count];
         Work {
-            k: v(scheme.stages()),
+            k: v(integrator.stages),
             tmp: vec![0.0; n],
             y_new: vec![0.0; n],
-            cont: v(scheme.dense_len()),
-            ros: (scheme == Scheme::Rosenbrock23).then(|| RosWork {
+            cont: v(integrator.dense_len),
+            lin: integrator.jacobian.then(|| LinearWork {
                 jac: DMatrix::zeros(n, n),
                 dfdt: vec![0.0; n],
                 lu: None,
@@ -395,8 +471,8 @@ impl Work {
     }
 }
 
-/// Linear algebra of a Rosenbrock step.
-struct RosWork {
+/// Linear algebra of a linearly implicit (Rosenbrock) step.
+struct LinearWork {
     /// df/dy at the step start (forward differences).
     jac: DMatrix<f64>,
     /// df/dt at the step start (a forward difference).
@@ -407,463 +483,47 @@ struct RosWork {
     spare: Option<DMatrix<f64>>,
 }
 
-/// The stepper behind a [`Method`]: its stages, error estimate and dense output.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-enum Scheme {
-    Rk4,
-    Dopri5,
-    Dop853,
-    Rosenbrock23,
-}
-
-impl Scheme {
-    /// Stage vectors in [`Work::k`].
-    fn stages(self) -> usize {
-        match self {
-            Scheme::Rk4 => 5,
-            Scheme::Dopri5 => 7,
-            Scheme::Dop853 => dop853::STAGES,
-            Scheme::Rosenbrock23 => 6,
-        }
-    }
-
-    /// Dense-output coefficient vectors in [`Work::cont`].
-    fn dense_len(self) -> usize {
-        match self {
-            Scheme::Rk4 => 0,
-            Scheme::Dopri5 => 5,
-            Scheme::Dop853 => 7,
-            Scheme::Rosenbrock23 => 0,
-        }
-    }
-
-    /// The stage holding f(t + h, y_new) after a step: the next step's first stage (FSAL).
-    fn fsal(self) -> usize {
-        match self {
-            Scheme::Rk4 => 4,
-            Scheme::Dopri5 => 6,
-            Scheme::Dop853 => dop853::FSAL,
-            Scheme::Rosenbrock23 => ROS_F2,
-        }
-    }
-
-    /// The exponent q of the step-size control: the local error estimate is O(h^q), so a step
-    /// scaled by err^(-1/q) would meet the tolerance exactly.
-    fn control_order(self) -> f64 {
-        match self {
-            Scheme::Rk4 => unreachable!("RK4 runs at a fixed step"),
-            Scheme::Dopri5 => 5.0,
-            // The 5th-order estimate, corrected by the 3rd-order one, is treated as O(h^8), as
-            // in Hairer's DOP853 and SciPy.
-            Scheme::Dop853 => 8.0,
-            // The difference between the order-2 solution and the order-3 one: the local error
-            // of the propagated solution, O(h^3).
-            Scheme::Rosenbrock23 => 3.0,
-        }
-    }
-
+/// The stepper of an [`Integrator`]: its stages, error estimate and dense output.
+trait Stepper: Sync {
     /// One step of size `h` from (t, y) with f(t, y) in `w.k[0]`: the new state in `w.y_new`,
-    /// f(t + h, y_new) in `w.k[self.fsal()]` (the last right-hand side evaluated, so a system's
-    /// own scratch memory holds the evaluation at the new state). `retry` is true when the
-    /// previous attempt from the same (t, y) was rejected.
+    /// f(t + h, y_new) in the integrator's FSAL stage (the last right-hand side evaluated, so a
+    /// system's own scratch memory holds the evaluation at the new state), and for an adaptive
+    /// scheme what its error norm needs (by default the error estimate in `w.tmp`). Counts its
+    /// evaluations in `stats`. `retry` is true when the previous attempt from the same (t, y)
+    /// was rejected.
     #[allow(clippy::too_many_arguments)]
-    fn step<S: OdeSystem>(
-        self,
-        sys: &mut S,
+    fn step(
+        &self,
+        sys: &mut dyn OdeSystem,
         t: f64,
         y: &[f64],
         h: f64,
         w: &mut Work,
         stats: &mut Stats,
         retry: bool,
-    ) -> Result<()> {
-        match self {
-            Scheme::Rk4 => {
-                rk4_step(sys, t, y, h, w);
-                stats.rhs_evals += 4;
-            }
-            Scheme::Dopri5 => {
-                dopri5_step(sys, t, y, h, w);
-                stats.rhs_evals += 6;
-            }
-            Scheme::Dop853 => {
-                dop853_step(sys, t, y, h, w);
-                stats.rhs_evals += dop853::FSAL as u64;
-            }
-            Scheme::Rosenbrock23 => return rosenbrock23_step(sys, t, y, h, w, stats, retry),
-        }
-        Ok(())
+    ) -> Result<()>;
+
+    /// The scaled error norm of the step just taken (adaptive schemes): by default the root mean
+    /// square of the estimate in `w.tmp` scaled by `atol + rtol * max(|y_old|, |y_new|)`.
+    fn error_norm(&self, w: &Work, y: &[f64], _h: f64, rtol: f64, atol: f64) -> f64 {
+        error_norm(&w.tmp, y, &w.y_new, rtol, atol)
     }
 
-    /// The scaled error norm of the step just taken (adaptive schemes).
-    fn error_norm(self, w: &Work, y: &[f64], h: f64, rtol: f64, atol: f64) -> f64 {
-        match self {
-            Scheme::Rk4 | Scheme::Dopri5 | Scheme::Rosenbrock23 => {
-                error_norm(&w.tmp, y, &w.y_new, rtol, atol)
-            }
-            Scheme::Dop853 => dop853_error_norm(w, y, h, rtol, atol),
-        }
-    }
-
-    /// Prepares the continuous extension of the step just taken from (t, y).
-    fn dense<S: OdeSystem>(
-        self,
-        sys: &mut S,
-        t: f64,
-        y: &[f64],
-        h: f64,
-        w: &mut Work,
-        stats: &mut Stats,
+    /// Prepares the continuous extension of the step just taken from (t, y); nothing by default
+    /// (a scheme that interpolates from its stages directly).
+    fn dense(
+        &self,
+        _sys: &mut dyn OdeSystem,
+        _t: f64,
+        _y: &[f64],
+        _h: f64,
+        _w: &mut Work,
+        _stats: &mut Stats,
     ) {
-        match self {
-            Scheme::Rk4 | Scheme::Rosenbrock23 => {}
-            Scheme::Dopri5 => dopri5_dense(y, h, w),
-            Scheme::Dop853 => {
-                dop853_dense(sys, t, y, h, w);
-                stats.rhs_evals += (dop853::STAGES - dop853::FSAL - 1) as u64;
-            }
-        }
     }
 
     /// The state at t + theta h on the continuous extension of the step from y0.
-    fn eval(self, y0: &[f64], w: &Work, h: f64, theta: f64, out: &mut [f64]) {
-        match self {
-            Scheme::Rk4 => hermite_eval(y0, w, 4, h, theta, out),
-            Scheme::Dopri5 => dopri5_eval(w, theta, out),
-            Scheme::Dop853 => dop853_eval(y0, w, theta, out),
-            Scheme::Rosenbrock23 => rosenbrock23_eval(y0, w, h, theta, out),
-        }
-    }
-}
-
-#[inline]
-fn axpy_stage(out: &mut [f64], y: &[f64], h: f64, terms: &[(f64, &[f64])]) {
-    for i in 0..out.len() {
-        let mut s = 0.0;
-        for (c, k) in terms {
-            s += c * k[i];
-        }
-        out[i] = y[i] + h * s;
-    }
-}
-
-/// One RK4 step from (t, y) with k1 = f(t, y) already in `w.k[0]`; result in `w.y_new`,
-/// and `w.k[4]` = f(t + h, y_new) (the next step's first stage, used by the dense output).
-fn rk4_step<S: OdeSystem>(sys: &mut S, t: f64, y: &[f64], h: f64, w: &mut Work) {
-    let n = y.len();
-    let [k1, k2, k3, k4, k5] = &mut w.k[..] else {
-        unreachable!("RK4 has five stage vectors")
-    };
-    for i in 0..n {
-        w.tmp[i] = y[i] + 0.5 * h * k1[i];
-    }
-    sys.rhs(t + 0.5 * h, &w.tmp, k2);
-    for i in 0..n {
-        w.tmp[i] = y[i] + 0.5 * h * k2[i];
-    }
-    sys.rhs(t + 0.5 * h, &w.tmp, k3);
-    for i in 0..n {
-        w.tmp[i] = y[i] + h * k3[i];
-    }
-    sys.rhs(t + h, &w.tmp, k4);
-    for i in 0..n {
-        w.y_new[i] = y[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
-    }
-    sys.rhs(t + h, &w.y_new, k5);
-}
-
-/// One DOPRI5 step with k1 = f(t, y) in `w.k[0]`; 5th-order result in `w.y_new`, f(t+h, y_new)
-/// in `w.k[6]`, and the scaled error estimate in `w.tmp`.
-fn dopri5_step<S: OdeSystem>(sys: &mut S, t: f64, y: &[f64], h: f64, w: &mut Work) {
-    let [k1, k2, k3, k4, k5, k6, k7] = &mut w.k[..] else {
-        unreachable!("DOPRI5 has seven stage vectors")
-    };
-    axpy_stage(&mut w.tmp, y, h, &[(A21, k1)]);
-    sys.rhs(t + C2 * h, &w.tmp, k2);
-    axpy_stage(&mut w.tmp, y, h, &[(A31, k1), (A32, k2)]);
-    sys.rhs(t + C3 * h, &w.tmp, k3);
-    axpy_stage(&mut w.tmp, y, h, &[(A41, k1), (A42, k2), (A43, k3)]);
-    sys.rhs(t + C4 * h, &w.tmp, k4);
-    axpy_stage(
-        &mut w.tmp,
-        y,
-        h,
-        &[(A51, k1), (A52, k2), (A53, k3), (A54, k4)],
-    );
-    sys.rhs(t + C5 * h, &w.tmp, k5);
-    axpy_stage(
-        &mut w.tmp,
-        y,
-        h,
-        &[(A61, k1), (A62, k2), (A63, k3), (A64, k4), (A65, k5)],
-    );
-    sys.rhs(t + h, &w.tmp, k6);
-    axpy_stage(
-        &mut w.y_new,
-        y,
-        h,
-        &[(A71, k1), (A73, k3), (A74, k4), (A75, k5), (A76, k6)],
-    );
-    sys.rhs(t + h, &w.y_new, k7);
-    for i in 0..y.len() {
-        w.tmp[i] =
-            h * (E1 * k1[i] + E3 * k3[i] + E4 * k4[i] + E5 * k5[i] + E6 * k6[i] + E7 * k7[i]);
-    }
-}
-
-/// Stores the DOPRI5 continuous extension of the step just taken.
-fn dopri5_dense(y: &[f64], h: f64, w: &mut Work) {
-    let [k1, _, k3, k4, k5, k6, k7] = &w.k[..] else {
-        unreachable!("DOPRI5 has seven stage vectors")
-    };
-    let [c0, c1, c2, c3, c4] = &mut w.cont[..] else {
-        unreachable!("DOPRI5 has five dense-output vectors")
-    };
-    for i in 0..y.len() {
-        let ydiff = w.y_new[i] - y[i];
-        let bspl = h * k1[i] - ydiff;
-        c0[i] = y[i];
-        c1[i] = ydiff;
-        c2[i] = bspl;
-        c3[i] = ydiff - h * k7[i] - bspl;
-        c4[i] = h * (D1 * k1[i] + D3 * k3[i] + D4 * k4[i] + D5 * k5[i] + D6 * k6[i] + D7 * k7[i]);
-    }
-}
-
-fn dopri5_eval(w: &Work, theta: f64, out: &mut [f64]) {
-    let th1 = 1.0 - theta;
-    let [c0, c1, c2, c3, c4] = &w.cont[..] else {
-        unreachable!("DOPRI5 has five dense-output vectors")
-    };
-    for i in 0..out.len() {
-        out[i] = c0[i] + theta * (c1[i] + th1 * (c2[i] + theta * (c3[i] + th1 * c4[i])));
-    }
-}
-
-/// Cubic Hermite interpolation on [t, t+h] from y0, f0 (k[0]) and y1, f1 (k[f1]).
-fn hermite_eval(y0: &[f64], w: &Work, f1: usize, h: f64, theta: f64, out: &mut [f64]) {
-    let f0 = &w.k[0];
-    let f1 = &w.k[f1];
-    for i in 0..out.len() {
-        let dy = w.y_new[i] - y0[i];
-        out[i] = (1.0 - theta) * y0[i]
-            + theta * w.y_new[i]
-            + theta
-                * (theta - 1.0)
-                * ((1.0 - 2.0 * theta) * dy + (theta - 1.0) * h * f0[i] + theta * h * f1[i]);
-    }
-}
-
-/// `out = y + h * sum_j a_j k[j]` over the nonzero coefficients `row` = [(j, a_j)].
-#[inline]
-fn rk_stage(out: &mut [f64], y: &[f64], h: f64, row: &[(usize, f64)], k: &[Vec<f64>]) {
-    for i in 0..out.len() {
-        let mut s = 0.0;
-        for &(j, a) in row {
-            s += a * k[j][i];
-        }
-        out[i] = y[i] + h * s;
-    }
-}
-
-/// One DOP853 step with k1 = f(t, y) in `w.k[0]`: stages 1..11, the 8th-order result in
-/// `w.y_new` and f(t + h, y_new) in `w.k[12]`.
-fn dop853_step<S: OdeSystem>(sys: &mut S, t: f64, y: &[f64], h: f64, w: &mut Work) {
-    for s in 1..dop853::FSAL {
-        let (done, rest) = w.k.split_at_mut(s);
-        rk_stage(&mut w.tmp, y, h, dop853::A[s], done);
-        sys.rhs(t + dop853::C[s] * h, &w.tmp, &mut rest[0]);
-    }
-    let (done, rest) = w.k.split_at_mut(dop853::FSAL);
-    rk_stage(&mut w.y_new, y, h, dop853::B, done);
-    sys.rhs(t + h, &w.y_new, &mut rest[0]);
-}
-
-/// DOP853's error norm (Hairer's code, SciPy's `DOP853._estimate_error_norm`): with the 5th- and
-/// 3rd-order estimates e5, e3 scaled per component by `atol + rtol * max(|y_old|, |y_new|)`,
-/// `|h| * |e5|^2 / sqrt((|e5|^2 + 0.01 |e3|^2) n)`. The 3rd-order estimate keeps the 5th-order one
-/// honest at large steps, where the latter can be accidentally small.
-fn dop853_error_norm(w: &Work, y: &[f64], h: f64, rtol: f64, atol: f64) -> f64 {
-    let (mut s5, mut s3) = (0.0, 0.0);
-    for i in 0..y.len() {
-        let sc = atol + rtol * y[i].abs().max(w.y_new[i].abs());
-        let (mut e5, mut e3) = (0.0, 0.0);
-        for &(j, e) in dop853::E5 {
-            e5 += e * w.k[j][i];
-        }
-        for &(j, e) in dop853::E3 {
-            e3 += e * w.k[j][i];
-        }
-        s5 += (e5 / sc) * (e5 / sc);
-        s3 += (e3 / sc) * (e3 / sc);
-    }
-    if s5 == 0.0 && s3 == 0.0 {
-        return 0.0;
-    }
-    h.abs() * s5 / ((s5 + 0.01 * s3) * y.len() as f64).sqrt()
-}
-
-/// DOP853's order-7 continuous extension of the step from (t, y): the three extra stages 13..15
-/// (three right-hand-side evaluations) and the seven coefficient vectors of Hairer's CONTD8.
-fn dop853_dense<S: OdeSystem>(sys: &mut S, t: f64, y: &[f64], h: f64, w: &mut Work) {
-    for s in dop853::FSAL + 1..dop853::STAGES {
-        let (done, rest) = w.k.split_at_mut(s);
-        rk_stage(&mut w.tmp, y, h, dop853::A[s], done);
-        sys.rhs(t + dop853::C[s] * h, &w.tmp, &mut rest[0]);
-    }
-    let (f_old, f_new) = (&w.k[0], &w.k[dop853::FSAL]);
-    let (first, rest) = w.cont.split_at_mut(3);
-    for i in 0..y.len() {
-        let dy = w.y_new[i] - y[i];
-        first[0][i] = dy;
-        first[1][i] = h * f_old[i] - dy;
-        first[2][i] = 2.0 * dy - h * (f_new[i] + f_old[i]);
-    }
-    for (c, row) in rest.iter_mut().zip(dop853::D) {
-        for i in 0..y.len() {
-            let mut s = 0.0;
-            for &(j, d) in row {
-                s += d * w.k[j][i];
-            }
-            c[i] = h * s;
-        }
-    }
-}
-
-/// y(t + theta h) = y0 + x (F0 + (1-x) (F1 + x (F2 + (1-x) (F3 + x (F4 + (1-x) (F5 + x F6))))))
-/// with x = theta (SciPy's `Dop853DenseOutput`).
-fn dop853_eval(y0: &[f64], w: &Work, theta: f64, out: &mut [f64]) {
-    let (x, x1) = (theta, 1.0 - theta);
-    let f = &w.cont;
-    for i in 0..out.len() {
-        let mut v = f[6][i] * x;
-        v = (v + f[5][i]) * x1;
-        v = (v + f[4][i]) * x;
-        v = (v + f[3][i]) * x1;
-        v = (v + f[2][i]) * x;
-        v = (v + f[1][i]) * x1;
-        v = (v + f[0][i]) * x;
-        out[i] = y0[i] + v;
-    }
-}
-
-// Shampine & Reichelt's modified Rosenbrock triple: d = 1 / (2 + sqrt 2), e32 = 6 + sqrt 2.
-const ROS_D: f64 = 1.0 / (2.0 + std::f64::consts::SQRT_2);
-const ROS_E32: f64 = 6.0 + std::f64::consts::SQRT_2;
-/// Stage vectors of the Rosenbrock scheme: F0 = f(t, y) (FSAL), k1, F1, k2, F2 = f(t + h, y1), k3.
-const ROS_F2: usize = 4;
-
-/// Solves `lu x = b` in place.
-fn lu_solve(lu: &LU<f64, Dyn, Dyn>, b: &mut [f64]) {
-    let n = b.len();
-    lu.solve_mut(&mut DVectorViewMut::from_slice(b, n));
-}
-
-/// One step of the modified Rosenbrock triple (Shampine & Reichelt, SIAM J. Sci. Comput.
-/// 18:1-22, 1997) with F0 = f(t, y) in `w.k[0]`; with W = I - h d J, T = df/dt:
-///
-/// k1 = W^-1 (F0 + h d T), F1 = f(t + h/2, y + h/2 k1), k2 = W^-1 (F1 - k1) + k1,
-/// y1 = y + h k2, F2 = f(t + h, y1), k3 = W^-1 (F2 - e32 (k2 - F1) - 2 (k1 - F0) + h d T),
-///
-/// and the error estimate h/6 (k1 - 2 k2 + k3) into `w.tmp`. J and T are formed by forward
-/// differences at the first attempt from (t, y) (n + 1 evaluations) and kept for the retries
-/// after a rejection (`retry`), as in ode23s.
-fn rosenbrock23_step<S: OdeSystem>(
-    sys: &mut S,
-    t: f64,
-    y: &[f64],
-    h: f64,
-    w: &mut Work,
-    stats: &mut Stats,
-    retry: bool,
-) -> Result<()> {
-    let n = y.len();
-    let [f0, k1, f1, k2, f2, k3] = &mut w.k[..] else {
-        unreachable!("Rosenbrock23 has six stage vectors")
-    };
-    let r = w.ros.as_mut().expect("Rosenbrock work space");
-    let sqrt_eps = f64::EPSILON.sqrt();
-    if !retry {
-        // Column j: f(t, y + del e_j), with del ~ sqrt(eps) |y_j| (at least sqrt(eps) 1e-5)
-        // rounded so that y_j + del is exact.
-        w.tmp.copy_from_slice(y);
-        for j in 0..n {
-            let yj = y[j];
-            let del = (yj + sqrt_eps * yj.abs().max(1e-5)) - yj;
-            w.tmp[j] = yj + del;
-            sys.rhs(t, &w.tmp, f1);
-            w.tmp[j] = yj;
-            for i in 0..n {
-                r.jac[(i, j)] = (f1[i] - f0[i]) / del;
-            }
-        }
-        // T as in ode23s: a time increment of sqrt(eps) max(|t|, |t + h|), at most h.
-        let dt = (t + (sqrt_eps * t.abs().max((t + h).abs())).min(h)) - t;
-        sys.rhs(t + dt, y, f1);
-        for i in 0..n {
-            r.dfdt[i] = (f1[i] - f0[i]) / dt;
-        }
-        stats.rhs_evals += n as u64 + 1;
-        stats.jacobians += 1;
-    }
-    // W = I - h d J, factorised in the storage of the last factorisation (LU::l_unpack hands the
-    // matrix back without reallocating it).
-    let mut m = match r.lu.take() {
-        Some(lu) => lu.l_unpack(),
-        None => r.spare.take().unwrap_or_else(|| DMatrix::zeros(n, n)),
-    };
-    let hd = h * ROS_D;
-    for j in 0..n {
-        for i in 0..n {
-            m[(i, j)] = if i == j { 1.0 } else { 0.0 } - hd * r.jac[(i, j)];
-        }
-    }
-    let lu = LU::new(m);
-    if !lu.is_invertible() {
-        r.lu = Some(lu);
-        return Err(Error::Diverged {
-            time: t,
-            message: format!("the Rosenbrock matrix I - h d df/dy is singular at step {h:e} s"),
-        });
-    }
-    for i in 0..n {
-        k1[i] = f0[i] + hd * r.dfdt[i];
-    }
-    lu_solve(&lu, k1);
-    for i in 0..n {
-        w.tmp[i] = y[i] + 0.5 * h * k1[i];
-    }
-    sys.rhs(t + 0.5 * h, &w.tmp, f1);
-    for i in 0..n {
-        k2[i] = f1[i] - k1[i];
-    }
-    lu_solve(&lu, k2);
-    for i in 0..n {
-        k2[i] += k1[i];
-        w.y_new[i] = y[i] + h * k2[i];
-    }
-    sys.rhs(t + h, &w.y_new, f2);
-    for i in 0..n {
-        k3[i] = f2[i] - ROS_E32 * (k2[i] - f1[i]) - 2.0 * (k1[i] - f0[i]) + hd * r.dfdt[i];
-    }
-    lu_solve(&lu, k3);
-    for i in 0..n {
-        w.tmp[i] = h / 6.0 * (k1[i] - 2.0 * k2[i] + k3[i]);
-    }
-    stats.rhs_evals += 2;
-    r.lu = Some(lu);
-    Ok(())
-}
-
-/// The continuous extension of ode23s: y(t + s h) = y0 + h (s (1 - s) k1 + s (s - 2 d) k2) /
-/// (1 - 2 d), of order 2.
-fn rosenbrock23_eval(y0: &[f64], w: &Work, h: f64, s: f64, out: &mut [f64]) {
-    let c1 = s * (1.0 - s) / (1.0 - 2.0 * ROS_D);
-    let c2 = s * (s - 2.0 * ROS_D) / (1.0 - 2.0 * ROS_D);
-    let (k1, k2) = (&w.k[1], &w.k[3]);
-    for i in 0..out.len() {
-        out[i] = y0[i] + h * (c1 * k1[i] + c2 * k2[i]);
-    }
+    fn eval(&self, y0: &[f64], w: &Work, h: f64, theta: f64, out: &mut [f64]);
 }
 
 fn error_norm(err: &[f64], y0: &[f64], y1: &[f64], rtol: f64, atol: f64) -> f64 {
@@ -925,21 +585,20 @@ pub struct Step<'a> {
     /// States at both ends.
     pub y0: &'a [f64],
     pub y1: &'a [f64],
-    scheme: Scheme,
+    stepper: &'a dyn Stepper,
     w: &'a Work,
 }
 
 impl Step<'_> {
-    /// The state at `t` in `[t0, t1]` on the method's dense output (the same interpolant as the
-    /// samples: cubic Hermite for RK4, Hairer's order-4 extension for DOPRI5, order 7 for
-    /// DOP853, order 2 for Rosenbrock23).
+    /// The state at `t` in `[t0, t1]` on the integrator's dense output (the same interpolant as
+    /// the samples).
     pub fn eval(&self, t: f64, out: &mut [f64]) {
         let h = self.t1 - self.t0;
         let theta = ((t - self.t0) / h).clamp(0.0, 1.0);
         if theta == 1.0 {
             out.copy_from_slice(self.y1);
         } else {
-            self.scheme.eval(self.y0, self.w, h, theta, out);
+            self.stepper.eval(self.y0, self.w, h, theta, out);
         }
     }
 }
@@ -1065,8 +724,9 @@ fn step_loop<S: OdeSystem>(
         "state length does not match the system dimension"
     );
     let t0 = *t_out;
-    let scheme = method.scheme();
-    let mut w = Work::new(n, scheme);
+    let integrator = method.integrator;
+    let stepper = integrator.stepper;
+    let mut w = Work::new(n, integrator);
     let mut ys = vec![0.0; n];
     let mut next_sample = 0usize;
     // Samples at t0 itself.
@@ -1088,7 +748,7 @@ fn step_loop<S: OdeSystem>(
             (step, false, 0.0, 0.0, step)
         }
         Some((rtol, atol, max_step)) => {
-            let q = scheme.control_order();
+            let q = method.control_order();
             let h = if memory.next_step > 0.0 && memory.next_step.is_finite() {
                 memory.next_step.min(max_step)
             } else {
@@ -1132,12 +792,12 @@ fn step_loop<S: OdeSystem>(
             };
             // A step shortened to end at t_end does not reach the next grid point.
             let on_grid = t_next_grid <= t_end + tol;
-            if let Err(e) = scheme.step(sys, t, y, h_try, &mut w, stats, last_rejected) {
+            if let Err(e) = stepper.step(sys, t, y, h_try, &mut w, stats, last_rejected) {
                 break 'run Err(e);
             }
             if adaptive {
-                let err = scheme.error_norm(&w, y, h_try, rtol, atol);
-                let q = scheme.control_order();
+                let err = stepper.error_norm(&w, y, h_try, rtol, atol);
+                let q = method.control_order();
                 if !err.is_finite() || err > 1.0 {
                     stats.rejected += 1;
                     let fac = if err.is_finite() {
@@ -1187,7 +847,7 @@ fn step_loop<S: OdeSystem>(
             }
             let has_dense_sample = next_sample < samples.len() && samples[next_sample] < t_new;
             if has_dense_sample || on_step.is_some() {
-                scheme.dense(sys, t, y, h_try, &mut w, stats);
+                stepper.dense(sys, t, y, h_try, &mut w, stats);
             }
             // Emit the samples inside (t, t_new].
             while next_sample < samples.len() && samples[next_sample] <= t_new {
@@ -1196,7 +856,7 @@ fn step_loop<S: OdeSystem>(
                 let flow = if ts == t_new {
                     observer(sys, ts, &w.y_new)
                 } else {
-                    scheme.eval(y, &w, h_try, theta, &mut ys);
+                    stepper.eval(y, &w, h_try, theta, &mut ys);
                     observer(sys, ts, &ys)
                 };
                 next_sample += 1;
@@ -1212,7 +872,7 @@ fn step_loop<S: OdeSystem>(
                     t1: t_new,
                     y0: y,
                     y1: &w.y_new,
-                    scheme,
+                    stepper,
                     w: &w,
                 };
                 if f(sys, &step) == Flow::Stop {
@@ -1225,7 +885,7 @@ fn step_loop<S: OdeSystem>(
             t = t_new;
             // The last stage is f(t_new, y_new): first stage of the next step (FSAL), unless the
             // system's history changed at the step end.
-            w.k.swap(0, scheme.fsal());
+            w.k.swap(0, integrator.fsal);
             if history_changed {
                 sys.rhs(t, y, &mut w.k[0]);
                 stats.rhs_evals += 1;
@@ -1258,6 +918,16 @@ mod tests {
         }
     }
 
+    fn rk4(step: f64) -> Method {
+        Method::fixed(&rk4::RK4, step).unwrap()
+    }
+    fn dopri5_fixed(step: f64) -> Method {
+        Method::fixed(&dopri5::DOPRI5, step).unwrap()
+    }
+    fn dopri5(rtol: f64, atol: f64, max_step: f64) -> Method {
+        Method::adaptive(&dopri5::DOPRI5, rtol, atol, max_step).unwrap()
+    }
+
     fn final_error(method: Method) -> (f64, Stats) {
         let mut y = [1.0, 0.0];
         let stats = integrate(&mut Harmonic, method, 0.0, &mut y, 10.0, &[], |_, _, _| {
@@ -1280,23 +950,19 @@ mod tests {
     fn rk4_converges_with_order_four() {
         // Halving h divides the global error by 2^p; the asymptotic regime is reached at h = 0.05
         // here (error ~1e-6, far above rounding), so p is within 0.1 of its nominal value.
-        let p = observed_order(|h| Method::Rk4 { step: h }, 0.05);
+        let p = observed_order(rk4, 0.05);
         assert!((p - 4.0).abs() < 0.1, "observed order {p}");
     }
 
     #[test]
     fn dopri5_fixed_step_converges_with_order_five() {
-        let p = observed_order(|h| Method::Dopri5Fixed { step: h }, 0.1);
+        let p = observed_order(dopri5_fixed, 0.1);
         assert!((p - 5.0).abs() < 0.15, "observed order {p}");
     }
 
     #[test]
     fn dopri5_meets_its_tolerance_and_counts_work() {
-        let (e, s) = final_error(Method::Dopri5 {
-            rtol: 1e-10,
-            atol: 1e-12,
-            max_step: f64::INFINITY,
-        });
+        let (e, s) = final_error(dopri5(1e-10, 1e-12, f64::INFINITY));
         // Global error over ~1.6 periods stays within a small multiple of the local tolerance.
         assert!(e < 1e-8, "error {e}");
         assert_eq!(s.rhs_evals, 2 + 6 * (s.accepted + s.rejected));
@@ -1306,17 +972,9 @@ mod tests {
     fn dense_output_is_accurate_between_steps() {
         let samples: Vec<f64> = (0..=1000).map(|i| i as f64 * 0.01).collect();
         for method in [
-            Method::Dopri5 {
-                rtol: 1e-10,
-                atol: 1e-12,
-                max_step: f64::INFINITY,
-            },
-            Method::Rk4 { step: 1e-3 },
-            Method::Dop853 {
-                rtol: 1e-10,
-                atol: 1e-12,
-                max_step: f64::INFINITY,
-            },
+            dopri5(1e-10, 1e-12, f64::INFINITY),
+            rk4(1e-3),
+            Method::adaptive(&dop853::DOP853, 1e-10, 1e-12, f64::INFINITY).unwrap(),
         ] {
             let mut worst: f64 = 0.0;
             let mut count = 0;
@@ -1348,7 +1006,7 @@ mod tests {
         let mut y = [1.0, 0.0];
         let s = integrate(
             &mut Harmonic,
-            Method::Rk4 { step: 0.3 },
+            rk4(0.3),
             0.0,
             &mut y,
             1.0,
@@ -1380,9 +1038,7 @@ mod tests {
                 d[1] = -self.0 * self.0 * y[0];
             }
         }
-        for make in [(|h| Method::Rk4 { step: h }) as fn(f64) -> Method, |h| {
-            Method::Dopri5Fixed { step: h }
-        }] {
+        for make in [rk4 as fn(f64) -> Method, dopri5_fixed] {
             for hw in [0.3, 1.0, 2.0, 2.8, 2.9, 3.3] {
                 let w = 100.0;
                 let h = hw / w;
@@ -1407,20 +1063,12 @@ mod tests {
                 );
             }
         }
-        let rk4 = Method::Rk4 { step: 1.0 };
+        let rk4 = rk4(1.0);
         let lim = rk4.stable_step(0.0, 1.0, 10.0).unwrap();
         assert!((lim - 2.0 * 2f64.sqrt()).abs() < 1e-9, "{lim}");
         let lim = rk4.stable_step(-1.0, 0.0, 10.0).unwrap();
         assert!((lim - 2.785).abs() < 1e-3, "{lim}");
-        assert_eq!(
-            Method::Dopri5 {
-                rtol: 1e-6,
-                atol: 1e-9,
-                max_step: 1.0
-            }
-            .stable_step(0.0, 1.0, 1.0),
-            None
-        );
+        assert_eq!(dopri5(1e-6, 1e-9, 1.0).stable_step(0.0, 1.0, 1.0), None);
     }
 
     #[test]
@@ -1435,15 +1083,9 @@ mod tests {
             }
         }
         let mut y = [1.0];
-        let err = integrate(
-            &mut Blowup,
-            Method::Rk4 { step: 0.1 },
-            0.0,
-            &mut y,
-            5.0,
-            &[],
-            |_, _, _| Flow::Continue,
-        )
+        let err = integrate(&mut Blowup, rk4(0.1), 0.0, &mut y, 5.0, &[], |_, _, _| {
+            Flow::Continue
+        })
         .unwrap_err();
         assert!(matches!(err, Error::Diverged { time, .. } if time > 0.5 && time < 5.0));
     }
@@ -1490,37 +1132,34 @@ mod tests {
             .sqrt()
     }
 
-    /// Runs `scheme` at the fixed step h = t_end / steps, driving the stepper directly (no
+    /// Runs `integrator` at the fixed step h = t_end / steps, driving the stepper directly (no
     /// error control), and returns the final state.
     fn fixed_steps<S: OdeSystem>(
         sys: &mut S,
-        scheme: Scheme,
+        integrator: &Integrator,
         y0: &[f64],
         t_end: f64,
         steps: usize,
     ) -> Vec<f64> {
         let n = sys.dim();
-        let mut w = Work::new(n, scheme);
+        let mut w = Work::new(n, integrator);
         let mut stats = Stats::default();
         let mut y = y0.to_vec();
         let h = t_end / steps as f64;
         sys.rhs(0.0, &y, &mut w.k[0]);
         for i in 0..steps {
-            scheme
+            integrator
+                .stepper
                 .step(sys, i as f64 * h, &y, h, &mut w, &mut stats, false)
                 .unwrap();
             y.copy_from_slice(&w.y_new);
-            w.k.swap(0, scheme.fsal());
+            w.k.swap(0, integrator.fsal);
         }
         y
     }
 
     fn dop853(rtol: f64) -> Method {
-        Method::Dop853 {
-            rtol,
-            atol: rtol * 1e-2,
-            max_step: f64::INFINITY,
-        }
+        Method::adaptive(&dop853::DOP853, rtol, rtol * 1e-2, f64::INFINITY).unwrap()
     }
 
     /// The global error at t = 2 pi on the circular Kepler orbit (nonlinear right-hand side)
@@ -1530,7 +1169,7 @@ mod tests {
     /// neighbouring orders 7 and 9.
     #[test]
     fn dop853_fixed_step_converges_with_order_eight() {
-        for (p, a, b) in kepler_orders(Scheme::Dop853, [10, 20, 40]) {
+        for (p, a, b) in kepler_orders(&dop853::DOP853, [10, 20, 40]) {
             assert!(
                 (7.5..8.7).contains(&p),
                 "observed order {p} ({a:e} -> {b:e})"
@@ -1539,12 +1178,12 @@ mod tests {
     }
 
     /// The observed orders (with the errors they come from) between the global errors at
-    /// t = 2 pi on the circular Kepler orbit with `steps` fixed steps of `scheme`.
-    fn kepler_orders(scheme: Scheme, steps: [usize; 3]) -> [(f64, f64, f64); 2] {
+    /// t = 2 pi on the circular Kepler orbit with `steps` fixed steps of `integrator`.
+    fn kepler_orders(integrator: &Integrator, steps: [usize; 3]) -> [(f64, f64, f64); 2] {
         let t_end = 2.0 * std::f64::consts::PI;
         let exact = kepler_exact(0.0, t_end);
         let e = steps.map(|n| {
-            let y = fixed_steps(&mut Kepler, scheme, &kepler_start(0.0), t_end, n);
+            let y = fixed_steps(&mut Kepler, integrator, &kepler_start(0.0), t_end, n);
             dist(&y, &exact)
         });
         [(e[0], e[1]), (e[1], e[2])].map(|(a, b)| ((a / b).log2(), a, b))
@@ -1552,11 +1191,7 @@ mod tests {
 
     #[test]
     fn dop853_meets_its_tolerance_with_far_fewer_evaluations_than_dopri5() {
-        let dopri5 = Method::Dopri5 {
-            rtol: 1e-10,
-            atol: 1e-12,
-            max_step: f64::INFINITY,
-        };
+        let dopri5 = dopri5(1e-10, 1e-12, f64::INFINITY);
         let (e8, s8) = final_error(dop853(1e-10));
         let (_, s5) = final_error(dopri5);
         // Same bound as DOPRI5's own test: a small multiple of the tolerance over 1.6 periods.
@@ -1599,16 +1234,19 @@ mod tests {
         let t0 = 0.7;
         let y0 = kepler_exact(0.0, t0);
         let local = |h: f64| {
-            let mut w = Work::new(4, Scheme::Dop853);
+            let mut w = Work::new(4, &dop853::DOP853);
             let mut stats = Stats::default();
             Kepler.rhs(t0, &y0, &mut w.k[0]);
-            Scheme::Dop853
+            dop853::DOP853
+                .stepper
                 .step(&mut Kepler, t0, &y0, h, &mut w, &mut stats, false)
                 .unwrap();
-            Scheme::Dop853.dense(&mut Kepler, t0, &y0, h, &mut w, &mut stats);
+            dop853::DOP853
+                .stepper
+                .dense(&mut Kepler, t0, &y0, h, &mut w, &mut stats);
             assert_eq!(stats.rhs_evals, 12 + 3);
             let mut mid = [0.0; 4];
-            Scheme::Dop853.eval(&y0, &w, h, 0.5, &mut mid);
+            dop853::DOP853.stepper.eval(&y0, &w, h, 0.5, &mut mid);
             (
                 dist(&mid, &kepler_exact(0.0, t0 + 0.5 * h)),
                 dist(&w.y_new, &kepler_exact(0.0, t0 + h)),
@@ -1678,11 +1316,7 @@ mod tests {
     }
 
     fn rosenbrock23(rtol: f64, atol: f64) -> Method {
-        Method::Rosenbrock23 {
-            rtol,
-            atol,
-            max_step: f64::INFINITY,
-        }
+        Method::adaptive(&rosenbrock23::ROSENBROCK23, rtol, atol, f64::INFINITY).unwrap()
     }
 
     /// The global error at t = 2 pi on the circular Kepler orbit with 200, 400 and 800 fixed
@@ -1691,7 +1325,7 @@ mod tests {
     /// 50 steps); the band 1.9..2.1 excludes orders 1 and 3.
     #[test]
     fn rosenbrock23_fixed_step_converges_with_order_two() {
-        for (p, a, b) in kepler_orders(Scheme::Rosenbrock23, [200, 400, 800]) {
+        for (p, a, b) in kepler_orders(&rosenbrock23::ROSENBROCK23, [200, 400, 800]) {
             assert!(
                 (1.9..2.1).contains(&p),
                 "observed order {p} ({a:e} -> {b:e})"
@@ -1708,10 +1342,11 @@ mod tests {
         let t0 = 0.7;
         let y0 = kepler_exact(0.0, t0);
         let one_step = |h: f64| {
-            let mut w = Work::new(4, Scheme::Rosenbrock23);
+            let mut w = Work::new(4, &rosenbrock23::ROSENBROCK23);
             let mut stats = Stats::default();
             Kepler.rhs(t0, &y0, &mut w.k[0]);
-            Scheme::Rosenbrock23
+            rosenbrock23::ROSENBROCK23
+                .stepper
                 .step(&mut Kepler, t0, &y0, h, &mut w, &mut stats, false)
                 .unwrap();
             // Four Jacobian columns, df/dt, and two stages.
@@ -1770,11 +1405,7 @@ mod tests {
             s.rhs_evals,
             2 + 2 * s.jacobians + 2 * (s.accepted + s.rejected)
         );
-        let (_, _, s5) = run(Method::Dopri5 {
-            rtol: 1e-5,
-            atol: 1e-8,
-            max_step: f64::INFINITY,
-        });
+        let (_, _, s5) = run(dopri5(1e-5, 1e-8, f64::INFINITY));
         assert!(
             100 * s.accepted < s5.accepted,
             "rosenbrock23 {s:?}, dopri5 {s5:?}"
@@ -1869,13 +1500,14 @@ mod tests {
                 d[0] = 2.0 * y[0];
             }
         }
-        let mut h = 0.5 / ROS_D;
-        while h * ROS_D != 0.5 {
+        let mut h = 0.5 / rosenbrock23::D;
+        while h * rosenbrock23::D != 0.5 {
             h = f64::from_bits(h.to_bits() + 1);
         }
-        let mut w = Work::new(1, Scheme::Rosenbrock23);
+        let mut w = Work::new(1, &rosenbrock23::ROSENBROCK23);
         let mut stats = Stats::default();
-        let err = Scheme::Rosenbrock23
+        let err = rosenbrock23::ROSENBROCK23
+            .stepper
             .step(&mut Grow, 1.25, &[0.0], h, &mut w, &mut stats, false)
             .unwrap_err();
         assert!(
@@ -1886,7 +1518,7 @@ mod tests {
 
     #[test]
     fn every_family_name_builds_its_method() {
-        for &name in Method::FAMILIES {
+        for name in Method::families() {
             let m = Method::of_family(name, 1e-3, 1e-9).unwrap();
             assert_eq!((m.family(), m.setting()), (name, 1e-3));
             // Fixed-step families take the setting as their step, adaptive ones as rtol.
@@ -1897,6 +1529,142 @@ mod tests {
             );
         }
         assert_eq!(Method::of_family("rk45", 1e-3, 1e-9), None);
+    }
+
+    /// The families and integrator names studies and scenes knew before the registry keep their
+    /// order (in the lists users see, and in the default work-precision runs); integrators
+    /// registered later may come between them.
+    #[test]
+    fn the_known_families_keep_their_order() {
+        let keep = |all: Vec<&'static str>, known: &[&str]| {
+            let kept: Vec<&str> = all.into_iter().filter(|f| known.contains(f)).collect();
+            assert_eq!(kept, known);
+        };
+        keep(
+            Method::families().collect(),
+            &["rk4", "dopri5", "dopri5_fixed", "dop853", "rosenbrock23"],
+        );
+        keep(
+            Integrator::names().to_vec(),
+            &["rk4", "dopri5", "dop853", "rosenbrock23"],
+        );
+    }
+
+    /// y' = A y with A = [[re, -im], [im, re]]: the mode exp(lambda t), lambda = re + i im, as the
+    /// complex number y[0] + i y[1].
+    struct Linear(f64, f64);
+    impl OdeSystem for Linear {
+        fn dim(&self) -> usize {
+            2
+        }
+        fn rhs(&mut self, _t: f64, y: &[f64], d: &mut [f64]) {
+            d[0] = self.0 * y[0] - self.1 * y[1];
+            d[1] = self.1 * y[0] + self.0 * y[1];
+        }
+    }
+
+    /// Every integrator in the registry is found by its name, builds its methods from their
+    /// family names, describes them, has default work-precision settings, and its descriptor
+    /// agrees with its stepper: one step on y' = lambda y multiplies y by the stability function
+    /// R(h lambda), leaves f at the new state in the FSAL stage, and R(z) agrees with exp(z) to
+    /// the integrator's order.
+    #[test]
+    fn every_registered_integrator_is_complete() {
+        for (k, &integrator) in INTEGRATORS.iter().enumerate() {
+            let name = integrator.name;
+            assert!(std::ptr::eq(Integrator::named(name).unwrap(), integrator));
+            assert!(
+                !INTEGRATORS[..k].iter().any(|i| i.name == name),
+                "{name} registered twice"
+            );
+            assert!(
+                integrator.adaptive.is_some() || integrator.fixed.is_some(),
+                "{name} runs neither adaptive nor at a fixed step"
+            );
+            assert!(integrator.fsal < integrator.stages, "{name}");
+
+            // The scene's method is the family of the integrator's name.
+            let scene = integrator.method(1e-3, 1e-6, 1e-9, 0.5);
+            assert_eq!(scene.family(), name);
+            assert_eq!(scene.fixed_step().is_some(), integrator.adaptive.is_none());
+            let families: Vec<&str> = Method::families()
+                .filter(|f| {
+                    std::ptr::eq(
+                        Method::of_family(f, 1e-3, 1e-9).unwrap().integrator(),
+                        integrator,
+                    )
+                })
+                .collect();
+            assert!(families.contains(&name), "{name}: {families:?}");
+            let mut in_default_runs = false;
+            for family in families {
+                let m = Method::of_family(family, 1e-3, 1e-9).unwrap();
+                assert_eq!((m.family(), m.setting()), (family, 1e-3));
+                let described = m.describe();
+                assert!(
+                    described.starts_with(name) && described.contains("1e-3"),
+                    "{family}: {described}"
+                );
+                in_default_runs |= !Method::default_settings(family, 1e-3).is_empty();
+            }
+            assert!(
+                in_default_runs,
+                "{name} is in no default work-precision run"
+            );
+
+            for (re, im) in [
+                (-0.5, 0.0),
+                (-2.0, 0.0),
+                (0.0, 1.0),
+                (-0.3, 0.8),
+                (-3.0, 2.0),
+            ] {
+                let h = 0.1;
+                let mut sys = Linear(re / h, im / h);
+                let mut w = Work::new(2, integrator);
+                let mut stats = Stats::default();
+                // y0 = 1 + i; both components nonzero, so that Rosenbrock23's differenced
+                // Jacobian is accurate (to ~1e-8) in both columns.
+                let y0 = [1.0, 1.0];
+                sys.rhs(0.0, &y0, &mut w.k[0]);
+                integrator
+                    .stepper
+                    .step(&mut sys, 0.0, &y0, h, &mut w, &mut stats, false)
+                    .unwrap();
+                let r = (integrator.stability)(re, im);
+                let want = [r.0 - r.1, r.0 + r.1];
+                assert!(
+                    dist(&w.y_new, &want) < 1e-7,
+                    "{name} at z = ({re}, {im}): step {:?}, R(z) (1 + i) {want:?}",
+                    w.y_new
+                );
+                let mut f = [0.0; 2];
+                sys.rhs(h, &w.y_new, &mut f);
+                assert_eq!(w.k[integrator.fsal], f, "{name}: FSAL stage");
+                let method = Method::fixed(integrator, h);
+                assert_eq!(
+                    method.and_then(|m| m.amplification(re, im)),
+                    method.map(|_| r.0.hypot(r.1))
+                );
+            }
+
+            // R(z) - exp(z) = O(z^(p+1)): halving z divides the gap by about 2^(p+1). The gaps
+            // at z and -z are added, so that the next term, of the other parity, cancels.
+            // Measured exponents: 5.006 (rk4), 5.98 (dopri5), 9.04 (dop853), 3.13
+            // (rosenbrock23).
+            let gap = |z: f64| {
+                [z, -z]
+                    .map(|x| ((integrator.stability)(x, 0.0).0 - x.exp()).abs())
+                    .iter()
+                    .sum::<f64>()
+            };
+            let observed = (gap(0.5) / gap(0.25)).log2();
+            let p = integrator.order as f64;
+            assert!(
+                (observed - (p + 1.0)).abs() < 0.25,
+                "{name}: R(z) - exp(z) falls as z^{observed}, order {p}"
+            );
+        }
     }
 
     /// Step end times of `advance` from `state` to `t_end`.
@@ -1922,7 +1690,7 @@ mod tests {
     #[test]
     fn a_fixed_step_run_continued_on_its_grid_is_the_same_run() {
         let h = 0.01;
-        let m = Method::Rk4 { step: h };
+        let m = rk4(h);
         let mut whole = HybridState::new(0.0, vec![1.0, 0.0]);
         let all = step_ends(m, &mut whole, 600.0 * h);
         let mut split = HybridState::new(0.0, vec![1.0, 0.0]);
@@ -1936,7 +1704,7 @@ mod tests {
     #[test]
     fn a_fixed_step_run_stopped_off_its_grid_returns_to_it() {
         let h = 0.01;
-        let m = Method::Rk4 { step: h };
+        let m = rk4(h);
         let mut s = HybridState::new(0.0, vec![1.0, 0.0]);
         // Stopped between grid points 3 and 4: the last step is shortened to 0.035 and the next
         // run steps to grid point 4, not to 0.045.
@@ -1948,18 +1716,14 @@ mod tests {
         assert_eq!(next[1], 5.0 * h);
         // A new step size lays a new grid from the state's time.
         let mut again = s.clone();
-        step_ends(Method::Rk4 { step: 0.02 }, &mut again, 0.2);
+        step_ends(rk4(0.02), &mut again, 0.2);
         assert_eq!(again.stepper.grid_origin, 0.1);
         assert_eq!(again.stepper.grid_step, 0.02);
     }
 
     #[test]
     fn an_adaptive_run_continues_with_its_controller_memory() {
-        let m = Method::Dopri5 {
-            rtol: 1e-8,
-            atol: 1e-10,
-            max_step: f64::INFINITY,
-        };
+        let m = dopri5(1e-8, 1e-10, f64::INFINITY);
         let mut s = HybridState::new(0.0, vec![1.0, 0.0]);
         step_ends(m, &mut s, 1.0);
         let (h, err) = (s.stepper.next_step, s.stepper.last_error);

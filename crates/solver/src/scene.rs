@@ -19,6 +19,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
+use crate::ode::{Integrator, Method};
 
 /// A whole scene file.
 #[derive(Debug, Clone, Deserialize, Serialize)]
@@ -366,45 +367,69 @@ pub struct LoadSpec {
     pub frame: LoadFrame,
 }
 
-/// Integration methods selectable in a scene.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum IntegratorKind {
-    /// Classical Runge-Kutta, fixed `step`.
-    #[default]
-    Rk4,
-    /// Dormand-Prince 5(4), adaptive.
-    Dopri5,
-    /// Hairer's DOP853, order 8, adaptive: for tight tolerances.
-    Dop853,
-    /// Shampine & Reichelt's linearly implicit Rosenbrock method of order 2, adaptive: for stiff
-    /// contact.
-    Rosenbrock23,
+/// The integrator a scene selects by its name (`integrator = "dopri5"`): one of
+/// [`crate::ode::INTEGRATORS`], rk4 by default. An unknown name is rejected with the list of the
+/// known ones, as for any enumerated value.
+#[derive(Debug, Clone, Copy)]
+pub struct IntegratorKind(pub &'static Integrator);
+
+impl Default for IntegratorKind {
+    fn default() -> Self {
+        IntegratorKind(&crate::ode::rk4::RK4)
+    }
 }
 
+impl PartialEq for IntegratorKind {
+    fn eq(&self, other: &Self) -> bool {
+        std::ptr::eq(self.0, other.0)
+    }
+}
+
+impl Eq for IntegratorKind {}
+
 impl IntegratorKind {
-    /// The method of this kind: `step` (s) for rk4, the tolerances and step bound (s) for the
-    /// adaptive kinds (the other settings are ignored). The callers check the values.
-    pub fn method(self, step: f64, rtol: f64, atol: f64, max_step: f64) -> crate::ode::Method {
-        use crate::ode::Method;
-        match self {
-            IntegratorKind::Rk4 => Method::Rk4 { step },
-            IntegratorKind::Dopri5 => Method::Dopri5 {
-                rtol,
-                atol,
-                max_step,
-            },
-            IntegratorKind::Dop853 => Method::Dop853 {
-                rtol,
-                atol,
-                max_step,
-            },
-            IntegratorKind::Rosenbrock23 => Method::Rosenbrock23 {
-                rtol,
-                atol,
-                max_step,
-            },
+    /// The method of this kind ([`Integrator::method`]): the tolerances and step bound (s) for
+    /// an integrator with error control, else `step` (s) (the other settings are ignored). The
+    /// callers check the values.
+    pub fn method(self, step: f64, rtol: f64, atol: f64, max_step: f64) -> Method {
+        self.0.method(step, rtol, atol, max_step)
+    }
+}
+
+impl Serialize for IntegratorKind {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        let index = Integrator::names()
+            .iter()
+            .position(|n| *n == self.0.name)
+            .unwrap_or_default();
+        s.serialize_unit_variant("IntegratorKind", index as u32, self.0.name)
+    }
+}
+
+impl<'de> Deserialize<'de> for IntegratorKind {
+    /// Read as an enumeration of the integrators' names, so that errors read as those of any
+    /// other enumerated value.
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        struct Names;
+        impl<'de> serde::de::Visitor<'de> for Names {
+            type Value = IntegratorKind;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("an integrator name")
+            }
+            fn visit_enum<A: serde::de::EnumAccess<'de>>(
+                self,
+                data: A,
+            ) -> std::result::Result<IntegratorKind, A::Error> {
+                use serde::de::{Error as _, VariantAccess as _};
+                let (name, variant): (String, _) = data.variant()?;
+                let Some(integrator) = Integrator::named(&name) else {
+                    return Err(A::Error::unknown_variant(&name, Integrator::names()));
+                };
+                variant.unit_variant()?;
+                Ok(IntegratorKind(integrator))
+            }
         }
+        d.deserialize_enum("IntegratorKind", Integrator::names(), Names)
     }
 }
 
@@ -697,6 +722,77 @@ clearance = {{ ball_radius = 0.01, radial_clearance = 1e-4, normal = {normal} }}
                     "law.toml: joints[0].clearance.normal.{field}: TOML parse error"
                 )) && err.contains(&format!("unknown field `{field}`")),
                 "{law}, {field}: {err}"
+            );
+        }
+    }
+
+    /// A scene's `[solver]` table with `integrator = name` and the given other keys.
+    fn solver(name: &str, keys: &str) -> Result<SolverSpec> {
+        let text = format!("[solver]\nintegrator = \"{name}\"\n{keys}\nend_time = 1.0\n");
+        SceneSpec::parse(&text, Path::new("solver.toml")).map(|s| s.solver)
+    }
+
+    /// The integrator names scenes accept, each giving its method: rk4 at its fixed step, the
+    /// others adaptive with the tolerances and step bound. An unknown name is rejected with the
+    /// list of the known ones, and the name is written back as it was read.
+    #[test]
+    fn every_scene_integrator_name_is_accepted() {
+        let accepted = [
+            ("rk4", "rk4, fixed step 2e-3 s"),
+            ("dopri5", "dopri5, rtol 1e-7, atol 1e-9, max step 1e-1 s"),
+            ("dop853", "dop853, rtol 1e-7, atol 1e-9, max step 1e-1 s"),
+            (
+                "rosenbrock23",
+                "rosenbrock23, rtol 1e-7, atol 1e-9, max step 1e-1 s",
+            ),
+        ];
+        for (name, described) in accepted {
+            let sv = solver(
+                name,
+                "step = 2e-3\nrtol = 1e-7\natol = 1e-9\nmax_step = 0.1",
+            )
+            .unwrap();
+            let method = sv
+                .integrator
+                .method(sv.step, sv.rtol, sv.atol, sv.max_step.unwrap());
+            assert_eq!(
+                (method.family(), method.describe().as_str()),
+                (name, described)
+            );
+            let written = toml::to_string(&sv).unwrap();
+            assert!(
+                written.contains(&format!("integrator = \"{name}\"")),
+                "{written}"
+            );
+        }
+        assert_eq!(
+            SolverSpec::default()
+                .integrator
+                .method(1e-3, 1e-6, 1e-9, 1.0)
+                .family(),
+            "rk4"
+        );
+        for name in ["dopri5_fixed", "rk45", "DOPRI5"] {
+            let err = solver(name, "").unwrap_err().to_string();
+            assert!(
+                err.starts_with("solver.toml: solver.integrator: TOML parse error at line 2, column 14")
+                    && err.contains(&format!(
+                        "unknown variant `{name}`, expected one of `rk4`, `dopri5`, `dop853`, `rosenbrock23`"
+                    )),
+                "{name}: {err}"
+            );
+        }
+    }
+
+    /// Every registered integrator is a scene integrator under its name.
+    #[test]
+    fn every_registered_integrator_parses_from_its_name() {
+        for &integrator in crate::ode::INTEGRATORS {
+            let sv = solver(integrator.name, "").unwrap();
+            assert!(
+                std::ptr::eq(sv.integrator.0, integrator),
+                "{}",
+                integrator.name
             );
         }
     }

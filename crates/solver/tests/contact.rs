@@ -9,6 +9,7 @@ use std::path::Path;
 use jointplay_solver::contact::{Damping, hunt_crossley_restitution, point_contact_stiffness};
 use jointplay_solver::model::{Model, State};
 use jointplay_solver::ode::Method;
+use jointplay_solver::ode::dopri5::DOPRI5;
 use jointplay_solver::scene::{SceneFile, SceneSpec};
 
 /// A 1 kg ball (radius 15 mm) in a socket fixed to the ground, clearance `c`, with the given
@@ -67,11 +68,7 @@ fn compile(f: &SceneFile) -> (Model, State) {
 use common::run_samples as run;
 
 fn tight(max_step: f64) -> Method {
-    Method::Dopri5 {
-        rtol: 1e-11,
-        atol: 1e-14,
-        max_step,
-    }
+    Method::adaptive(&DOPRI5, 1e-11, 1e-14, max_step).unwrap()
 }
 
 const E: f64 = 207e9;
@@ -283,11 +280,7 @@ fn response_approaches_the_ideal_joint_as_the_clearance_closes() {
         run(
             &m,
             &mut s,
-            Method::Dopri5 {
-                rtol: 1e-9,
-                atol: 1e-12,
-                max_step: 1e-3,
-            },
+            Method::adaptive(&DOPRI5, 1e-9, 1e-12, 1e-3).unwrap(),
             1.0,
             &samples,
         )

@@ -7,6 +7,8 @@ use std::path::PathBuf;
 use jointplay_solver::dynamics::Workspace;
 use jointplay_solver::model::{Model, State};
 use jointplay_solver::ode::Method;
+use jointplay_solver::ode::dopri5::DOPRI5;
+use jointplay_solver::ode::rk4::RK4;
 use jointplay_solver::scene::{SceneFile, SceneSpec};
 use nalgebra::{Matrix3, Vector3};
 
@@ -83,11 +85,7 @@ fn run(
 }
 
 fn tight() -> Method {
-    Method::Dopri5 {
-        rtol: 1e-11,
-        atol: 1e-12,
-        max_step: f64::INFINITY,
-    }
+    Method::adaptive(&DOPRI5, 1e-11, 1e-12, f64::INFINITY).unwrap()
 }
 
 /// The period of the pendulum scene released from theta0, measured with the scene's integrator
@@ -178,11 +176,7 @@ fn torque_free_body_conserves_energy_and_momentum_and_flips() {
     let samples = run(
         &model,
         &mut state,
-        Method::Dopri5 {
-            rtol: 1e-10,
-            atol: 1e-12,
-            max_step: f64::INFINITY,
-        },
+        Method::adaptive(&DOPRI5, 1e-10, 1e-12, f64::INFINITY).unwrap(),
         30.0,
         0.01,
     );
@@ -229,11 +223,7 @@ fn slider_crank_follows_closed_form_kinematics() {
     let samples = run(
         &model,
         &mut state,
-        Method::Dopri5 {
-            rtol: 1e-10,
-            atol: 1e-12,
-            max_step: f64::INFINITY,
-        },
+        Method::adaptive(&DOPRI5, 1e-10, 1e-12, f64::INFINITY).unwrap(),
         2.0 * period,
         period / 200.0,
     );
@@ -291,7 +281,13 @@ fn ideal_4ups_rpu_follows_trajectory_69_with_finite_consistent_actuator_forces()
     let period = model.settings.period.unwrap();
     let w = 2.0 * std::f64::consts::PI / period;
     // One full drive period at the paper's RK4 step, sampled every 5 ms.
-    let samples = run(&model, &mut state, Method::Rk4 { step: 1e-4 }, period, 5e-3);
+    let samples = run(
+        &model,
+        &mut state,
+        Method::fixed(&RK4, 1e-4).unwrap(),
+        period,
+        5e-3,
+    );
     let plat = model
         .bodies
         .iter()
@@ -377,7 +373,13 @@ fn pendulum_drift(alpha: f64, beta: f64, t_end: f64) -> (f64, f64) {
     let (mut model, mut state) = scene("pendulum.toml");
     model.settings.alpha = alpha;
     model.settings.beta = beta;
-    let samples = run(&model, &mut state, Method::Rk4 { step: 1e-2 }, t_end, 0.1);
+    let samples = run(
+        &model,
+        &mut state,
+        Method::fixed(&RK4, 1e-2).unwrap(),
+        t_end,
+        0.1,
+    );
     let mut ws = Workspace::new(&model);
     let d: Vec<f64> = samples
         .iter()
@@ -416,7 +418,7 @@ fn rk4_on_the_pendulum_mechanism_converges_with_order_four() {
     };
     let reference = at(tight());
     let err = |h: f64| {
-        let y = at(Method::Rk4 { step: h });
+        let y = at(Method::fixed(&RK4, h).unwrap());
         ((y[0] - reference[0]).powi(2) + (y[1] - reference[1]).powi(2)).sqrt()
     };
     let (e1, e2) = (err(0.02), err(0.01));
@@ -437,7 +439,7 @@ fn ideal_4ups_rpu_drift_stays_bounded_over_ten_periods() {
     let samples = run(
         &model,
         &mut state,
-        Method::Rk4 { step: 1e-4 },
+        Method::fixed(&RK4, 1e-4).unwrap(),
         10.0 * period,
         0.05,
     );

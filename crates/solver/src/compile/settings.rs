@@ -6,32 +6,36 @@ use super::{Ctx, positive};
 use crate::clearance::Geometry;
 use crate::error::Result;
 use crate::model::{Body, Drive, Effects, Joint, Model, Outputs, Settings};
-use crate::ode::Method;
-use crate::scene::{IntegratorKind, OutputSpec, SolverSpec};
+use crate::ode::Accuracy;
+use crate::scene::{OutputSpec, SolverSpec};
 
 /// The `[solver]` settings of a scene with these drives.
 pub(crate) fn settings(sv: &SolverSpec, drives: &[Drive], cx: &Ctx) -> Result<Settings> {
-    // rk4 needs its step; the adaptive integrators share their settings and checks.
+    // A fixed-step method needs its step; the adaptive ones share their settings and checks.
     let max_step = sv.max_step.unwrap_or(f64::INFINITY);
-    if sv.integrator == IntegratorKind::Rk4 {
-        if sv.step <= 0.0 {
-            return Err(cx.err(
-                "solver.step",
-                format!("must be positive, got {} s", sv.step),
-            ));
+    let method = sv.integrator.method(sv.step, sv.rtol, sv.atol, max_step);
+    match method.accuracy() {
+        Accuracy::Fixed { step } => {
+            if step <= 0.0 {
+                return Err(cx.err("solver.step", format!("must be positive, got {step} s")));
+            }
         }
-    } else {
-        if sv.rtol <= 0.0 {
-            return Err(cx.err("solver.rtol", "must be positive"));
-        }
-        if sv.atol <= 0.0 {
-            return Err(cx.err("solver.atol", "must be positive"));
-        }
-        if max_step <= 0.0 {
-            return Err(cx.err("solver.max_step", "must be positive"));
+        Accuracy::Adaptive {
+            rtol,
+            atol,
+            max_step,
+        } => {
+            if rtol <= 0.0 {
+                return Err(cx.err("solver.rtol", "must be positive"));
+            }
+            if atol <= 0.0 {
+                return Err(cx.err("solver.atol", "must be positive"));
+            }
+            if max_step <= 0.0 {
+                return Err(cx.err("solver.max_step", "must be positive"));
+            }
         }
     }
-    let method = sv.integrator.method(sv.step, sv.rtol, sv.atol, max_step);
     if sv.baumgarte_alpha < 0.0 {
         return Err(cx.err("solver.baumgarte_alpha", "must not be negative"));
     }
@@ -42,11 +46,9 @@ pub(crate) fn settings(sv: &SolverSpec, drives: &[Drive], cx: &Ctx) -> Result<Se
     let end_time = end_time(sv, period, cx)?;
     // A step so small that the run could never finish is a mistake, not a setting.
     let span = end_time - sv.start_time;
-    let (step_field, step) = match method {
-        Method::Dopri5 { max_step, .. }
-        | Method::Dop853 { max_step, .. }
-        | Method::Rosenbrock23 { max_step, .. } => ("solver.max_step", max_step),
-        _ => ("solver.step", method.fixed_step().unwrap_or(f64::INFINITY)),
+    let (step_field, step) = match method.accuracy() {
+        Accuracy::Fixed { step } => ("solver.step", step),
+        Accuracy::Adaptive { max_step, .. } => ("solver.max_step", max_step),
     };
     if span / step > 1e12 {
         return Err(cx.err(

@@ -1,0 +1,83 @@
+//! The classical Runge-Kutta method of order 4 (Kutta, Z. Math. Phys. 46:435-453, 1901), at a
+//! fixed step, with a cubic Hermite dense output built from the end-point values and slopes
+//! (local interpolation error O(h^4), the order of the method itself). 4 right-hand-side
+//! evaluations per step (the 5th, f at the new state, is the next step's first).
+
+use super::{Fixed, Integrator, OdeSystem, Stats, Stepper, Work, polynomial};
+use crate::error::Result;
+
+/// RK4: fixed step only; the family `rk4` in studies.
+pub static RK4: Integrator = Integrator {
+    name: "rk4",
+    order: 4,
+    adaptive: None,
+    fixed: Some(Fixed {
+        family: "rk4",
+        default_steps: &[4.0, 2.0, 1.0, 0.5, 0.25, 0.125],
+    }),
+    stability,
+    stages: 5,
+    dense_len: 0,
+    fsal: 4,
+    jacobian: false,
+    stepper: &Rk4,
+};
+
+/// R(z) = sum_{k<=4} z^k / k!.
+fn stability(re: f64, im: f64) -> (f64, f64) {
+    polynomial(&[1.0, 1.0, 0.5, 1.0 / 6.0, 1.0 / 24.0], re, im)
+}
+
+struct Rk4;
+
+impl Stepper for Rk4 {
+    /// One RK4 step from (t, y) with k1 = f(t, y) already in `w.k[0]`; result in `w.y_new`,
+    /// and `w.k[4]` = f(t + h, y_new) (the next step's first stage, used by the dense output).
+    fn step(
+        &self,
+        sys: &mut dyn OdeSystem,
+        t: f64,
+        y: &[f64],
+        h: f64,
+        w: &mut Work,
+        stats: &mut Stats,
+        _retry: bool,
+    ) -> Result<()> {
+        let n = y.len();
+        let [k1, k2, k3, k4, k5] = &mut w.k[..] else {
+            unreachable!("RK4 has five stage vectors")
+        };
+        for i in 0..n {
+            w.tmp[i] = y[i] + 0.5 * h * k1[i];
+        }
+        sys.rhs(t + 0.5 * h, &w.tmp, k2);
+        for i in 0..n {
+            w.tmp[i] = y[i] + 0.5 * h * k2[i];
+        }
+        sys.rhs(t + 0.5 * h, &w.tmp, k3);
+        for i in 0..n {
+            w.tmp[i] = y[i] + h * k3[i];
+        }
+        sys.rhs(t + h, &w.tmp, k4);
+        for i in 0..n {
+            w.y_new[i] = y[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+        }
+        sys.rhs(t + h, &w.y_new, k5);
+        stats.rhs_evals += 4;
+        Ok(())
+    }
+
+    /// Cubic Hermite interpolation on [t, t+h] from y0, f0 (k[0]) and y1, f1 (k[4]).
+    fn eval(&self, y0: &[f64], w: &Work, h: f64, theta: f64, out: &mut [f64]) {
+        let f0 = &w.k[0];
+        let f1 = &w.k[4];
+        for i in 0..out.len() {
+            let dy = w.y_new[i] - y0[i];
+            out[i] = (1.0 - theta) * y0[i]
+                + theta * w.y_new[i]
+                + theta
+                    * (theta - 1.0)
+                    * ((1.0 - 2.0 * theta) * dy + (theta - 1.0) * h * f0[i] + theta * h * f1[i]);
+        }
+    }
+}
