@@ -26,11 +26,12 @@ use crate::nlfigures::render;
 use crate::plot::{Format, Panel, Series, figure};
 use crate::precision::Outcome;
 use crate::report::norm;
-use crate::run::{Recording, RunResult};
+use crate::run::{Channel, Recording, RunResult};
 use crate::study::ReportSpec;
 
-fn col3(v: &[[f64; 3]], k: usize, scale: f64) -> Vec<f64> {
-    v.iter().map(|p| p[k] * scale).collect()
+/// Metres to millimetres.
+fn mm(v: &[f64]) -> Vec<f64> {
+    v.iter().map(|x| x * 1e3).collect()
 }
 
 /// The clearance circle of radius `r_mm` (mm), for orbit panels drawn in mm.
@@ -55,35 +56,30 @@ fn write(out: &Path, stem: &str, panels: &[Panel], cols: usize) -> Result<Vec<Pa
 }
 
 /// Draws the study figures into `out` and returns the files written.
-pub fn study_figures(
+pub fn study_figures<'a>(
     out: &Path,
     name: &str,
     spec: &ReportSpec,
-    runs: &[(&str, &Recording)],
+    runs: &[(&str, &'a Recording)],
 ) -> Result<Vec<PathBuf>> {
     let mut files = Vec::new();
     let axes = spec.axis_list();
     if let Some(body) = &spec.body {
         let mut panels = Vec::new();
         for (what, ds, unit) in [
-            ("displacement", 0, "m"),
-            ("velocity", 1, "m/s"),
-            ("acceleration", 2, "m/s^2"),
+            ("displacement", "position", "m"),
+            ("velocity", "velocity", "m/s"),
+            ("acceleration", "acceleration", "m/s^2"),
         ] {
             for &(a, ax) in &axes {
                 let series = runs
                     .iter()
                     .filter_map(|(label, rec)| {
-                        let b = rec.bodies.iter().find(|b| &b.name == body)?;
-                        let v = match ds {
-                            0 => &b.position,
-                            1 => &b.velocity,
-                            _ => &b.acceleration,
-                        };
-                        (!v.is_empty()).then(|| Series {
+                        let v = rec.channel(&format!("bodies/{body}/{ds}"))?;
+                        (!v.values.is_empty()).then(|| Series {
                             label: (*label).to_string(),
                             x: rec.time.clone(),
-                            y: col3(v, a, 1.0),
+                            y: v.column(a),
                         })
                     })
                     .collect::<Vec<_>>();
@@ -102,19 +98,17 @@ pub fn study_figures(
     for j in &spec.joints {
         let mut series = Vec::new();
         for (label, rec) in runs {
-            let found = match rec.clearances.iter().find(|c| &c.name == j) {
-                Some(c) => Some(("contact", &c.force_journal)),
+            let found = match rec.channel(&format!("joints/{j}/force_on_journal")) {
+                Some(c) => Some(("contact", c)),
                 None => rec
-                    .joints
-                    .iter()
-                    .find(|r| &r.name == j)
-                    .map(|r| ("ideal, reaction", &r.force)),
+                    .channel(&format!("joints/{j}/reaction_force"))
+                    .map(|c| ("ideal, reaction", c)),
             };
             if let Some((what, forces)) = found {
                 series.push(Series {
                     label: format!("{label} ({what})"),
                     x: rec.time.clone(),
-                    y: forces.iter().map(norm).collect(),
+                    y: forces.vectors().iter().map(norm).collect(),
                 });
             }
         }
@@ -133,24 +127,31 @@ pub fn study_figures(
                 rec.clearances
                     .iter()
                     .find(|c| &c.name == j)
-                    .map(|c| (*label, c))
+                    .map(|c| (*label, rec, c))
             })
             .collect();
+        // A channel of joint j that every run with clearance in it has.
+        let ch = |rec: &'a Recording, q: &str| -> &'a Channel {
+            rec.channel(&format!("joints/{j}/{q}"))
+                .unwrap_or_else(|| panic!("a clearance joint records {q}"))
+        };
         let Some(cmax) = with
             .iter()
-            .map(|(_, c)| c.radial_clearance)
+            .map(|(_, _, c)| c.radial_clearance)
             .reduce(f64::max)
         else {
             continue;
         };
         let lim = 1.25 * cmax * 1e3;
-        let ends: Vec<(&str, Option<usize>)> =
-            if with.iter().all(|(_, c)| !c.end_eccentricity.is_empty()) {
-                vec![("end at rim P", Some(0)), ("end at rim Q", Some(2))]
-            } else {
-                vec![("centre", None)]
-            };
-        let spherical = with.iter().all(|(_, c)| c.spherical);
+        let ends: Vec<(&str, Option<usize>)> = if with.iter().all(|(_, rec, _)| {
+            rec.channel(&format!("joints/{j}/end_eccentricity"))
+                .is_some_and(|c| !c.values.is_empty())
+        }) {
+            vec![("end at rim P", Some(0)), ("end at rim Q", Some(2))]
+        } else {
+            vec![("centre", None)]
+        };
+        let spherical = with.iter().all(|(_, _, c)| c.spherical);
         let (p0, p1) = (
             axes.first().map(|a| a.0).unwrap_or(0),
             axes.get(1).map(|a| a.0).unwrap_or(1),
@@ -158,21 +159,13 @@ pub fn study_figures(
         for (end, col) in ends {
             let mut series: Vec<Series> = with
                 .iter()
-                .map(|(label, c)| {
-                    let (x, y) = match col {
-                        Some(k) => (
-                            c.end_eccentricity.iter().map(|e| e[k] * 1e3).collect(),
-                            c.end_eccentricity.iter().map(|e| e[k + 1] * 1e3).collect(),
-                        ),
-                        None if spherical => (
-                            col3(&c.eccentricity_global, p0, 1e3),
-                            col3(&c.eccentricity_global, p1, 1e3),
-                        ),
-                        None => (
-                            c.radial_eccentricity.iter().map(|e| e[0] * 1e3).collect(),
-                            c.radial_eccentricity.iter().map(|e| e[1] * 1e3).collect(),
-                        ),
+                .map(|(label, rec, _)| {
+                    let (e, kx, ky) = match col {
+                        Some(k) => (ch(rec, "end_eccentricity"), k, k + 1),
+                        None if spherical => (ch(rec, "eccentricity_global"), p0, p1),
+                        None => (ch(rec, "radial_eccentricity"), 0, 1),
                     };
+                    let (x, y) = (mm(&e.column(kx)), mm(&e.column(ky)));
                     Series {
                         label: (*label).to_string(),
                         x,
@@ -180,7 +173,7 @@ pub fn study_figures(
                     }
                 })
                 .collect();
-            let mut radii: Vec<f64> = with.iter().map(|(_, c)| c.radial_clearance).collect();
+            let mut radii: Vec<f64> = with.iter().map(|(_, _, c)| c.radial_clearance).collect();
             radii.sort_by(f64::total_cmp);
             radii.dedup_by(|a, b| (*a - *b).abs() < 1e-12);
             series.extend(radii.iter().map(|r| circle(r * 1e3)));
@@ -229,56 +222,64 @@ pub fn study_figures(
 pub fn run_figures(out: &Path, name: &str, run: &RunResult) -> Result<Vec<PathBuf>> {
     let rec = &run.recording;
     let t = &rec.time;
-    let comp = |v: &[[f64; 3]], k: usize| v.iter().map(|p| p[k]).collect::<Vec<_>>();
+    let channel = |d: String| {
+        rec.channel(&d)
+            .unwrap_or_else(|| panic!("a recording has its member's {d}"))
+    };
     let mut files = Vec::new();
     let mut sets: Vec<(String, Vec<Panel>)> = Vec::new();
     let body_panels: Vec<Panel> = rec
-        .bodies
-        .iter()
+        .members("bodies")
         .take(12)
-        .map(|b| Panel {
-            title: format!("{}: centre of mass", b.name),
-            x_label: "time t (s)".into(),
-            y_label: "position (m)".into(),
-            series: ["x", "y", "z"]
-                .iter()
-                .enumerate()
-                .map(|(k, l)| Series {
-                    label: (*l).into(),
-                    x: t.clone(),
-                    y: comp(&b.position, k),
-                })
-                .collect(),
-            ..Panel::default()
+        .map(|b| {
+            let position = channel(format!("bodies/{b}/position"));
+            Panel {
+                title: format!("{b}: centre of mass"),
+                x_label: "time t (s)".into(),
+                y_label: "position (m)".into(),
+                series: ["x", "y", "z"]
+                    .iter()
+                    .enumerate()
+                    .map(|(k, l)| Series {
+                        label: (*l).into(),
+                        x: t.clone(),
+                        y: position.column(k),
+                    })
+                    .collect(),
+                ..Panel::default()
+            }
         })
         .collect();
     sets.push((format!("{name}-positions"), body_panels));
-    if !rec.drives.is_empty() {
+    let drives: Vec<(&str, &Channel)> = rec
+        .members("drives")
+        .map(|d| (d, channel(format!("drives/{d}/force"))))
+        .collect();
+    if !drives.is_empty() {
         sets.push((
             format!("{name}-drives"),
             vec![Panel {
                 title: "Actuator forces".into(),
                 x_label: "time t (s)".into(),
-                y_label: if rec.drives.iter().all(|d| d.rotational) {
+                y_label: if drives.iter().all(|(_, f)| f.unit == "N m") {
                     "torque (N m)"
                 } else {
                     "force (N) or torque (N m)"
                 }
                 .into(),
-                series: rec
-                    .drives
+                series: drives
                     .iter()
-                    .map(|d| Series {
-                        label: d.name.clone(),
+                    .map(|(d, f)| Series {
+                        label: d.to_string(),
                         x: t.clone(),
-                        y: d.force.clone(),
+                        y: f.values.clone(),
                     })
                     .collect(),
                 ..Panel::default()
             }],
         ));
     }
-    if let Some(d) = &rec.diagnostics {
+    if let Some(drift) = rec.channel("diagnostics/constraint_drift") {
         let mut panels = vec![Panel {
             title: "Constraint drift".into(),
             x_label: "time t (s)".into(),
@@ -287,29 +288,33 @@ pub fn run_figures(out: &Path, name: &str, run: &RunResult) -> Result<Vec<PathBu
                 Series {
                     label: "position |Phi|".into(),
                     x: t.clone(),
-                    y: d.constraint_drift.clone(),
+                    y: drift.values.clone(),
                 },
                 Series {
                     label: "velocity |Phi'|".into(),
                     x: t.clone(),
-                    y: d.velocity_drift.clone(),
+                    y: channel("diagnostics/velocity_drift".into()).values.clone(),
                 },
             ],
             log_y: true,
             ..Panel::default()
         }];
-        if !d.energy.is_empty() {
+        if let Some(energy) = rec
+            .channel("diagnostics/energy")
+            .map(|c| &c.values)
+            .filter(|e| !e.is_empty())
+        {
             panels.push(Panel {
                 title: format!(
                     "Mechanical energy change (E(0) = {:.6e} J)",
-                    d.energy.first().copied().unwrap_or(0.0)
+                    energy.first().copied().unwrap_or(0.0)
                 ),
                 x_label: "time t (s)".into(),
                 y_label: "E - E(0) (J)".into(),
                 series: vec![Series {
                     label: "energy".into(),
                     x: t.clone(),
-                    y: d.energy.iter().map(|e| e - d.energy[0]).collect(),
+                    y: energy.iter().map(|e| e - energy[0]).collect(),
                 }],
                 ..Panel::default()
             });
@@ -317,8 +322,9 @@ pub fn run_figures(out: &Path, name: &str, run: &RunResult) -> Result<Vec<PathBu
         sets.push((format!("{name}-diagnostics"), panels));
     }
     for c in &rec.clearances {
-        let nc = c.contacts.len();
         let lim = 1.25 * c.radial_clearance * 1e3;
+        let orbit = channel(format!("joints/{}/radial_eccentricity", c.name));
+        let normal = channel(format!("joints/{}/normal_force", c.name));
         let orbit = Panel {
             x_range: Some((-lim, lim)),
             y_range: Some((-lim, lim)),
@@ -329,8 +335,8 @@ pub fn run_figures(out: &Path, name: &str, run: &RunResult) -> Result<Vec<PathBu
                 vec![
                     Series {
                         label: "journal centre".into(),
-                        x: c.radial_eccentricity.iter().map(|e| e[0] * 1e3).collect(),
-                        y: c.radial_eccentricity.iter().map(|e| e[1] * 1e3).collect(),
+                        x: mm(&orbit.column(0)),
+                        y: mm(&orbit.column(1)),
                     },
                     circle(c.radial_clearance * 1e3),
                 ],
@@ -346,7 +352,7 @@ pub fn run_figures(out: &Path, name: &str, run: &RunResult) -> Result<Vec<PathBu
                 .map(|(k, n)| Series {
                     label: n.clone(),
                     x: t.clone(),
-                    y: c.normal_force.iter().skip(k).step_by(nc).copied().collect(),
+                    y: normal.column(k),
                 })
                 .collect(),
         );

@@ -1,7 +1,7 @@
 //! # jointplay-analysis
 //!
 //! Runs of a compiled model and what comes out of them: [`run`] integrates a model and records the
-//! requested outputs at exact sample times; [`h5`] writes a recording to HDF5 (layout in the
+//! requested outputs, observables of [`observe`], at exact sample times; [`h5`] writes a recording to HDF5 (layout in the
 //! README); [`study`] reads study files (several cases of a scene, edited by path) and
 //! [`report`] computes their comparison table from the written file; [`plot`] draws figures as PNG and SVG with an embedded font (no system fonts needed).
 //!
