@@ -1,4 +1,6 @@
-//! HDF5 export of a run (layout documented in the README, "HDF5 layout").
+//! HDF5 export of a run (layout documented in the README, "HDF5 layout"), and the small set of
+//! helpers every file kind is written and read with (attributes, datasets of one or two
+//! dimensions, rows of a sweep, strings).
 //!
 //! The file is written under a temporary name (`<name>.h5.partial`) and renamed only once it is
 //! complete and closed, so a crash or an error never leaves a file that looks finished.
@@ -8,7 +10,7 @@ use std::path::{Path, PathBuf};
 
 use hdf5::types::VarLenUnicode;
 use jointplay_solver::model::Model;
-use ndarray::{Array1, Array2};
+use ndarray::{Array1, Array2, s};
 
 use crate::run::{Attr, Recording, RunResult};
 use crate::{Error, Result};
@@ -75,18 +77,29 @@ pub(crate) fn f64_attr(loc: &hdf5::Location, name: &str, value: f64) -> hdf5::Re
     loc.new_attr::<f64>().create(name)?.write_scalar(&value)
 }
 
-/// Writes a u8 attribute, creating it or overwriting its value.
-pub(crate) fn u8_attr_set(loc: &hdf5::Location, name: &str, v: u8) -> hdf5::Result<()> {
+/// Writes a scalar attribute, creating it or overwriting its value.
+fn attr_set<T: hdf5::H5Type>(loc: &hdf5::Location, name: &str, v: T) -> hdf5::Result<()> {
     match loc.attr(name) {
         Ok(a) => a.write_scalar(&v),
-        Err(_) => loc.new_attr::<u8>().create(name)?.write_scalar(&v),
+        Err(_) => loc.new_attr::<T>().create(name)?.write_scalar(&v),
     }
+}
+
+/// Writes a u8 attribute, creating it or overwriting its value.
+pub(crate) fn u8_attr_set(loc: &hdf5::Location, name: &str, v: u8) -> hdf5::Result<()> {
+    attr_set(loc, name, v)
+}
+
+/// Writes an f64 attribute, creating it or overwriting its value.
+pub(crate) fn f64_attr_set(loc: &hdf5::Location, name: &str, v: f64) -> hdf5::Result<()> {
+    attr_set(loc, name, v)
 }
 
 pub(crate) fn u64_attr(loc: &hdf5::Location, name: &str, value: u64) -> hdf5::Result<()> {
     loc.new_attr::<u64>().create(name)?.write_scalar(&value)
 }
 
+/// Writes a one-dimensional f64 dataset with its unit and description.
 pub(crate) fn write1(
     g: &hdf5::Group,
     name: &str,
@@ -94,11 +107,102 @@ pub(crate) fn write1(
     unit: &str,
     desc: &str,
 ) -> hdf5::Result<()> {
+    write_column(g, name, data, Some(unit), desc)
+}
+
+/// Writes a one-dimensional dataset with its unit (unless `None`) and description.
+pub(crate) fn write_column<T: hdf5::H5Type + Clone>(
+    g: &hdf5::Group,
+    name: &str,
+    data: &[T],
+    unit: Option<&str>,
+    desc: &str,
+) -> hdf5::Result<()> {
     let ds = g
         .new_dataset_builder()
         .with_data(&Array1::from(data.to_vec()))
         .create(name)?;
+    describe(&ds, unit, desc)
+}
+
+/// Writes a one-dimensional dataset of strings with its description.
+pub(crate) fn write_strings(
+    g: &hdf5::Group,
+    name: &str,
+    data: &[String],
+    desc: &str,
+) -> hdf5::Result<()> {
+    let data = data
+        .iter()
+        .map(|s| s.replace('\0', " ").parse::<VarLenUnicode>())
+        .collect::<std::result::Result<Vec<_>, _>>()
+        .map_err(|e| hdf5::Error::from(format!("{e:?}")))?;
+    write_column(g, name, &data, None, desc)
+}
+
+/// Creates an f64 dataset of `shape` filled with NaN (values not computed yet), with its unit and
+/// description.
+pub(crate) fn create_nan(
+    g: &hdf5::Group,
+    name: &str,
+    shape: &[usize],
+    unit: &str,
+    desc: &str,
+) -> hdf5::Result<()> {
+    let ds = g
+        .new_dataset::<f64>()
+        .shape(shape)
+        .fill_value(f64::NAN)
+        .create(name)?;
     describe(&ds, Some(unit), desc)
+}
+
+/// Writes row `row` of the two-dimensional dataset `name`; `data` must fill the row.
+pub(crate) fn write_row(g: &hdf5::Group, name: &str, row: usize, data: &[f64]) -> hdf5::Result<()> {
+    let ds = g.dataset(name)?;
+    let cols = ds.shape()[1];
+    if data.len() != cols {
+        return Err(format!("{name}: {} values for {cols} columns", data.len()).into());
+    }
+    ds.write_slice(&Array1::from(data.to_vec()), s![row, ..])
+}
+
+/// Writes element `index` of the one-dimensional dataset `name`.
+pub(crate) fn write_element<T: hdf5::H5Type + Clone>(
+    g: &hdf5::Group,
+    name: &str,
+    index: usize,
+    v: T,
+) -> hdf5::Result<()> {
+    g.dataset(name)?
+        .write_slice(&Array1::from(vec![v]), s![index..index + 1])
+}
+
+/// Reads a string attribute.
+pub(crate) fn read_str(loc: &hdf5::Location, name: &str) -> hdf5::Result<String> {
+    Ok(loc.attr(name)?.read_scalar::<VarLenUnicode>()?.to_string())
+}
+
+/// Reads a scalar attribute of a number type.
+pub(crate) fn read_attr<T: hdf5::H5Type>(loc: &hdf5::Location, name: &str) -> hdf5::Result<T> {
+    loc.attr(name)?.read_scalar::<T>()
+}
+
+/// Reads a one-dimensional dataset of strings.
+pub(crate) fn read_strings(g: &hdf5::Group, name: &str) -> hdf5::Result<Vec<String>> {
+    Ok(g.dataset(name)?
+        .read_1d::<VarLenUnicode>()?
+        .iter()
+        .map(|v| v.as_str().to_string())
+        .collect())
+}
+
+/// Reads a dataset of f64 row by row (a one-dimensional dataset is one value per row).
+pub(crate) fn read_rows(g: &hdf5::Group, name: &str) -> hdf5::Result<Vec<Vec<f64>>> {
+    let ds = g.dataset(name)?;
+    let cols = ds.shape().get(1).copied().unwrap_or(1).max(1);
+    let raw = ds.read_raw::<f64>()?;
+    Ok(raw.chunks(cols).map(<[f64]>::to_vec).collect())
 }
 
 /// Writes the attributes `unit` (unless `None`) and `description` of a dataset.
@@ -315,15 +419,9 @@ pub fn read_series(path: &Path, dataset: &str, component: usize) -> Result<Serie
             });
         }
     };
-    let read_str = |loc: &hdf5::Location, name: &str| -> String {
-        loc.attr(name)
-            .and_then(|a| a.read_scalar::<VarLenUnicode>())
-            .map(|v| v.to_string())
-            .unwrap_or_default()
-    };
     Ok(SeriesData {
-        unit: read_str(&ds, "unit"),
-        scene_name: read_str(&file, "scene_name"),
+        unit: read_str(&ds, "unit").unwrap_or_default(),
+        scene_name: read_str(&file, "scene_name").unwrap_or_default(),
         time,
         values,
     })

@@ -22,7 +22,6 @@ pub mod figures;
 pub mod h5;
 pub mod hybrid;
 pub mod inputs;
-pub mod nlfigures;
 pub mod nonlinear;
 pub mod observe;
 pub mod plot;
