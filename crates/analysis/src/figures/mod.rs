@@ -1,9 +1,9 @@
 //! Every figure the program draws, as PNG and SVG over [`crate::plot`], one file per kind of
 //! figure, and the redrawing of a written file's figures.
 //!
-//! * [`run_figures`] ([`run`]) draws one run: body positions, actuator forces, constraint drift
-//!   and energy, and each clearance joint's orbit and contact forces.
-//! * [`study_figures`] ([`study`]) draws a comparison study, every case overlaid:
+//! * [`run_figures`] (file `run.rs`) draws one run: body positions, actuator forces, constraint
+//!   drift and energy, and each clearance joint's orbit and contact forces.
+//! * [`study_figures`] (file `study.rs`) draws a comparison study, every case overlaid:
 //!   * `<study>-motion`: the report body's centre-of-mass position, velocity and acceleration
 //!     along each report axis against time;
 //!   * `<study>-forces`: for each report joint, the magnitude of the contact force on the journal
