@@ -336,12 +336,16 @@ fn run(
         st.rhs_evals as f64 / wall.max(1e-9)
     );
     println!("wall time    {wall:.3} s (integration and recording)");
-    if let Some(d) = &result.recording.diagnostics {
+    let rec = &result.recording;
+    if let (Some(p), Some(v)) = (
+        rec.channel("diagnostics/constraint_drift"),
+        rec.channel("diagnostics/velocity_drift"),
+    ) {
         let max = |v: &[f64]| v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
         println!(
             "drift        max |Phi| {:.3e} (m, rad), max |Phi'| {:.3e} (m/s, rad/s)",
-            max(&d.constraint_drift),
-            max(&d.velocity_drift)
+            max(&p.values),
+            max(&v.values)
         );
     }
     println!("wrote        {}", file.display());

@@ -1,4 +1,6 @@
-//! HDF5 export of a run (layout documented in the README, "HDF5 layout").
+//! HDF5 export of a run (layout documented in the README, "HDF5 layout"), and the small set of
+//! helpers every file kind is written and read with (attributes, datasets of one or two
+//! dimensions, rows of a sweep, strings).
 //!
 //! The file is written under a temporary name (`<name>.h5.partial`) and renamed only once it is
 //! complete and closed, so a crash or an error never leaves a file that looks finished.
@@ -8,9 +10,9 @@ use std::path::{Path, PathBuf};
 
 use hdf5::types::VarLenUnicode;
 use jointplay_solver::model::Model;
-use ndarray::{Array1, Array2};
+use ndarray::{Array1, Array2, s};
 
-use crate::run::RunResult;
+use crate::run::{Attr, Recording, RunResult};
 use crate::{Error, Result};
 
 /// Run metadata written as root attributes.
@@ -75,18 +77,29 @@ pub(crate) fn f64_attr(loc: &hdf5::Location, name: &str, value: f64) -> hdf5::Re
     loc.new_attr::<f64>().create(name)?.write_scalar(&value)
 }
 
-/// Writes a u8 attribute, creating it or overwriting its value.
-pub(crate) fn u8_attr_set(loc: &hdf5::Location, name: &str, v: u8) -> hdf5::Result<()> {
+/// Writes a scalar attribute, creating it or overwriting its value.
+fn attr_set<T: hdf5::H5Type>(loc: &hdf5::Location, name: &str, v: T) -> hdf5::Result<()> {
     match loc.attr(name) {
         Ok(a) => a.write_scalar(&v),
-        Err(_) => loc.new_attr::<u8>().create(name)?.write_scalar(&v),
+        Err(_) => loc.new_attr::<T>().create(name)?.write_scalar(&v),
     }
+}
+
+/// Writes a u8 attribute, creating it or overwriting its value.
+pub(crate) fn u8_attr_set(loc: &hdf5::Location, name: &str, v: u8) -> hdf5::Result<()> {
+    attr_set(loc, name, v)
+}
+
+/// Writes an f64 attribute, creating it or overwriting its value.
+pub(crate) fn f64_attr_set(loc: &hdf5::Location, name: &str, v: f64) -> hdf5::Result<()> {
+    attr_set(loc, name, v)
 }
 
 pub(crate) fn u64_attr(loc: &hdf5::Location, name: &str, value: u64) -> hdf5::Result<()> {
     loc.new_attr::<u64>().create(name)?.write_scalar(&value)
 }
 
+/// Writes a one-dimensional f64 dataset with its unit and description.
 pub(crate) fn write1(
     g: &hdf5::Group,
     name: &str,
@@ -94,30 +107,114 @@ pub(crate) fn write1(
     unit: &str,
     desc: &str,
 ) -> hdf5::Result<()> {
+    write_column(g, name, data, Some(unit), desc)
+}
+
+/// Writes a one-dimensional dataset with its unit (unless `None`) and description.
+pub(crate) fn write_column<T: hdf5::H5Type + Clone>(
+    g: &hdf5::Group,
+    name: &str,
+    data: &[T],
+    unit: Option<&str>,
+    desc: &str,
+) -> hdf5::Result<()> {
     let ds = g
         .new_dataset_builder()
         .with_data(&Array1::from(data.to_vec()))
         .create(name)?;
-    str_attr(&ds, "unit", unit)?;
-    str_attr(&ds, "description", desc)
+    describe(&ds, unit, desc)
 }
 
-fn write_n<const N: usize>(
+/// Writes a one-dimensional dataset of strings with its description.
+pub(crate) fn write_strings(
     g: &hdf5::Group,
     name: &str,
-    data: &[[f64; N]],
+    data: &[String],
+    desc: &str,
+) -> hdf5::Result<()> {
+    let data = data
+        .iter()
+        .map(|s| s.replace('\0', " ").parse::<VarLenUnicode>())
+        .collect::<std::result::Result<Vec<_>, _>>()
+        .map_err(|e| hdf5::Error::from(format!("{e:?}")))?;
+    write_column(g, name, &data, None, desc)
+}
+
+/// Creates an f64 dataset of `shape` filled with NaN (values not computed yet), with its unit and
+/// description.
+pub(crate) fn create_nan(
+    g: &hdf5::Group,
+    name: &str,
+    shape: &[usize],
     unit: &str,
     desc: &str,
 ) -> hdf5::Result<()> {
-    let flat: Vec<f64> = data.iter().flatten().copied().collect();
-    let arr = Array2::from_shape_vec((data.len(), N), flat)
-        .map_err(|e| hdf5::Error::from(e.to_string()))?;
-    let ds = g.new_dataset_builder().with_data(&arr).create(name)?;
-    str_attr(&ds, "unit", unit)?;
-    str_attr(&ds, "description", desc)
+    let ds = g
+        .new_dataset::<f64>()
+        .shape(shape)
+        .fill_value(f64::NAN)
+        .create(name)?;
+    describe(&ds, Some(unit), desc)
 }
 
-pub(crate) fn write_matrix<T: hdf5::H5Type + Clone>(
+/// Writes row `row` of the two-dimensional dataset `name`; `data` must fill the row.
+pub(crate) fn write_row(g: &hdf5::Group, name: &str, row: usize, data: &[f64]) -> hdf5::Result<()> {
+    let ds = g.dataset(name)?;
+    let cols = ds.shape()[1];
+    if data.len() != cols {
+        return Err(format!("{name}: {} values for {cols} columns", data.len()).into());
+    }
+    ds.write_slice(&Array1::from(data.to_vec()), s![row, ..])
+}
+
+/// Writes element `index` of the one-dimensional dataset `name`.
+pub(crate) fn write_element<T: hdf5::H5Type + Clone>(
+    g: &hdf5::Group,
+    name: &str,
+    index: usize,
+    v: T,
+) -> hdf5::Result<()> {
+    g.dataset(name)?
+        .write_slice(&Array1::from(vec![v]), s![index..index + 1])
+}
+
+/// Reads a string attribute.
+pub(crate) fn read_str(loc: &hdf5::Location, name: &str) -> hdf5::Result<String> {
+    Ok(loc.attr(name)?.read_scalar::<VarLenUnicode>()?.to_string())
+}
+
+/// Reads a scalar attribute of a number type.
+pub(crate) fn read_attr<T: hdf5::H5Type>(loc: &hdf5::Location, name: &str) -> hdf5::Result<T> {
+    loc.attr(name)?.read_scalar::<T>()
+}
+
+/// Reads a one-dimensional dataset of strings.
+pub(crate) fn read_strings(g: &hdf5::Group, name: &str) -> hdf5::Result<Vec<String>> {
+    Ok(g.dataset(name)?
+        .read_1d::<VarLenUnicode>()?
+        .iter()
+        .map(|v| v.as_str().to_string())
+        .collect())
+}
+
+/// Reads a dataset of f64 row by row (a one-dimensional dataset is one value per row).
+pub(crate) fn read_rows(g: &hdf5::Group, name: &str) -> hdf5::Result<Vec<Vec<f64>>> {
+    let ds = g.dataset(name)?;
+    let cols = ds.shape().get(1).copied().unwrap_or(1).max(1);
+    let raw = ds.read_raw::<f64>()?;
+    Ok(raw.chunks(cols).map(<[f64]>::to_vec).collect())
+}
+
+/// Writes the attributes `unit` (unless `None`) and `description` of a dataset.
+pub(crate) fn describe(ds: &hdf5::Dataset, unit: Option<&str>, desc: &str) -> hdf5::Result<()> {
+    if let Some(u) = unit {
+        str_attr(ds, "unit", u)?;
+    }
+    str_attr(ds, "description", desc)
+}
+
+/// Writes a two-dimensional dataset of `cols` columns from its values row by row.
+pub(crate) fn write_table<T: hdf5::H5Type + Clone>(
     g: &hdf5::Group,
     name: &str,
     data: &[T],
@@ -129,8 +226,7 @@ pub(crate) fn write_matrix<T: hdf5::H5Type + Clone>(
     let arr = Array2::from_shape_vec((rows, cols), data.to_vec())
         .map_err(|e| hdf5::Error::from(e.to_string()))?;
     let ds = g.new_dataset_builder().with_data(&arr).create(name)?;
-    str_attr(&ds, "unit", unit)?;
-    str_attr(&ds, "description", desc)
+    describe(&ds, Some(unit), desc)
 }
 
 /// Creates `dir/<name>.h5` under the temporary name `<name>.h5.partial`, writes the program's
@@ -218,261 +314,65 @@ pub fn write_study(
 
 /// Writes one run (its attributes and datasets, the layout of a run file's root) into `file`.
 fn write_group(file: &hdf5::Group, meta: &Meta, run: &RunResult) -> hdf5::Result<()> {
-    let rec = &run.recording;
-    {
-        str_attr(file, "scene_name", meta.scene_name)?;
-        str_attr(file, "scene_file", &meta.scene_file.display().to_string())?;
-        str_attr(file, "scene", meta.scene_text)?;
-        str_attr(file, "integrator", &meta.integrator)?;
-        f64_attr(file, "baumgarte_alpha", meta.baumgarte_alpha)?;
-        f64_attr(file, "baumgarte_beta", meta.baumgarte_beta)?;
-        if let Some(p) = meta.drive_period {
-            f64_attr(file, "drive_period", p)?;
-        }
-        u64_attr(file, "steps_accepted", run.stats.accepted)?;
-        u64_attr(file, "steps_rejected", run.stats.rejected)?;
-        u64_attr(file, "rhs_evaluations", run.stats.rhs_evals)?;
-        f64_attr(file, "wall_time_s", run.stats.wall.as_secs_f64())?;
-        f64_attr(file, "assembly_residual", run.assembly.final_residual)?;
-        // A run that stopped keeps its samples up to the failure and says so.
-        u8_attr_set(file, "complete", u8::from(run.stopped.is_none()))?;
-        if let Some(s) = &run.stopped {
-            str_attr(file, "error", &s.to_string())?;
-            f64_attr(file, "stopped_at", s.time)?;
-        }
-        let warnings: Vec<String> = meta
-            .scene_warnings
-            .iter()
-            .cloned()
-            .chain(run.warnings.iter().map(|w| w.message.clone()))
-            .collect();
-        if !warnings.is_empty() {
-            str_attr(file, "warnings", &warnings.join("\n"))?;
-        }
+    str_attr(file, "scene_name", meta.scene_name)?;
+    str_attr(file, "scene_file", &meta.scene_file.display().to_string())?;
+    str_attr(file, "scene", meta.scene_text)?;
+    str_attr(file, "integrator", &meta.integrator)?;
+    f64_attr(file, "baumgarte_alpha", meta.baumgarte_alpha)?;
+    f64_attr(file, "baumgarte_beta", meta.baumgarte_beta)?;
+    if let Some(p) = meta.drive_period {
+        f64_attr(file, "drive_period", p)?;
+    }
+    u64_attr(file, "steps_accepted", run.stats.accepted)?;
+    u64_attr(file, "steps_rejected", run.stats.rejected)?;
+    u64_attr(file, "rhs_evaluations", run.stats.rhs_evals)?;
+    f64_attr(file, "wall_time_s", run.stats.wall.as_secs_f64())?;
+    f64_attr(file, "assembly_residual", run.assembly.final_residual)?;
+    // A run that stopped keeps its samples up to the failure and says so.
+    u8_attr_set(file, "complete", u8::from(run.stopped.is_none()))?;
+    if let Some(s) = &run.stopped {
+        str_attr(file, "error", &s.to_string())?;
+        f64_attr(file, "stopped_at", s.time)?;
+    }
+    let warnings: Vec<String> = meta
+        .scene_warnings
+        .iter()
+        .cloned()
+        .chain(run.warnings.iter().map(|w| w.message.clone()))
+        .collect();
+    if !warnings.is_empty() {
+        str_attr(file, "warnings", &warnings.join("\n"))?;
+    }
+    write_recording(file, &run.recording)?;
+    // The hybrid state at the end: a later run can continue from it (`run --from`).
+    crate::hybrid::write_state(file, &run.final_state)
+}
 
-        write1(file, "time", &rec.time, "s", "sample times")?;
-        let bodies = file.create_group("bodies")?;
-        for b in &rec.bodies {
-            let g = bodies.create_group(&b.name)?;
-            write_n(
-                &g,
-                "position",
-                &b.position,
-                "m",
-                "centre of mass, global axes",
-            )?;
-            write_n(
-                &g,
-                "orientation",
-                &b.orientation,
-                "1",
-                "Euler parameters (w, x, y, z) of the rotation body -> global",
-            )?;
-            write_n(
-                &g,
-                "velocity",
-                &b.velocity,
-                "m/s",
-                "centre-of-mass velocity, global axes",
-            )?;
-            write_n(
-                &g,
-                "angular_velocity",
-                &b.angular_velocity,
-                "rad/s",
-                "global axes",
-            )?;
-            if !b.acceleration.is_empty() {
-                write_n(
-                    &g,
-                    "acceleration",
-                    &b.acceleration,
-                    "m/s^2",
-                    "centre-of-mass acceleration, global axes",
-                )?;
-                write_n(
-                    &g,
-                    "angular_acceleration",
-                    &b.angular_acceleration,
-                    "rad/s^2",
-                    "global axes",
-                )?;
-            }
-        }
-        let joints = file.create_group("joints")?;
-        for j in &rec.joints {
-            let g = joints.create_group(&j.name)?;
-            write_n(
-                &g,
-                "reaction_force",
-                &j.force,
-                "N",
-                "force of the joint on its body_b, global axes",
-            )?;
-            write_n(
-                &g,
-                "reaction_torque",
-                &j.torque,
-                "N m",
-                "torque of the joint on its body_b about the joint point on body_b, global axes",
-            )?;
-        }
-        for c in &rec.clearances {
-            let g = match joints.group(&c.name) {
-                Ok(g) => g,
-                Err(_) => joints.create_group(&c.name)?,
-            };
-            let nc = c.contacts.len();
-            str_attr(&g, "contacts", &c.contacts.join(","))?;
-            f64_attr(&g, "radial_clearance", c.radial_clearance)?;
-            str_attr(&g, "radial_clearance_unit", "m")?;
-            write_n(
-                &g,
-                "eccentricity",
-                &c.eccentricity,
-                "m",
-                "journal centre relative to the housing centre, housing axes",
-            )?;
-            write_n(
-                &g,
-                "eccentricity_global",
-                &c.eccentricity_global,
-                "m",
-                "journal centre relative to the housing centre, global axes",
-            )?;
-            write_n(
-                &g,
-                "radial_eccentricity",
-                &c.radial_eccentricity,
-                "m",
-                "eccentricity along the two housing directions normal to its axis (u, w): the journal-centre orbit",
-            )?;
-            if !c.end_eccentricity.is_empty() {
-                write_n(
-                    &g,
-                    "end_eccentricity",
-                    &c.end_eccentricity,
-                    "m",
-                    "journal axis at the rim planes s = +L_B/2 (u, w) and s = -L_B/2 (u, w): the orbits of both journal ends",
-                )?;
-            }
-            let per =
-                |what: &str| format!("{what}, one column per contact ({})", c.contacts.join(", "));
-            write_matrix(
-                &g,
-                "penetration",
-                &c.penetration,
-                nc,
-                "m",
-                &per("penetration, negative while apart"),
-            )?;
-            write_matrix(
-                &g,
-                "penetration_rate",
-                &c.penetration_rate,
-                nc,
-                "m/s",
-                &per("penetration rate, approach positive"),
-            )?;
-            write_matrix(
-                &g,
-                "normal_force",
-                &c.normal_force,
-                nc,
-                "N",
-                &per("normal contact force"),
-            )?;
-            write_matrix(
-                &g,
-                "friction_force",
-                &c.friction_force,
-                nc,
-                "N",
-                &per("magnitude of the friction force"),
-            )?;
-            write_matrix(
-                &g,
-                "contact_state",
-                &c.state,
-                nc,
-                "1",
-                &per("1 in contact, 0 free"),
-            )?;
-            write_n(
-                &g,
-                "force_on_journal",
-                &c.force_journal,
-                "N",
-                "resultant contact force on the journal body (body_b), global axes",
-            )?;
-            write_n(
-                &g,
-                "moment_on_journal",
-                &c.moment_journal,
-                "N m",
-                "resultant contact moment on the journal body about its centre of mass, global axes",
-            )?;
-            write_n(
-                &g,
-                "force_on_housing",
-                &c.force_housing,
-                "N",
-                "resultant contact force on the housing body (body_a), global axes",
-            )?;
-            write_n(
-                &g,
-                "moment_on_housing",
-                &c.moment_housing,
-                "N m",
-                "resultant contact moment on the housing body about its centre of mass, global axes",
-            )?;
-        }
-        let drives = file.create_group("drives")?;
-        for d in &rec.drives {
-            let g = drives.create_group(&d.name)?;
-            let (cu, fu) = if d.rotational {
-                ("rad", "N m")
-            } else {
-                ("m", "N")
-            };
-            write1(&g, "coordinate", &d.coordinate, cu, "joint coordinate")?;
-            write1(
-                &g,
-                "force",
-                &d.force,
-                fu,
-                "actuator force (torque) on body_b in the direction of increasing coordinate",
-            )?;
-        }
-        if let Some(diag) = &rec.diagnostics {
-            let g = file.create_group("diagnostics")?;
-            write1(
-                &g,
-                "constraint_drift",
-                &diag.constraint_drift,
-                "m, rad",
-                "2-norm of the position constraint residuals",
-            )?;
-            write1(
-                &g,
-                "velocity_drift",
-                &diag.velocity_drift,
-                "m/s, rad/s",
-                "2-norm of the velocity constraint residuals",
-            )?;
-            if !diag.energy.is_empty() {
-                write1(
-                    &g,
-                    "energy",
-                    &diag.energy,
-                    "J",
-                    "kinetic + gravitational + spring energy",
-                )?;
+/// Writes a recording: the sample times, its groups with their attributes and one dataset per
+/// channel (as u8 for a flag, one-dimensional for a scalar).
+fn write_recording(g: &hdf5::Group, rec: &Recording) -> hdf5::Result<()> {
+    write1(g, "time", &rec.time, "s", "sample times")?;
+    for group in &rec.groups {
+        let h = g.create_group(&group.path)?;
+        for (name, value) in &group.attrs {
+            match value {
+                Attr::Str(v) => str_attr(&h, name, v)?,
+                Attr::F64(v) => f64_attr(&h, name, *v)?,
             }
         }
     }
-    // The hybrid state at the end: a later run can continue from it (`run --from`).
-    crate::hybrid::write_state(file, &run.final_state)
+    for c in &rec.channels {
+        let (name, unit, desc) = (&c.dataset, &c.unit, &c.description);
+        if c.flag {
+            let v: Vec<u8> = c.values.iter().map(|&x| x as u8).collect();
+            write_table(g, name, &v, c.width(), unit, desc)?;
+        } else if c.scalar {
+            write1(g, name, &c.values, unit, desc)?;
+        } else {
+            write_table(g, name, &c.values, c.width(), unit, desc)?;
+        }
+    }
+    Ok(())
 }
 
 /// One component of a recorded dataset with its time axis, for comparing runs.
@@ -519,15 +419,9 @@ pub fn read_series(path: &Path, dataset: &str, component: usize) -> Result<Serie
             });
         }
     };
-    let read_str = |loc: &hdf5::Location, name: &str| -> String {
-        loc.attr(name)
-            .and_then(|a| a.read_scalar::<VarLenUnicode>())
-            .map(|v| v.to_string())
-            .unwrap_or_default()
-    };
     Ok(SeriesData {
-        unit: read_str(&ds, "unit"),
-        scene_name: read_str(&file, "scene_name"),
+        unit: read_str(&ds, "unit").unwrap_or_default(),
+        scene_name: read_str(&file, "scene_name").unwrap_or_default(),
         time,
         values,
     })

@@ -9,10 +9,9 @@
 
 use std::path::Path;
 
-use hdf5::types::VarLenUnicode;
 use toml::Table;
 
-use crate::h5::h5err;
+use crate::h5::{h5err, read_str};
 use crate::{Error, Result};
 
 /// The kind of a TOML input.
@@ -81,12 +80,7 @@ impl Output {
     /// cannot be opened as HDF5 or was not written by the program.
     pub fn read(path: &Path) -> Result<Output> {
         let file = hdf5::File::open(path).map_err(h5err(path))?;
-        let text = |name: &str| {
-            file.attr(name)
-                .and_then(|a| a.read_scalar::<VarLenUnicode>())
-                .ok()
-                .map(|v| v.to_string())
-        };
+        let text = |name: &str| read_str(&file, name).ok();
         match text("kind").as_deref() {
             Some("analysis") => return Ok(Output::Analysis),
             Some("work-precision") => return Ok(Output::Precision),

@@ -1,9 +1,12 @@
 //! # jointplay-analysis
 //!
 //! Runs of a compiled model and what comes out of them: [`run`] integrates a model and records the
-//! requested outputs at exact sample times; [`h5`] writes a recording to HDF5 (layout in the
-//! README); [`study`] reads study files (several cases of a scene, edited by path) and
-//! [`report`] computes their comparison table from the written file; [`plot`] draws figures as PNG and SVG with an embedded font (no system fonts needed).
+//! requested outputs, observables of [`observe`], at exact sample times; [`h5`] writes a
+//! recording to HDF5 (layout in the README) and holds the helpers every file kind is written and
+//! read with; [`study`] reads study files (several cases of a scene, edited by path) and
+//! [`report`] computes their comparison table from the written file; [`figures`] draws every
+//! figure (runs, studies, analysis files, work-precision) over [`plot`], which draws PNG and SVG
+//! with an embedded font (no system fonts needed).
 //!
 //! Nonlinear analysis works on any flow: [`sections`] runs N periods of an ODE and keeps the
 //! stroboscopic and hyperplane Poincare sections; [`observe`] addresses a mechanism's quantities
@@ -23,7 +26,6 @@ pub mod flow;
 pub mod h5;
 pub mod hybrid;
 pub mod inputs;
-pub mod nlfigures;
 pub mod nonlinear;
 pub mod observe;
 pub mod plot;

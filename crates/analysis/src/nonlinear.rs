@@ -32,7 +32,10 @@ use serde::Deserialize;
 use toml::{Table, Value};
 
 use crate::flow::{Flow, Target};
-use crate::h5::{f64_attr, h5err, str_attr, u8_attr_set, u64_attr, write_atomically, write1};
+use crate::h5::{
+    create_nan, f64_attr, f64_attr_set, h5err, str_attr, u8_attr_set, u64_attr, write_atomically,
+    write_column, write_element, write_row, write1,
+};
 use crate::hybrid;
 use crate::observe::Observable;
 use crate::progress::Progress;
@@ -947,7 +950,7 @@ pub fn execute(
     let wall = start.elapsed().as_secs_f64();
     let complete = done.iter().all(|&d| d != 0);
     u8_attr_set(&file, "complete", u8::from(complete)).map_err(&e)?;
-    set_f64_attr(&file, "wall_time", wall).map_err(&e)?;
+    f64_attr_set(&file, "wall_time", wall).map_err(&e)?;
     file.close().map_err(&e)?;
     Ok(Outcome {
         file: path.clone(),
@@ -959,13 +962,6 @@ pub fn execute(
         wall,
         rhs_evals: rhs,
     })
-}
-
-fn set_f64_attr(loc: &hdf5::Location, name: &str, v: f64) -> hdf5::Result<()> {
-    match loc.attr(name) {
-        Ok(a) => a.write_scalar(&v),
-        Err(_) => f64_attr(loc, name, v),
-    }
 }
 
 /// Root attributes shared by single runs and sweeps.
@@ -1048,24 +1044,6 @@ fn write_single(file: &hdf5::File, st: &Loaded, r: &JobResult) -> hdf5::Result<(
     hybrid::write_state(file, &t.final_state)
 }
 
-fn matrix(
-    g: &hdf5::Group,
-    name: &str,
-    rows: usize,
-    cols: usize,
-    unit: &str,
-    desc: &str,
-) -> hdf5::Result<()> {
-    // Rows not yet computed hold NaN; /sweep/done says which rows are valid.
-    let ds = g
-        .new_dataset::<f64>()
-        .shape((rows, cols))
-        .fill_value(f64::NAN)
-        .create(name)?;
-    str_attr(&ds, "unit", unit)?;
-    str_attr(&ds, "description", desc)
-}
-
 fn create_sweep_file(
     path: &Path,
     st: &Loaded,
@@ -1122,33 +1100,28 @@ fn create_sweep_file(
             str_attr(&ds, "path", &sw.parameter)?;
         }
         let dirs: Vec<i8> = st.jobs.iter().map(|j| j.1).collect();
-        let d = g
-            .new_dataset_builder()
-            .with_data(&Array1::from(dirs))
-            .create("direction")?;
-        str_attr(
-            &d,
-            "description",
+        write_column(
+            &g,
+            "direction",
+            &dirs,
+            None,
             "+1: up the list, -1: back down (continuation)",
         )?;
-        let d = g
-            .new_dataset_builder()
-            .with_data(&Array1::from(vec![0u8; n]))
-            .create("done")?;
-        str_attr(
-            &d,
-            "description",
+        write_column(
+            &g,
+            "done",
+            &vec![0u8; n],
+            None,
             "0 not run, 1 done, 2 failed (message in /sweep/errors)",
         )?;
         g.create_group("errors")?;
         u8_attr_set(&g, "continuation", u8::from(sw.continuation))?;
-        matrix(&g, "strobe_time", n, kept, "s", "strobe times of each job")?;
+        create_nan(&g, "strobe_time", &[n, kept], "s", "strobe times of each job")?;
         for (o, u) in st.spec.observables.iter().zip(&units) {
-            matrix(
+            create_nan(
                 &g,
                 &o.name,
-                n,
-                kept,
+                &[n, kept],
                 u,
                 &format!("{} at the strobe times, per job", o.path),
             )?;
@@ -1159,20 +1132,18 @@ fn create_sweep_file(
         }
         if hl > 0 {
             let h = g.create_group("history")?;
-            matrix(
+            create_nan(
                 &h,
                 "time",
-                n,
-                hl,
+                &[n, hl],
                 "s",
                 "sample times over the kept window, per job",
             )?;
             for (o, u) in st.spec.observables.iter().zip(&units) {
-                matrix(
+                create_nan(
                     &h,
                     &o.name,
-                    n,
-                    hl,
+                    &[n, hl],
                     u,
                     &format!("{} over the kept window, per job", o.path),
                 )?;
@@ -1180,15 +1151,11 @@ fn create_sweep_file(
         }
         hybrid::create_rows(&g, n, shape)?;
         g.new_dataset::<u64>().shape(n).create("rhs_evals")?;
-        let d = g
-            .new_dataset::<f64>()
-            .shape(n)
-            .fill_value(f64::NAN)
-            .create("wall_time")?;
-        str_attr(&d, "unit", "s")?;
-        str_attr(
-            &d,
-            "description",
+        create_nan(
+            &g,
+            "wall_time",
+            &[n],
+            "s",
             "wall-clock time of each job (machine-dependent, the only dataset that is not reproducible)",
         )?;
         if !st.planes.is_empty() {
@@ -1199,15 +1166,6 @@ fn create_sweep_file(
     .map_err(&e)?;
     file.flush().map_err(&e)?;
     Ok(file)
-}
-
-fn write_row(g: &hdf5::Group, name: &str, row: usize, data: &[f64]) -> hdf5::Result<()> {
-    let ds = g.dataset(name)?;
-    let cols = ds.shape()[1];
-    if data.len() != cols {
-        return Err(format!("{name}: {} values for {cols} columns", data.len()).into());
-    }
-    ds.write_slice(&Array1::from(data.to_vec()), s![row, ..])
 }
 
 fn write_job(file: &hdf5::File, st: &Loaded, j: usize, r: &JobResult) -> hdf5::Result<()> {
@@ -1225,10 +1183,8 @@ fn write_job(file: &hdf5::File, st: &Loaded, j: usize, r: &JobResult) -> hdf5::R
         }
     }
     hybrid::write_row(&g, j, &t.final_state)?;
-    g.dataset("rhs_evals")?
-        .write_slice(&Array1::from(vec![t.stats.rhs_evals]), s![j..j + 1])?;
-    g.dataset("wall_time")?
-        .write_slice(&Array1::from(vec![r.wall]), s![j..j + 1])?;
+    write_element(&g, "rhs_evals", j, t.stats.rhs_evals)?;
+    write_element(&g, "wall_time", j, r.wall)?;
     if !st.planes.is_empty() {
         let sec = g.group("sections")?;
         // A job interrupted while being written left a partial group: replace it.

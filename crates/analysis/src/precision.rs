@@ -40,14 +40,13 @@ use jointplay_solver::ode::{Flow, Method, Stats, advance};
 use jointplay_solver::state::HybridState;
 use serde::Deserialize;
 
-use hdf5::types::VarLenUnicode;
-use ndarray::Array1;
-
 use crate::flow::{Flow as _, Target};
-use crate::h5::{f64_attr, h5err, str_attr, u64_attr, write_atomically, write1};
+use crate::h5::{
+    f64_attr, h5err, read_attr, read_str, read_strings, str_attr, u64_attr, write_atomically,
+    write_strings, write1,
+};
 use crate::nonlinear::Loaded;
 use crate::observe::Observable;
-use crate::plot::{Format, Panel, Series, figure};
 use crate::progress::Progress;
 use crate::sections::Observed;
 use crate::study::invalid;
@@ -107,9 +106,6 @@ pub struct Errors {
     pub force: f64,
     pub restart_force: f64,
 }
-
-/// Reads one error measure.
-type Measure = fn(&Errors) -> f64;
 
 /// One tested run.
 #[derive(Debug, Clone)]
@@ -871,93 +867,6 @@ impl Outcome {
         s
     }
 
-    /// The work-precision figure: each error measure against wall time, log-log, one line per
-    /// integrator family, the floor as a horizontal line.
-    pub fn figures(&self, stem: &Path, formats: &[Format]) -> Result<Vec<PathBuf>> {
-        let mut families: Vec<&str> = Vec::new();
-        for r in &self.runs {
-            if !families.contains(&r.family.as_str()) {
-                families.push(&r.family);
-            }
-        }
-        let measures: [(&str, String, Measure); 4] = [
-            (
-                "Position at the strobe times",
-                format!("largest error ({})", self.position_unit),
-                |e| e.position,
-            ),
-            (
-                "One period from reference states",
-                format!("largest error ({})", self.position_unit),
-                |e| e.restart,
-            ),
-            (
-                "Contact force over the last period",
-                "largest error / peak force".into(),
-                |e| e.force,
-            ),
-            (
-                "Contact force, periods from reference states",
-                "largest error / peak force".into(),
-                |e| e.restart_force,
-            ),
-        ];
-        let mut panels = Vec::new();
-        for (title, ylabel, get) in measures {
-            if get(&self.floor).is_nan() && self.runs.iter().all(|r| get(&r.errors).is_nan()) {
-                continue;
-            }
-            let mut series = Vec::new();
-            let (mut xlo, mut xhi) = (f64::INFINITY, 0.0f64);
-            for f in &families {
-                let pts: Vec<(f64, f64)> = self
-                    .runs
-                    .iter()
-                    .filter(|r| r.family == *f)
-                    .map(|r| (r.wall, get(&r.errors)))
-                    .filter(|(x, y)| *x > 0.0 && *y > 0.0 && y.is_finite())
-                    .collect();
-                for (x, _) in &pts {
-                    xlo = xlo.min(*x);
-                    xhi = xhi.max(*x);
-                }
-                series.push(Series {
-                    label: f.to_string(),
-                    x: pts.iter().map(|p| p.0).collect(),
-                    y: pts.iter().map(|p| p.1).collect(),
-                });
-            }
-            if series.iter().all(|s| s.x.is_empty()) {
-                // Nothing to draw: every run failed or has no finite, positive error here.
-                continue;
-            }
-            let floor = get(&self.floor);
-            if floor > 0.0 && xhi > 0.0 {
-                series.push(Series {
-                    label: "reference floor".into(),
-                    x: vec![xlo, xhi],
-                    y: vec![floor, floor],
-                });
-            }
-            panels.push(Panel {
-                log_x: true,
-                log_y: true,
-                ..Panel::new(title, "wall time (s)", ylabel, series)
-            });
-        }
-        if let Some(dir) = stem.parent() {
-            std::fs::create_dir_all(dir).map_err(|e| Error::Io {
-                file: dir.to_path_buf(),
-                message: format!("cannot create output directory: {e}"),
-            })?;
-        }
-        let mut out = Vec::new();
-        for f in formats {
-            out.push(figure(stem, *f, &panels, 2)?);
-        }
-        Ok(out)
-    }
-
     /// Writes `dir/<name>.h5` (layout in the README, "HDF5 layout of a work-precision run").
     pub fn write(&self, dir: &Path, study: &Loaded) -> Result<PathBuf> {
         let file = dir.join(format!("{}.h5", self.name));
@@ -987,18 +896,7 @@ impl Outcome {
                 f64_attr(&g, k, v)?;
             }
             let g = h.create_group("runs")?;
-            let strs = |name: &str, v: Vec<String>, desc: &str| -> hdf5::Result<()> {
-                let data = v
-                    .iter()
-                    .map(|s| s.replace('\0', " ").parse::<VarLenUnicode>())
-                    .collect::<std::result::Result<Vec<_>, _>>()
-                    .map_err(|e| hdf5::Error::from(format!("{e:?}")))?;
-                let ds = g
-                    .new_dataset_builder()
-                    .with_data(&Array1::from(data))
-                    .create(name)?;
-                str_attr(&ds, "description", desc)
-            };
+            let strs = |name: &str, v: Vec<String>, desc: &str| write_strings(&g, name, &v, desc);
             strs(
                 "family",
                 self.runs.iter().map(|r| r.family.clone()).collect(),
@@ -1116,8 +1014,8 @@ impl Outcome {
 pub fn is_precision_file(path: &Path) -> bool {
     hdf5::File::open(path)
         .ok()
-        .and_then(|f| f.attr("kind").ok()?.read_scalar::<VarLenUnicode>().ok())
-        .is_some_and(|k| k.as_str() == "work-precision")
+        .and_then(|f| read_str(&f, "kind").ok())
+        .is_some_and(|k| k == "work-precision")
 }
 
 impl Outcome {
@@ -1125,23 +1023,10 @@ impl Outcome {
     pub fn read(path: &Path) -> Result<Outcome> {
         let e = h5err(path);
         let f = hdf5::File::open(path).map_err(&e)?;
-        let s = |name: &str| -> Result<String> {
-            Ok(f.attr(name)
-                .and_then(|a| a.read_scalar::<VarLenUnicode>())
-                .map_err(&e)?
-                .as_str()
-                .to_string())
-        };
-        let x = |name: &str| -> Result<f64> {
-            f.attr(name)
-                .and_then(|a| a.read_scalar::<f64>())
-                .map_err(&e)
-        };
-        let n = |name: &str| -> Result<usize> {
-            Ok(f.attr(name)
-                .and_then(|a| a.read_scalar::<u64>())
-                .map_err(&e)? as usize)
-        };
+        let s = |name: &str| read_str(&f, name).map_err(&e);
+        let x = |name: &str| read_attr::<f64>(&f, name).map_err(&e);
+        let n =
+            |name: &str| -> Result<usize> { Ok(read_attr::<u64>(&f, name).map_err(&e)? as usize) };
         let list = |v: String| -> Vec<String> {
             v.split(',')
                 .filter(|p| !p.is_empty())
@@ -1149,12 +1034,7 @@ impl Outcome {
                 .collect()
         };
         let floor = f.group("floor").map_err(&e)?;
-        let fl = |name: &str| -> Result<f64> {
-            floor
-                .attr(name)
-                .and_then(|a| a.read_scalar::<f64>())
-                .map_err(&e)
-        };
+        let fl = |name: &str| read_attr::<f64>(&floor, name).map_err(&e);
         let g = f.group("runs").map_err(&e)?;
         let col = |name: &str| -> Result<Vec<f64>> {
             Ok(g.dataset(name)
@@ -1162,14 +1042,7 @@ impl Outcome {
                 .map_err(&e)?
                 .to_vec())
         };
-        let strs = |name: &str| -> Result<Vec<String>> {
-            Ok(g.dataset(name)
-                .and_then(|d| d.read_1d::<VarLenUnicode>())
-                .map_err(&e)?
-                .iter()
-                .map(|v| v.as_str().to_string())
-                .collect())
-        };
+        let strs = |name: &str| read_strings(&g, name).map_err(&e);
         let (family, integrator, status, warnings) = (
             strs("family")?,
             strs("integrator")?,

@@ -32,8 +32,7 @@ use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use hdf5::types::VarLenUnicode;
-
+use crate::h5::{h5err, read_attr, read_rows, read_str};
 use crate::study::{Published, StudySpec};
 use crate::{Error, Result};
 
@@ -83,27 +82,13 @@ struct CaseData {
     forces: BTreeMap<String, Vec<f64>>,
 }
 
-fn h5e(file: &Path) -> impl Fn(hdf5::Error) -> Error + '_ {
-    move |e| Error::Hdf5 {
-        file: file.to_path_buf(),
-        message: e.to_string(),
-    }
-}
-
+/// The rows of a three-column dataset; `None` when it is missing or has another shape.
 fn read_vec3(g: &hdf5::Group, name: &str) -> Option<Vec<[f64; 3]>> {
-    let ds = g.dataset(name).ok()?;
-    if ds.shape().get(1) != Some(&3) {
+    if g.dataset(name).ok()?.shape().get(1) != Some(&3) {
         return None;
     }
-    let raw = ds.read_raw::<f64>().ok()?;
-    Some(raw.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect())
-}
-
-fn read_str(loc: &hdf5::Location, name: &str) -> Option<String> {
-    loc.attr(name)
-        .and_then(|a| a.read_scalar::<VarLenUnicode>())
-        .map(|v| v.to_string())
-        .ok()
+    let rows = read_rows(g, name).ok()?;
+    Some(rows.iter().map(|c| [c[0], c[1], c[2]]).collect())
 }
 
 /// Euclidean length of a 3-vector.
@@ -140,9 +125,9 @@ fn settled_start(c: &CaseData) -> usize {
 
 /// Reads a study file and computes its report.
 pub fn compute(path: &Path) -> Result<Report> {
-    let e = h5e(path);
+    let e = h5err(path);
     let file = hdf5::File::open(path).map_err(&e)?;
-    let text = read_str(&file, "study").ok_or_else(|| Error::Hdf5 {
+    let text = read_str(&file, "study").map_err(|_| Error::Hdf5 {
         file: path.to_path_buf(),
         message: "not a study file (no 'study' attribute); `jointplay run STUDY` writes one".into(),
     })?;
@@ -161,7 +146,7 @@ pub fn compute(path: &Path) -> Result<Report> {
             file: path.to_path_buf(),
             message: format!("case '{}' missing: {err}", c.label),
         })?;
-        if let Some(err) = read_str(&g, "error") {
+        if let Ok(err) = read_str(&g, "error") {
             labels.push(c.label.clone());
             notes.push((format!("failed: {err}"), None));
             walls.push(f64::NAN);
@@ -178,10 +163,7 @@ pub fn compute(path: &Path) -> Result<Report> {
                 message: format!("case '{}' has fewer than two samples", c.label),
             });
         }
-        let period = g
-            .attr("drive_period")
-            .and_then(|a| a.read_scalar::<f64>())
-            .ok();
+        let period = read_attr::<f64>(&g, "drive_period").ok();
         let body = match &spec.report.body {
             Some(b) => {
                 let bg = g.group(&format!("bodies/{b}")).map_err(|err| Error::Hdf5 {
@@ -227,11 +209,7 @@ pub fn compute(path: &Path) -> Result<Report> {
             },
             reference,
         ));
-        walls.push(
-            g.attr("wall_time_s")
-                .and_then(|a| a.read_scalar::<f64>())
-                .unwrap_or(f64::NAN),
-        );
+        walls.push(read_attr::<f64>(&g, "wall_time_s").unwrap_or(f64::NAN));
         labels.push(c.label.clone());
         data.push(Some(CaseData {
             time,

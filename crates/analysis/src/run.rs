@@ -6,6 +6,11 @@
 //! actuator forces and the diagnostics. A non-finite recorded value stops the run with an error
 //! naming the time and the quantity: nothing non-finite is ever recorded.
 //!
+//! What is recorded is declared once ([`Recording::of`]): one [`Channel`] per dataset of the run
+//! file, whose columns are observables of [`crate::observe`] (`bodies.B.position.x`, `.y`, `.z`
+//! for `/bodies/B/position`), evaluated by the same code a study observes with and written by
+//! one generic writer ([`crate::h5::write_run`]).
+//!
 //! A run that diverges (the guards of [`jointplay_solver::guard`], a non-finite state, a
 //! non-finite recorded value) keeps every sample recorded before the failure:
 //! [`RunResult::stopped`] says where and why, and the file written from it is marked incomplete.
@@ -17,153 +22,429 @@
 //! are the same run, bit for bit when T lies on a fixed-step method's grid.
 
 use jointplay_solver::clearance::Geometry;
-use jointplay_solver::dynamics::{AssemblyReport, Mechanism};
+use jointplay_solver::dynamics::{AssemblyReport, Mechanism, Workspace};
 use jointplay_solver::guard::Warning;
 use jointplay_solver::model::{Model, State};
 use jointplay_solver::ode::{Flow, OdeSystem, Stats, advance};
-use jointplay_solver::scene::DriveCoordinate;
 use jointplay_solver::state::HybridState;
 
 use crate::Result;
+use crate::observe::Observable;
 
-/// Time histories of one body (global axes; per sample).
-#[derive(Debug, Clone, Default)]
-pub struct BodyTrack {
-    pub name: String,
-    /// Centre-of-mass position (m).
-    pub position: Vec<[f64; 3]>,
-    /// Euler parameters (w, x, y, z), body to global, unit norm.
-    pub orientation: Vec<[f64; 4]>,
-    /// m/s.
-    pub velocity: Vec<[f64; 3]>,
-    /// rad/s.
-    pub angular_velocity: Vec<[f64; 3]>,
-    /// m/s^2 (empty when accelerations are not recorded).
-    pub acceleration: Vec<[f64; 3]>,
-    /// rad/s^2.
-    pub angular_acceleration: Vec<[f64; 3]>,
+/// One recorded dataset: the observables of one path (see [`crate::observe`]), one per column,
+/// evaluated at every sample.
+#[derive(Debug, Clone)]
+pub struct Channel {
+    /// Where it is written in the run's group: the columns' observable path without the
+    /// component, `/` for `.` (`bodies.B.position.x`, `.y`, `.z`: `bodies/B/position`).
+    pub dataset: String,
+    /// The columns' common unit.
+    pub unit: String,
+    pub description: String,
+    pub columns: Vec<Observable>,
+    /// Written as a one-dimensional dataset: one column whose path has no component.
+    pub scalar: bool,
+    /// Written as u8: 1 or 0.
+    pub flag: bool,
+    /// The quantity named when one of its values is not finite; `None`: not checked (a state
+    /// component, which the integrator checks, or a quantity of it).
+    pub checked: Option<String>,
+    /// The values, `columns.len()` per sample, sample by sample.
+    pub values: Vec<f64>,
+    /// When its values are evaluated (and checked) in a sample: bodies, ideal joints, drives,
+    /// clearance joints, diagnostics (which evaluate in the workspace again, so last).
+    stage: u8,
 }
 
-/// Reaction of one ideal joint on its body b, torque about the joint point on b.
-#[derive(Debug, Clone, Default)]
-pub struct JointTrack {
-    pub name: String,
-    /// N.
-    pub force: Vec<[f64; 3]>,
-    /// N m.
-    pub torque: Vec<[f64; 3]>,
+impl Channel {
+    /// Values per sample.
+    pub fn width(&self) -> usize {
+        self.columns.len()
+    }
+
+    /// The samples' rows.
+    pub fn rows(&self) -> std::slice::ChunksExact<'_, f64> {
+        self.values.chunks_exact(self.width())
+    }
+
+    /// Column `k` over the samples.
+    pub fn column(&self, k: usize) -> Vec<f64> {
+        self.rows().map(|r| r[k]).collect()
+    }
+
+    /// The rows of a three-column dataset (a vector in global or housing axes).
+    pub fn vectors(&self) -> Vec<[f64; 3]> {
+        self.rows().map(|r| [r[0], r[1], r[2]]).collect()
+    }
 }
 
-/// One joint with clearance (per sample; per-contact arrays hold `contacts.len()` values per
-/// sample, in the order of `contacts`).
-#[derive(Debug, Clone, Default)]
-pub struct ClearanceTrack {
+/// An attribute value of a group.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Attr {
+    Str(String),
+    F64(f64),
+}
+
+/// A group of the run file, written even when it holds no dataset.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Group {
+    /// Relative to the run's group, e.g. `joints/R1`.
+    pub path: String,
+    pub attrs: Vec<(String, Attr)>,
+}
+
+/// A recorded joint with clearance.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Clearance {
     pub name: String,
-    /// Contact names: "radial" (spherical, planar) or P, Q (rims), M, N (faces).
+    /// Contact names, in column order: "radial" (spherical, planar) or P, Q (rims), M, N (faces).
     pub contacts: Vec<String>,
-    /// Journal centre relative to the housing centre, housing axes (m).
-    pub eccentricity: Vec<[f64; 3]>,
-    /// The same in global axes (m).
-    pub eccentricity_global: Vec<[f64; 3]>,
-    /// Eccentricity components in the plane normal to the housing axis (m), along the joint
-    /// frame's u and w directions: the orbit of the journal centre.
-    pub radial_eccentricity: Vec<[f64; 2]>,
-    /// Spatial revolute: the journal axis at the two rim planes (P side u, w, Q side u, w) in the
-    /// same axes (m): the orbits of both journal ends. Empty for other joints.
-    pub end_eccentricity: Vec<[f64; 4]>,
-    /// m, m/s, N, N per contact.
-    pub penetration: Vec<f64>,
-    pub penetration_rate: Vec<f64>,
-    pub normal_force: Vec<f64>,
-    pub friction_force: Vec<f64>,
-    /// 1 in contact, 0 free, per contact.
-    pub state: Vec<u8>,
-    /// Resultant force (N) and moment about the centre of mass (N m) on journal and housing.
-    pub force_journal: Vec<[f64; 3]>,
-    pub moment_journal: Vec<[f64; 3]>,
-    pub force_housing: Vec<[f64; 3]>,
-    pub moment_housing: Vec<[f64; 3]>,
     /// The clearance (m): radial clearance for the orbit figure.
     pub radial_clearance: f64,
     /// A spherical joint: its orbit is three-dimensional (the eccentricity), not a plane one.
     pub spherical: bool,
 }
 
-/// One drive: its coordinate and actuator effort.
-#[derive(Debug, Clone, Default)]
-pub struct DriveTrack {
-    pub name: String,
-    pub rotational: bool,
-    /// m or rad.
-    pub coordinate: Vec<f64>,
-    /// N or N m.
-    pub force: Vec<f64>,
-}
-
-/// Constraint and energy diagnostics per sample.
-#[derive(Debug, Clone, Default)]
-pub struct Diagnostics {
-    /// 2-norm of the position constraint residuals (m and rad mixed).
-    pub constraint_drift: Vec<f64>,
-    /// 2-norm of the velocity constraint residuals (m/s and rad/s mixed).
-    pub velocity_drift: Vec<f64>,
-    /// Kinetic + gravitational + spring energy (J); empty when energy is not recorded.
-    pub energy: Vec<f64>,
-}
-
-/// Everything one run recorded.
+/// Everything one run recorded: the sample times and one [`Channel`] per dataset of the run file
+/// (layout in the README, "HDF5 layout"), in the order they are written.
 #[derive(Debug, Clone, Default)]
 pub struct Recording {
     /// s.
     pub time: Vec<f64>,
-    pub bodies: Vec<BodyTrack>,
-    pub joints: Vec<JointTrack>,
-    pub drives: Vec<DriveTrack>,
-    pub clearances: Vec<ClearanceTrack>,
-    pub diagnostics: Option<Diagnostics>,
+    pub channels: Vec<Channel>,
+    /// The groups, parents first, in the order they are written.
+    pub groups: Vec<Group>,
+    /// The recorded joints with clearance.
+    pub clearances: Vec<Clearance>,
 }
 
+/// Declares the channels of a recording, group by group.
+struct Declare<'m> {
+    model: &'m Model,
+    rec: Recording,
+    stage: u8,
+}
+
+impl Declare<'_> {
+    fn group(&mut self, path: String, attrs: Vec<(String, Attr)>) {
+        self.rec.groups.push(Group { path, attrs });
+    }
+
+    /// A dataset of the observables `path.c` for each component `c` (`path` itself, as a
+    /// one-dimensional dataset, when `comps` is empty).
+    fn channel(
+        &mut self,
+        path: &str,
+        comps: &[&str],
+        description: &str,
+        checked: Option<String>,
+    ) -> Result<()> {
+        let paths: Vec<String> = if comps.is_empty() {
+            vec![path.to_string()]
+        } else {
+            comps.iter().map(|c| format!("{path}.{c}")).collect()
+        };
+        let columns = paths
+            .iter()
+            .map(|p| Observable::for_run(self.model, p))
+            .collect::<std::result::Result<Vec<_>, _>>()
+            .map_err(|message| jointplay_solver::Error::Invalid {
+                file: self.model.file.clone(),
+                field: "outputs".into(),
+                message,
+            })?;
+        let unit = columns[0].unit.clone();
+        debug_assert!(columns.iter().all(|o| o.unit == unit), "{path}");
+        // The dataset is the path of a group member: kind, name, quantity (the name may hold dots).
+        let name = &self
+            .rec
+            .groups
+            .last()
+            .map(|g| g.path.clone())
+            .unwrap_or_default();
+        let quantity = path.rsplit('.').next().unwrap_or(path);
+        self.rec.channels.push(Channel {
+            dataset: format!("{name}/{quantity}"),
+            unit,
+            description: description.to_string(),
+            flag: quantity == "contact_state",
+            scalar: comps.is_empty(),
+            checked,
+            values: Vec::new(),
+            columns,
+            stage: self.stage,
+        });
+        Ok(())
+    }
+}
+
+const XYZ: [&str; 3] = ["x", "y", "z"];
+
 impl Recording {
-    /// Keeps the first `n` samples of every series (per-contact series keep `n` times their
-    /// number of contacts).
+    /// The channels of `model`'s outputs (which bodies, joints and drives, whether accelerations,
+    /// diagnostics and energy), with no sample yet.
+    pub fn of(model: &Model) -> Result<Recording> {
+        let out = &model.outputs;
+        let mut d = Declare {
+            model,
+            rec: Recording::default(),
+            stage: 0,
+        };
+        d.group("bodies".into(), Vec::new());
+        for &b in &out.bodies {
+            let name = &model.bodies[b].name;
+            let p = |q: &str| format!("bodies.{name}.{q}");
+            d.group(format!("bodies/{name}"), Vec::new());
+            d.channel(&p("position"), &XYZ, "centre of mass, global axes", None)?;
+            d.channel(
+                &p("orientation"),
+                &["w", "x", "y", "z"],
+                "Euler parameters (w, x, y, z) of the rotation body -> global",
+                None,
+            )?;
+            d.channel(
+                &p("velocity"),
+                &XYZ,
+                "centre-of-mass velocity, global axes",
+                None,
+            )?;
+            d.channel(&p("angular_velocity"), &XYZ, "global axes", None)?;
+            if out.accelerations {
+                d.channel(
+                    &p("acceleration"),
+                    &XYZ,
+                    "centre-of-mass acceleration, global axes",
+                    Some(format!("acceleration of body '{name}'")),
+                )?;
+                d.channel(
+                    &p("angular_acceleration"),
+                    &XYZ,
+                    "global axes",
+                    Some(format!("angular acceleration of body '{name}'")),
+                )?;
+            }
+        }
+        d.group("joints".into(), Vec::new());
+        d.stage = 1;
+        for &j in out
+            .joints
+            .iter()
+            .filter(|&&j| !model.joints[j].rows.is_empty())
+        {
+            let name = &model.joints[j].name;
+            let p = |q: &str| format!("joints.{name}.{q}");
+            d.group(format!("joints/{name}"), Vec::new());
+            d.channel(
+                &p("reaction_force"),
+                &XYZ,
+                "force of the joint on its body_b, global axes",
+                Some(format!("reaction force of joint '{name}'")),
+            )?;
+            d.channel(
+                &p("reaction_torque"),
+                &XYZ,
+                "torque of the joint on its body_b about the joint point on body_b, global axes",
+                Some(format!("reaction torque of joint '{name}'")),
+            )?;
+        }
+        d.stage = 3;
+        for c in out.joints.iter().filter_map(|&j| model.joints[j].clearance) {
+            let cl = &model.clearances[c];
+            let name = &cl.name;
+            let contacts: Vec<&str> = cl.geometry.contact_names().to_vec();
+            let attrs = vec![
+                ("contacts".to_string(), Attr::Str(contacts.join(","))),
+                (
+                    "radial_clearance".to_string(),
+                    Attr::F64(cl.geometry.radial_clearance()),
+                ),
+                ("radial_clearance_unit".to_string(), Attr::Str("m".into())),
+            ];
+            // A joint that keeps rows (a planar bearing's out-of-plane rows) has its group already.
+            let path = format!("joints/{name}");
+            match d.rec.groups.iter().position(|g| g.path == path) {
+                Some(i) => {
+                    let g = d.rec.groups.remove(i);
+                    d.rec.groups.push(Group {
+                        attrs: [g.attrs, attrs].concat(),
+                        ..g
+                    });
+                }
+                None => d.group(path, attrs),
+            }
+            d.rec.clearances.push(Clearance {
+                name: name.clone(),
+                contacts: contacts.iter().map(|s| s.to_string()).collect(),
+                radial_clearance: cl.geometry.radial_clearance(),
+                spherical: matches!(cl.geometry, Geometry::Spherical { .. }),
+            });
+            let p = |q: &str| format!("joints.{name}.{q}");
+            d.channel(
+                &p("eccentricity"),
+                &XYZ,
+                "journal centre relative to the housing centre, housing axes",
+                None,
+            )?;
+            d.channel(
+                &p("eccentricity_global"),
+                &XYZ,
+                "journal centre relative to the housing centre, global axes",
+                None,
+            )?;
+            d.channel(
+                &p("radial_eccentricity"),
+                &["u", "w"],
+                "eccentricity along the two housing directions normal to its axis (u, w): the journal-centre orbit",
+                None,
+            )?;
+            if matches!(cl.geometry, Geometry::Revolute { .. }) {
+                d.channel(
+                    &p("end_eccentricity"),
+                    &["P_u", "P_w", "Q_u", "Q_w"],
+                    "journal axis at the rim planes s = +L_B/2 (u, w) and s = -L_B/2 (u, w): the orbits of both journal ends",
+                    None,
+                )?;
+            }
+            let per =
+                |what: &str| format!("{what}, one column per contact ({})", contacts.join(", "));
+            for (q, what) in [
+                ("penetration", "penetration, negative while apart"),
+                ("penetration_rate", "penetration rate, approach positive"),
+                ("normal_force", "normal contact force"),
+                ("friction_force", "magnitude of the friction force"),
+                ("contact_state", "1 in contact, 0 free"),
+            ] {
+                d.channel(&p(q), &contacts, &per(what), None)?;
+            }
+            for (q, what, desc) in [
+                (
+                    "force_on_journal",
+                    "force",
+                    "resultant contact force on the journal body (body_b), global axes",
+                ),
+                (
+                    "moment_on_journal",
+                    "moment",
+                    "resultant contact moment on the journal body about its centre of mass, global axes",
+                ),
+                (
+                    "force_on_housing",
+                    "force",
+                    "resultant contact force on the housing body (body_a), global axes",
+                ),
+                (
+                    "moment_on_housing",
+                    "moment",
+                    "resultant contact moment on the housing body about its centre of mass, global axes",
+                ),
+            ] {
+                d.channel(
+                    &p(q),
+                    &XYZ,
+                    desc,
+                    Some(format!("contact {what} of clearance joint '{name}'")),
+                )?;
+            }
+        }
+        d.group("drives".into(), Vec::new());
+        d.stage = 2;
+        for &dr in &out.drives {
+            let name = &model.drives[dr].name;
+            let p = |q: &str| format!("drives.{name}.{q}");
+            let checked = Some(format!("force of drive '{name}'"));
+            d.group(format!("drives/{name}"), Vec::new());
+            d.channel(&p("coordinate"), &[], "joint coordinate", checked.clone())?;
+            d.channel(
+                &p("force"),
+                &[],
+                "actuator force (torque) on body_b in the direction of increasing coordinate",
+                checked,
+            )?;
+        }
+        if out.diagnostics {
+            d.stage = 4;
+            let checked = Some("constraint drift or energy".to_string());
+            d.group("diagnostics".into(), Vec::new());
+            d.channel(
+                "diagnostics.constraint_drift",
+                &[],
+                "2-norm of the position constraint residuals",
+                checked.clone(),
+            )?;
+            d.channel(
+                "diagnostics.velocity_drift",
+                &[],
+                "2-norm of the velocity constraint residuals",
+                checked.clone(),
+            )?;
+            if out.energy {
+                d.channel(
+                    "diagnostics.energy",
+                    &[],
+                    "kinetic + gravitational + spring energy",
+                    checked,
+                )?;
+            }
+        }
+        Ok(d.rec)
+    }
+
+    /// The channel written to `dataset` (e.g. `bodies/bob/position`), if recorded.
+    pub fn channel(&self, dataset: &str) -> Option<&Channel> {
+        self.channels.iter().find(|c| c.dataset == dataset)
+    }
+
+    /// The names of the recorded members of `kind` (`bodies`, `joints` or `drives`), in order.
+    pub fn members<'a>(&'a self, kind: &'a str) -> impl Iterator<Item = &'a str> + 'a {
+        self.groups
+            .iter()
+            .filter_map(move |g| g.path.strip_prefix(kind).and_then(|p| p.strip_prefix('/')))
+    }
+
+    /// The channels in evaluation order: stage by stage, those of a stage in the order they are
+    /// written.
+    fn order(&self) -> Vec<usize> {
+        let mut order: Vec<usize> = (0..self.channels.len()).collect();
+        order.sort_by_key(|&i| self.channels[i].stage);
+        order
+    }
+
+    /// Evaluates every channel at one sample: in stage order, each value checked as it comes, so
+    /// a non-finite value stops at the first quantity the stages reach. Values of a sample that
+    /// fails may be partly pushed; [`Recording::truncate`] drops them.
+    fn sample(
+        &mut self,
+        order: &[usize],
+        model: &Model,
+        ws: &mut Workspace,
+        t: f64,
+        y: &[f64],
+    ) -> Result<()> {
+        self.time.push(t);
+        for &i in order {
+            let ch = &mut self.channels[i];
+            for o in &ch.columns {
+                let v = o.eval_run(model, ws, t, y);
+                if !v.is_finite()
+                    && let Some(what) = &ch.checked
+                {
+                    return Err(jointplay_solver::Error::Diverged {
+                        time: t,
+                        message: format!("{what} became non-finite"),
+                    }
+                    .into());
+                }
+                ch.values.push(v);
+            }
+        }
+        Ok(())
+    }
+
+    /// Keeps the first `n` samples of every channel.
     fn truncate(&mut self, n: usize) {
         self.time.truncate(n);
-        for b in &mut self.bodies {
-            b.position.truncate(n);
-            b.orientation.truncate(n);
-            b.velocity.truncate(n);
-            b.angular_velocity.truncate(n);
-            b.acceleration.truncate(n);
-            b.angular_acceleration.truncate(n);
-        }
-        for j in &mut self.joints {
-            j.force.truncate(n);
-            j.torque.truncate(n);
-        }
-        for d in &mut self.drives {
-            d.coordinate.truncate(n);
-            d.force.truncate(n);
-        }
-        for c in &mut self.clearances {
-            let k = n * c.contacts.len();
-            c.eccentricity.truncate(n);
-            c.eccentricity_global.truncate(n);
-            c.radial_eccentricity.truncate(n);
-            c.end_eccentricity.truncate(n);
-            c.penetration.truncate(k);
-            c.penetration_rate.truncate(k);
-            c.normal_force.truncate(k);
-            c.friction_force.truncate(k);
-            c.state.truncate(k);
-            c.force_journal.truncate(n);
-            c.moment_journal.truncate(n);
-            c.force_housing.truncate(n);
-            c.moment_housing.truncate(n);
-        }
-        if let Some(d) = &mut self.diagnostics {
-            d.constraint_drift.truncate(n);
-            d.velocity_drift.truncate(n);
-            d.energy.truncate(n);
+        for c in &mut self.channels {
+            c.values.truncate(n * c.columns.len());
         }
     }
 }
@@ -229,18 +510,6 @@ impl RunResult {
             }
             .into()),
         }
-    }
-}
-
-fn finite3(v: &[f64; 3], what: &str, t: f64) -> Result<()> {
-    if v.iter().all(|x| x.is_finite()) {
-        Ok(())
-    } else {
-        Err(jointplay_solver::Error::Diverged {
-            time: t,
-            message: format!("{what} became non-finite"),
-        }
-        .into())
     }
 }
 
@@ -311,170 +580,14 @@ fn record(
 ) -> Result<RunResult> {
     let mut samples = model.sample_times();
     samples.retain(|&t| t >= state.t);
-    let out = &model.outputs;
-    let mut rec = Recording {
-        time: Vec::with_capacity(samples.len()),
-        bodies: out
-            .bodies
-            .iter()
-            .map(|&b| BodyTrack {
-                name: model.bodies[b].name.clone(),
-                ..Default::default()
-            })
-            .collect(),
-        joints: out
-            .joints
-            .iter()
-            .filter(|&&j| !model.joints[j].rows.is_empty())
-            .map(|&j| JointTrack {
-                name: model.joints[j].name.clone(),
-                ..Default::default()
-            })
-            .collect(),
-        drives: out
-            .drives
-            .iter()
-            .map(|&d| DriveTrack {
-                name: model.drives[d].name.clone(),
-                rotational: model.drives[d].coordinate == DriveCoordinate::Rotation,
-                ..Default::default()
-            })
-            .collect(),
-        clearances: out
-            .joints
-            .iter()
-            .filter_map(|&j| model.joints[j].clearance)
-            .map(|c| {
-                let cl = &model.clearances[c];
-                ClearanceTrack {
-                    name: cl.name.clone(),
-                    contacts: cl
-                        .geometry
-                        .contact_names()
-                        .iter()
-                        .map(|s| s.to_string())
-                        .collect(),
-                    radial_clearance: cl.geometry.radial_clearance(),
-                    spherical: matches!(cl.geometry, Geometry::Spherical { .. }),
-                    ..Default::default()
-                }
-            })
-            .collect(),
-        diagnostics: out.diagnostics.then(Diagnostics::default),
-    };
-    let ideal_joints: Vec<usize> = out
-        .joints
-        .iter()
-        .copied()
-        .filter(|&j| !model.joints[j].rows.is_empty())
-        .collect();
-    let clearance_ids: Vec<usize> = out
-        .joints
-        .iter()
-        .filter_map(|&j| model.joints[j].clearance)
-        .collect();
-    let np = model.n_pos();
+    let mut rec = Recording::of(model)?;
+    let order = rec.order();
     let (t0, t1) = (state.t, model.settings.end_time);
     let mut failure = None;
     // Outputs are evaluated with the system's own workspace, so that they see its contact history.
     let mut observe = |sys: &mut Mechanism, t: f64, y: &[f64]| -> Result<()> {
-        let ws = &mut sys.ws;
-        model.accelerations(t, y, ws);
-        rec.time.push(t);
-        for (tr, &b) in rec.bodies.iter_mut().zip(&out.bodies) {
-            let p = &y[7 * b..7 * b + 7];
-            let n = (p[3] * p[3] + p[4] * p[4] + p[5] * p[5] + p[6] * p[6]).sqrt();
-            let v = &y[np + 6 * b..np + 6 * b + 6];
-            tr.position.push([p[0], p[1], p[2]]);
-            tr.orientation
-                .push([p[3] / n, p[4] / n, p[5] / n, p[6] / n]);
-            tr.velocity.push([v[0], v[1], v[2]]);
-            tr.angular_velocity.push([v[3], v[4], v[5]]);
-            if out.accelerations {
-                let a = &ws.acc[b];
-                let lin = [a[0], a[1], a[2]];
-                let ang = [a[3], a[4], a[5]];
-                finite3(&lin, &format!("acceleration of body '{}'", tr.name), t)?;
-                finite3(
-                    &ang,
-                    &format!("angular acceleration of body '{}'", tr.name),
-                    t,
-                )?;
-                tr.acceleration.push(lin);
-                tr.angular_acceleration.push(ang);
-            }
-        }
-        for (tr, &j) in rec.joints.iter_mut().zip(&ideal_joints) {
-            let (f, n) = model.reaction(j, ws);
-            let (f, n) = ([f.x, f.y, f.z], [n.x, n.y, n.z]);
-            finite3(&f, &format!("reaction force of joint '{}'", tr.name), t)?;
-            finite3(&n, &format!("reaction torque of joint '{}'", tr.name), t)?;
-            tr.force.push(f);
-            tr.torque.push(n);
-        }
-        for (tr, &d) in rec.drives.iter_mut().zip(&out.drives) {
-            let f = model.actuator_force(d, ws);
-            let c = model.drive_coordinate(d, t, ws);
-            finite3(&[f, c, 0.0], &format!("force of drive '{}'", tr.name), t)?;
-            tr.force.push(f);
-            tr.coordinate.push(c);
-        }
-        // Contact data of this evaluation (read before drift and energy reuse the scratch).
-        for (tr, &c) in rec.clearances.iter_mut().zip(&clearance_ids) {
-            let cl = &model.clearances[c];
-            let (kh, kj) = (
-                model.kinematics_of(cl.housing, ws),
-                model.kinematics_of(cl.journal, ws),
-            );
-            let e = cl.eccentricity(&kh, &kj);
-            let el = kh.rot.transpose() * e;
-            let (u, w) = cl.radial_axes();
-            tr.eccentricity.push([el.x, el.y, el.z]);
-            tr.eccentricity_global.push([e.x, e.y, e.z]);
-            tr.radial_eccentricity.push([el.dot(&u), el.dot(&w)]);
-            if let Some([p, q]) = cl.end_offsets(&kh, &kj) {
-                tr.end_eccentricity.push([p[0], p[1], q[0], q[1]]);
-            }
-            for ce in &ws.contacts[cl.first..cl.first + cl.geometry.n_contacts()] {
-                tr.penetration.push(ce.delta);
-                tr.penetration_rate.push(ce.delta_dot);
-                tr.normal_force.push(ce.fn_);
-                tr.friction_force.push(ce.ft.norm());
-                tr.state.push(u8::from(ce.active()));
-            }
-            let r = &ws.resultants[c];
-            let v = |x: nalgebra::Vector3<f64>| [x.x, x.y, x.z];
-            for (a, what) in [
-                (&r.force_j, "force"),
-                (&r.moment_j, "moment"),
-                (&r.force_h, "force"),
-                (&r.moment_h, "moment"),
-            ] {
-                finite3(
-                    &v(*a),
-                    &format!("contact {what} of clearance joint '{}'", tr.name),
-                    t,
-                )?;
-            }
-            tr.force_journal.push(v(r.force_j));
-            tr.moment_journal.push(v(r.moment_j));
-            tr.force_housing.push(v(r.force_h));
-            tr.moment_housing.push(v(r.moment_h));
-        }
-        if let Some(diag) = rec.diagnostics.as_mut() {
-            let (p, v) = model.drift(t, y, ws);
-            let e = if model.outputs.energy {
-                model.energy(y, ws)
-            } else {
-                0.0
-            };
-            finite3(&[p, v, e], "constraint drift or energy", t)?;
-            diag.constraint_drift.push(p);
-            diag.velocity_drift.push(v);
-            if model.outputs.energy {
-                diag.energy.push(e);
-            }
-        }
+        model.accelerations(t, y, &mut sys.ws);
+        rec.sample(&order, model, &mut sys.ws, t, y)?;
         progress((t - t0) / (t1 - t0));
         Ok(())
     };
@@ -525,4 +638,166 @@ fn record(
         warnings: sys.warnings,
         stopped,
     })
+}
+
+#[cfg(test)]
+mod tests {
+    use std::path::PathBuf;
+
+    use jointplay_solver::scene::SceneSpec;
+
+    use super::*;
+
+    fn model(scene: &str) -> (Model, State) {
+        let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+            .join("../../data/scenes")
+            .join(scene);
+        Model::compile(&SceneSpec::load(&path).unwrap()).unwrap()
+    }
+
+    #[test]
+    fn every_dataset_of_a_4ups_rpu_run_is_made_of_registry_paths() {
+        let (m, _) = model("4ups-rpu-mixed.toml");
+        let rec = Recording::of(&m).unwrap();
+        assert!(!rec.clearances.is_empty() && rec.members("drives").count() == 5);
+        for c in &rec.channels {
+            assert!(!c.columns.is_empty(), "{}", c.dataset);
+            for o in &c.columns {
+                // The column is the observable of its path, in the dataset's unit ...
+                assert_eq!(Observable::for_run(&m, &o.path).as_ref(), Ok(o));
+                assert_eq!(o.unit, c.unit, "{}", o.path);
+                // ... which a study can observe too, but for the diagnostics.
+                assert_eq!(
+                    Observable::for_model(&m, &o.path).is_ok(),
+                    !o.is_diagnostic(),
+                    "{}",
+                    o.path
+                );
+                // The dataset is the path without its component (none for a scalar).
+                let stem = if c.scalar {
+                    o.path.as_str()
+                } else {
+                    o.path.rsplit_once('.').unwrap().0
+                };
+                assert_eq!(stem.replace('.', "/"), c.dataset);
+            }
+        }
+        let names = |prefix: &str| -> Vec<&str> {
+            rec.channels
+                .iter()
+                .filter_map(|c| c.dataset.strip_prefix(prefix))
+                .collect()
+        };
+        assert_eq!(
+            names("bodies/platform/"),
+            [
+                "position",
+                "orientation",
+                "velocity",
+                "angular_velocity",
+                "acceleration",
+                "angular_acceleration"
+            ]
+        );
+        // A spatial revolute with clearance, with its contacts as columns.
+        let r1 = rec.clearances.iter().find(|c| c.name == "R1").unwrap();
+        assert_eq!(r1.contacts, ["P", "Q", "M", "N"]);
+        assert_eq!(
+            names("joints/R1/"),
+            [
+                "eccentricity",
+                "eccentricity_global",
+                "radial_eccentricity",
+                "end_eccentricity",
+                "penetration",
+                "penetration_rate",
+                "normal_force",
+                "friction_force",
+                "contact_state",
+                "force_on_journal",
+                "moment_on_journal",
+                "force_on_housing",
+                "moment_on_housing"
+            ]
+        );
+        let state = rec.channel("joints/R1/contact_state").unwrap();
+        assert!(
+            state.flag
+                && state.width() == 4
+                && state.columns[3].path == "joints.R1.contact_state.N"
+        );
+        assert_eq!(
+            names("diagnostics/"),
+            ["constraint_drift", "velocity_drift", "energy"]
+        );
+        // The groups come parents first.
+        for (i, g) in rec.groups.iter().enumerate() {
+            if let Some((parent, _)) = g.path.rsplit_once('/') {
+                assert!(
+                    rec.groups[..i].iter().any(|p| p.path == parent),
+                    "{}",
+                    g.path
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn a_recorded_value_is_the_study_observable_of_its_path_at_that_time() {
+        let (mut m, state) = model("4ups-rpu-mixed.toml");
+        m.settings.end_time = m.settings.start_time + 0.02;
+        let run = simulate(&m, state, &mut |_| {}).unwrap();
+        let rec = &run.recording;
+        // The last sample is the end time, where the run's final state lies: evaluate the study
+        // observables there as a study does (a full evaluation, then Observable::eval_model).
+        let last = rec.time.len() - 1;
+        let end = &run.final_state;
+        assert_eq!(rec.time[last], end.t);
+        let mut sys = Mechanism::new(&m);
+        sys.load_memory(end).unwrap();
+        m.accelerations(end.t, &end.y, &mut sys.ws);
+        let mut compared = 0;
+        for c in rec.channels.iter().filter(|c| c.stage < 4) {
+            let row = c.rows().nth(last).unwrap();
+            for (o, &v) in c.columns.iter().zip(row) {
+                let study = Observable::for_model(&m, &o.path).unwrap();
+                let w = study.eval_model(&m, &sys.ws, end.t, &end.y);
+                assert_eq!(
+                    v.to_bits(),
+                    w.to_bits(),
+                    "{}: recorded {v}, study {w}",
+                    o.path
+                );
+                compared += 1;
+            }
+        }
+        assert!(compared > 300, "{compared}");
+    }
+
+    #[test]
+    fn a_non_finite_value_stops_the_sample_naming_the_quantity_and_the_time() {
+        let (m, state) = model("pendulum.toml");
+        let mut rec = Recording::of(&m).unwrap();
+        let order = rec.order();
+        let mut sys = Mechanism::new(&m);
+        m.accelerations(0.25, &state.y, &mut sys.ws);
+        sys.ws.acc[0][4] = f64::NAN;
+        let err = rec
+            .sample(&order, &m, &mut sys.ws, 0.25, &state.y)
+            .unwrap_err();
+        let name = &m.bodies[0].name;
+        match err {
+            crate::Error::Solver(jointplay_solver::Error::Diverged { time, message }) => {
+                assert_eq!(time, 0.25);
+                assert_eq!(
+                    message,
+                    format!("angular acceleration of body '{name}' became non-finite")
+                );
+            }
+            other => panic!("{other}"),
+        }
+        // The failed sample is dropped whole.
+        rec.truncate(0);
+        assert!(rec.time.is_empty() && rec.channels.iter().all(|c| c.values.is_empty()));
+    }
 }

@@ -9,7 +9,7 @@
 
 use std::path::Path;
 
-use jointplay_analysis::run::{Recording, RunResult, simulate};
+use jointplay_analysis::run::{Channel, Recording, RunResult, simulate};
 use jointplay_solver::contact::{Damping, hunt_crossley_restitution};
 use jointplay_solver::model::Model;
 use jointplay_solver::scene::{SceneFile, SceneSpec};
@@ -50,36 +50,43 @@ fn finished(name: &str, text: &str) -> (Model, RunResult) {
 fn assert_finite(rec: &Recording) {
     let ok = |v: &[f64]| v.iter().all(|x| x.is_finite());
     assert!(ok(&rec.time));
-    for b in &rec.bodies {
-        for s in [
-            &b.position,
-            &b.velocity,
-            &b.angular_velocity,
-            &b.acceleration,
-        ] {
-            assert!(s.iter().all(|v| ok(v)), "body {}", b.name);
-        }
-    }
-    for c in &rec.clearances {
-        assert!(ok(&c.penetration) && ok(&c.normal_force) && ok(&c.friction_force));
-    }
-    if let Some(d) = &rec.diagnostics {
-        assert!(ok(&d.constraint_drift) && ok(&d.velocity_drift) && ok(&d.energy));
+    for c in &rec.channels {
+        assert_eq!(c.values.len(), rec.time.len() * c.width(), "{}", c.dataset);
+        assert!(ok(&c.values), "{}", c.dataset);
     }
 }
 
+/// The recorded dataset `dataset` (e.g. `bodies/ball/position`).
+fn ch<'a>(rec: &'a Recording, dataset: &str) -> &'a Channel {
+    rec.channel(dataset)
+        .unwrap_or_else(|| panic!("{dataset} is not recorded"))
+}
+
+/// Quantity `q` of the first recorded body.
+fn body0(rec: &Recording, q: &str) -> Vec<[f64; 3]> {
+    let b = rec.members("bodies").next().unwrap();
+    ch(rec, &format!("bodies/{b}/{q}")).vectors()
+}
+
+/// Quantity `q` of the first recorded clearance joint.
+fn clearance0<'a>(rec: &'a Recording, q: &str) -> &'a Channel {
+    ch(rec, &format!("joints/{}/{q}", rec.clearances[0].name))
+}
+
 fn max_drift(rec: &Recording) -> f64 {
-    rec.diagnostics.as_ref().map_or(0.0, |d| {
-        d.constraint_drift.iter().fold(0.0, |m, x| m.max(*x))
-    })
+    rec.channel("diagnostics/constraint_drift")
+        .map_or(0.0, |d| d.values.iter().fold(0.0, |m, x| m.max(*x)))
 }
 
 /// Largest distance between the recorded positions of every body in two runs sampled alike.
 fn position_gap(a: &Recording, b: &Recording) -> f64 {
     assert_eq!(a.time.len(), b.time.len());
+    assert!(a.members("bodies").eq(b.members("bodies")));
     let mut gap: f64 = 0.0;
-    for (ba, bb) in a.bodies.iter().zip(&b.bodies) {
-        for (pa, pb) in ba.position.iter().zip(&bb.position) {
+    for name in a.members("bodies") {
+        let dataset = format!("bodies/{name}/position");
+        let (pa, pb) = (ch(a, &dataset).vectors(), ch(b, &dataset).vectors());
+        for (pa, pb) in pa.iter().zip(&pb) {
             let d = (0..3).map(|k| (pa[k] - pb[k]).powi(2)).sum::<f64>().sqrt();
             gap = gap.max(d);
         }
@@ -132,7 +139,7 @@ fn dopri(rtol: f64, max_step: f64, end: f64, interval: f64) -> String {
 
 /// Restitution of a head-on impact read from the recording: speed after over speed before.
 fn restitution(rec: &Recording) -> f64 {
-    let v = &rec.bodies[0].velocity;
+    let v = &body0(rec, "velocity");
     let speed = |k: usize| (v[k][0] * v[k][0] + v[k][1] * v[k][1] + v[k][2] * v[k][2]).sqrt();
     speed(v.len() - 1) / speed(0)
 }
@@ -165,8 +172,8 @@ fn grazing_contact_stays_finite_and_converges() {
         let gap = position_gap(&runs[0].recording, &runs[1].recording);
         assert!(gap < 1e-8, "floor '{floor}': runs differ by {gap:e} m");
         // It never penetrated deeper than an elastic contact can (Hertz at 0.1 m/s: ~1 um).
-        let worst = runs[1].recording.clearances[0]
-            .penetration
+        let worst = clearance0(&runs[1].recording, "penetration")
+            .values
             .iter()
             .fold(f64::MIN, |m, x| m.max(*x));
         assert!(worst < 2e-6, "penetration {worst:e} m");
@@ -209,14 +216,14 @@ fn very_large_clearance_is_free_flight_then_converging_impacts() {
         })
         .collect();
     let rec = &runs[1].recording;
-    for (t, p) in rec.time.iter().zip(&rec.bodies[0].position) {
+    for (t, p) in rec.time.iter().zip(&body0(rec, "position")) {
         if *t < 0.063 {
             // Free fall is a polynomial the integrator reproduces to rounding.
             assert!((p[1] + 0.5 * g * t * t).abs() < 1e-12, "t {t}: y {}", p[1]);
         }
     }
-    let first = rec.clearances[0]
-        .penetration
+    let first = clearance0(rec, "penetration")
+        .values
         .iter()
         .position(|d| *d > 0.0)
         .unwrap();
@@ -362,7 +369,7 @@ fn friction_at_zero_sliding_speed_and_stick_slip() {
         "fall.toml",
         &ball(c, "", LN, coulomb, grav, &dopri(1e-9, 1e-4, 0.1, 1e-3)),
     );
-    for p in &r.recording.bodies[0].position {
+    for p in &body0(&r.recording, "position") {
         assert!(p[0] == 0.0 && p[2] == 0.0, "{p:?}");
     }
     // (2) Stick-slip: the ball rests at the bottom (static Hertz penetration) spinning at 20
@@ -382,16 +389,16 @@ fn friction_at_zero_sliding_speed_and_stick_slip() {
     );
     let text = ball(c, &body, LN, coulomb, grav, &dopri(1e-9, 1e-4, 0.2, 1e-3));
     let (_, r) = finished("spin.toml", &text);
-    let w = &r.recording.bodies[0].angular_velocity;
+    let w = &body0(&r.recording, "angular_velocity");
     let rate = (w[2][2] - w[0][2]) / r.recording.time[2];
     // The friction force also moves the ball sideways, which changes the normal force by a
     // fraction of a percent over 2 ms; 2 % covers it.
     assert!((rate + 490.5).abs() < 0.02 * 490.5, "spin-down rate {rate}");
     // Then it sticks: the contact point stops sliding (below the regularisation speed).
-    let last = r.recording.bodies[0].position.len() - 1;
+    let last = r.recording.time.len() - 1;
     let (p, v, om) = (
-        r.recording.bodies[0].position[last],
-        r.recording.bodies[0].velocity[last],
+        body0(&r.recording, "position")[last],
+        body0(&r.recording, "velocity")[last],
         w[last],
     );
     let e = (p[0] * p[0] + p[1] * p[1] + p[2] * p[2]).sqrt();
@@ -429,12 +436,12 @@ fn ball_concentric_with_its_socket_at_start() {
             &dopri(1e-9, 1e-3, 0.1, 1e-3),
         ),
     );
-    for p in &r.recording.bodies[0].position {
+    for p in &body0(&r.recording, "position") {
         assert_eq!(*p, [0.0; 3]);
     }
     assert!(
-        r.recording.clearances[0]
-            .penetration
+        clearance0(&r.recording, "penetration")
+            .values
             .iter()
             .all(|d| *d == -3e-4)
     );
@@ -489,7 +496,7 @@ fn journal_and_bushing_axes_parallel_and_coincident_at_start() {
     let cl = &runs[1].recording.clearances[0];
     assert_eq!(cl.contacts, ["P", "Q", "M", "N"]);
     let mut hit = 0;
-    for f in cl.normal_force.chunks(4) {
+    for f in clearance0(&runs[1].recording, "normal_force").rows() {
         assert!((f[0] - f[1]).abs() <= 1e-6 * f[0].max(1.0), "{f:?}");
         assert!(f[2] == 0.0 && f[3] == 0.0, "{f:?}");
         hit += usize::from(f[0] > 0.0);
@@ -509,13 +516,9 @@ fn journal_tilted_until_rim_and_face_contact_together() {
         .map(|&rtol| finished("tilted.toml", &shaft(body, &dopri(rtol, 1e-4, 0.04, 1e-4))).1)
         .collect();
     let rec = &runs[1].recording;
-    let cl = &rec.clearances[0];
-    let first = |k: usize| {
-        cl.state
-            .chunks(4)
-            .position(|s| s[k] == 1)
-            .map(|i| rec.time[i])
-    };
+    let state = clearance0(rec, "contact_state");
+    assert_eq!(state.width(), 4);
+    let first = |k: usize| state.rows().position(|s| s[k] == 1.0).map(|i| rec.time[i]);
     let (rim, face) = (
         first(0)
             .into_iter()
@@ -528,10 +531,9 @@ fn journal_tilted_until_rim_and_face_contact_together() {
     );
     assert!(rim < 0.04 && face < 0.04, "rim {rim} s, face {face} s");
     assert!((rim - face).abs() < 5e-3, "rim {rim} s, face {face} s");
-    let both = cl
-        .state
-        .chunks(4)
-        .filter(|s| (s[0] == 1 || s[1] == 1) && (s[2] == 1 || s[3] == 1))
+    let both = state
+        .rows()
+        .filter(|s| (s[0] == 1.0 || s[1] == 1.0) && (s[2] == 1.0 || s[3] == 1.0))
         .count();
     assert!(both > 0, "rim and face never in contact together");
     let gap = position_gap(&runs[0].recording, rec);
@@ -567,12 +569,15 @@ fn redundant_constraints_of_the_ideal_4ups_rpu() {
     let gap = position_gap(&a.recording, &b.recording);
     assert!(gap < 1e-9, "{gap:e}");
     // Drive forces agree too (minimum-norm multipliers are unique).
-    for (da, db) in a.recording.drives.iter().zip(&b.recording.drives) {
-        for (fa, fb) in da.force.iter().zip(&db.force) {
+    let drives: Vec<&str> = a.recording.members("drives").collect();
+    assert!(!drives.is_empty());
+    for d in drives {
+        let force = format!("drives/{d}/force");
+        let (fa, fb) = (ch(&a.recording, &force), ch(&b.recording, &force));
+        for (fa, fb) in fa.values.iter().zip(&fb.values) {
             assert!(
                 (fa - fb).abs() < 1e-6 * fa.abs().max(1.0),
-                "{}: {fa} vs {fb}",
-                da.name
+                "{d}: {fa} vs {fb}"
             );
         }
     }
@@ -585,10 +590,10 @@ fn slider_crank_passes_its_dead_points() {
     let text = repo("data/scenes/slider-crank.toml");
     let (_, r) = finished("slider-crank.toml", &text);
     let rec = &r.recording;
-    let slider = rec.bodies.iter().position(|b| b.name == "slider").unwrap();
+    let slider = ch(rec, "bodies/slider/position").vectors();
     let (rc, l, w) = (0.05, 0.12, 523.598_775_598_298_9);
     let mut worst: f64 = 0.0;
-    for (t, p) in rec.time.iter().zip(&rec.bodies[slider].position) {
+    for (t, p) in rec.time.iter().zip(&slider) {
         let th = w * t;
         let x = rc * th.cos() + (l * l - (rc * th.sin()).powi(2)).sqrt();
         worst = worst.max((p[0] - x).abs());
@@ -610,11 +615,10 @@ fn pendulum_conserves_energy_over_500_periods() {
         "pendulum.toml",
         &text.replace("end_time = ", "end_time = 1000.0\n# was "),
     );
-    let d = r.recording.diagnostics.as_ref().unwrap();
-    let e0 = d.energy[0];
-    let scale = d.energy.iter().fold(0.0f64, |a, e| a.max((e - e0).abs()));
-    let ke_max = r.recording.bodies[0]
-        .velocity
+    let energy = &ch(&r.recording, "diagnostics/energy").values;
+    let e0 = energy[0];
+    let scale = energy.iter().fold(0.0f64, |a, e| a.max((e - e0).abs()));
+    let ke_max = body0(&r.recording, "velocity")
         .iter()
         .map(|v| 0.5 * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]))
         .fold(0.0f64, f64::max);
@@ -689,10 +693,10 @@ fn clearance_slider_crank_over_500_periods() {
         .replace("periods = 2", "periods = 500")
         .replace("interval = 1e-5", "interval = 1e-4");
     let (_, r) = finished("slider-crank-clearance.toml", &text);
-    let d = r.recording.diagnostics.as_ref().unwrap();
-    let n = d.energy.len();
+    let energy = &ch(&r.recording, "diagnostics/energy").values;
+    let n = energy.len();
     let band = |a: usize, b: usize| {
-        d.energy[a..b]
+        energy[a..b]
             .iter()
             .fold((f64::MAX, f64::MIN), |(lo, hi), e| (lo.min(*e), hi.max(*e)))
     };

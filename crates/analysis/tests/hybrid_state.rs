@@ -33,9 +33,11 @@ fn meta(model: &Model) -> Meta<'_> {
 fn positions_from(run: &RunResult, t: f64) -> Vec<u64> {
     let rec = &run.recording;
     let first = rec.time.iter().position(|&s| s >= t).unwrap();
-    rec.bodies
-        .iter()
-        .flat_map(|b| b.position[first..].iter().flatten().copied())
+    rec.members("bodies")
+        .flat_map(|b| {
+            let p = rec.channel(&format!("bodies/{b}/position")).unwrap();
+            p.values[first * p.width()..].to_vec()
+        })
         .map(f64::to_bits)
         .collect()
 }

@@ -13,10 +13,10 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use hdf5::types::VarLenUnicode;
-
+use super::write;
+use crate::h5::{h5err, read_rows, read_str};
 use crate::nonlinear::{AnalysisStudy, FigureKind, FigureSpec};
-use crate::plot::{Format, Panel, Series, figure};
+use crate::plot::{Format, Panel, Series};
 use crate::{Error, Result};
 
 /// The recorded data of one run (or one sweep job).
@@ -40,17 +40,6 @@ struct Data {
     jobs: Vec<Job>,
 }
 
-fn read_str(loc: &hdf5::Location, name: &str) -> hdf5::Result<String> {
-    Ok(loc.attr(name)?.read_scalar::<VarLenUnicode>()?.to_string())
-}
-
-fn read_rows(g: &hdf5::Group, name: &str) -> hdf5::Result<Vec<Vec<f64>>> {
-    let ds = g.dataset(name)?;
-    let cols = ds.shape().get(1).copied().unwrap_or(1).max(1);
-    let raw = ds.read_raw::<f64>()?;
-    Ok(raw.chunks(cols).map(<[f64]>::to_vec).collect())
-}
-
 fn read_group(g: &hdf5::Group, spec: &AnalysisStudy) -> hdf5::Result<BTreeMap<String, Vec<f64>>> {
     let mut m = BTreeMap::new();
     for o in &spec.observables {
@@ -60,7 +49,7 @@ fn read_group(g: &hdf5::Group, spec: &AnalysisStudy) -> hdf5::Result<BTreeMap<St
 }
 
 fn read(path: &Path) -> Result<Data> {
-    let e = crate::h5::h5err(path);
+    let e = h5err(path);
     let file = hdf5::File::open(path).map_err(&e)?;
     let kind = read_str(&file, "kind").unwrap_or_default();
     if kind != "analysis" {
@@ -465,13 +454,8 @@ pub fn render(path: &Path, out: &Path, formats: &[Format]) -> Result<Vec<PathBuf
     let mut files = Vec::new();
     for f in &specs {
         let panels = panels_for(&d, f)?;
-        if panels.is_empty() {
-            continue;
-        }
         let cols = if panels.len() >= 3 { 3 } else { panels.len() };
-        for fmt in formats {
-            files.push(figure(&out.join(stem(&d, f)), *fmt, &panels, cols)?);
-        }
+        files.extend(write(out, &stem(&d, f), &panels, cols, formats)?);
     }
     Ok(files)
 }
