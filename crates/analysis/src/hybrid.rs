@@ -24,7 +24,7 @@ use ndarray::{Array1, Array2, s};
 
 use jointplay_solver::state::{HybridState, StepperMemory};
 
-use crate::h5::{h5err, str_attr, write1};
+use crate::h5::{create_nan, describe, h5err, write_column, write1};
 use crate::{Error, Result};
 
 /// Column descriptions of `final_stepper`, in order.
@@ -56,11 +56,6 @@ fn stepper_from(v: &[f64]) -> hdf5::Result<StepperMemory> {
     })
 }
 
-fn described(ds: &hdf5::Dataset, unit: &str, desc: &str) -> hdf5::Result<()> {
-    str_attr(ds, "unit", unit)?;
-    str_attr(ds, "description", desc)
-}
-
 /// Writes `state` into `g` (layout in the module documentation).
 pub fn write_state(g: &Group, state: &HybridState) -> hdf5::Result<()> {
     write1(
@@ -72,7 +67,7 @@ pub fn write_state(g: &Group, state: &HybridState) -> hdf5::Result<()> {
     )?;
     let t = g.new_dataset::<f64>().create("final_time")?;
     t.write_scalar(&state.t)?;
-    described(&t, "s", "time of the final state")?;
+    describe(&t, Some("s"), "time of the final state")?;
     write1(
         g,
         "final_onset",
@@ -81,13 +76,11 @@ pub fn write_state(g: &Group, state: &HybridState) -> hdf5::Result<()> {
         "approach velocity at the onset of each contact at the end time (NaN: out of contact)",
     )?;
     let warned: Vec<u8> = state.warned.iter().map(|&w| u8::from(w)).collect();
-    let w = g
-        .new_dataset_builder()
-        .with_data(&Array1::from(warned))
-        .create("final_warned")?;
-    described(
-        &w,
-        "1",
+    write_column(
+        g,
+        "final_warned",
+        &warned,
+        Some("1"),
         "1 where the step-size guard has warned about the clearance joint",
     )?;
     write1(
@@ -160,13 +153,8 @@ pub struct StateShape {
 /// Creates the per-job state datasets of a sweep with `jobs` rows (NaN, or 0, until a job is
 /// written; `/sweep/done` says which rows hold a state).
 pub fn create_rows(g: &Group, jobs: usize, shape: StateShape) -> hdf5::Result<()> {
-    let nan = |name: &str, cols: usize, unit: &str, desc: &str| -> hdf5::Result<()> {
-        let ds = g
-            .new_dataset::<f64>()
-            .shape((jobs, cols))
-            .fill_value(f64::NAN)
-            .create(name)?;
-        described(&ds, unit, desc)
+    let nan = |name: &str, cols: usize, unit: &str, desc: &str| {
+        create_nan(g, name, &[jobs, cols], unit, desc)
     };
     nan(
         "final_state",
@@ -174,12 +162,13 @@ pub fn create_rows(g: &Group, jobs: usize, shape: StateShape) -> hdf5::Result<()
         "SI",
         "state vector at the end time, per job",
     )?;
-    let t = g
-        .new_dataset::<f64>()
-        .shape(jobs)
-        .fill_value(f64::NAN)
-        .create("final_time")?;
-    described(&t, "s", "time of the final state, per job")?;
+    create_nan(
+        g,
+        "final_time",
+        &[jobs],
+        "s",
+        "time of the final state, per job",
+    )?;
     nan(
         "final_onset",
         shape.contacts,
@@ -191,9 +180,9 @@ pub fn create_rows(g: &Group, jobs: usize, shape: StateShape) -> hdf5::Result<()
         .new_dataset::<u8>()
         .shape((jobs, shape.clearances))
         .create("final_warned")?;
-    described(
+    describe(
         &w,
-        "1",
+        Some("1"),
         "1 where the step-size guard has warned about the clearance joint, per job",
     )?;
     nan("final_stepper", 5, "mixed", &format!("{STEPPER}, per job"))
