@@ -10,8 +10,9 @@
 //! [`jointplay_solver::ode::advance`] and read [`Flow::warnings`].
 //!
 //! A parameter is set by path on the flow's source, not on the compiled flow: a study edits the
-//! scene or system table by path (`joints.S2.clearance.radial_clearance`) and compiles a new
-//! [`Target`], whose [`Target::flow`] runs it; the model stays immutable while it runs.
+//! scene or system table by path (`joints.S2.clearance.radial_clearance`,
+//! [`crate::nonlinear::Loaded::target_with`]) and compiles a new [`Target`], whose
+//! [`Target::flow`] runs it; the model stays immutable while it runs.
 //!
 //! [`MechFlow`] and [`SysFlow`] are the two flows; [`AnyFlow`] holds either, so an analysis is
 //! compiled once (static dispatch, no cost per right-hand-side evaluation beyond a match).

@@ -279,6 +279,13 @@ fn finite(file: &Path, field: &str, v: f64) -> Result<()> {
     }
 }
 
+/// One parameter set by path, with the field that asked for it (for error messages).
+struct Edit {
+    field: String,
+    path: String,
+    value: f64,
+}
+
 impl AnalysisStudy {
     /// Parses the spec alone (no scene is read): what `plot` needs.
     pub fn parse_spec(text: &str, path: &Path) -> Result<AnalysisStudy> {
@@ -526,42 +533,58 @@ impl Loaded {
 
     /// The flow with the swept parameter set to `value`, ready to run.
     pub(crate) fn target(&self, value: Option<f64>) -> Result<Target> {
-        let sweep_field = || match &self.spec.sweep {
-            Some(s) => format!("sweep.parameter ('{}')", s.parameter),
-            None => "sweep.parameter".into(),
+        let edits: Vec<Edit> = match (value, &self.spec.sweep) {
+            (Some(v), Some(sw)) => std::iter::once(Edit {
+                field: format!("sweep.parameter ('{}')", sw.parameter),
+                path: sw.parameter.clone(),
+                value: v,
+            })
+            .chain(sw.also.iter().enumerate().map(|(i, p)| Edit {
+                field: format!("sweep.also[{i}] ('{p}')"),
+                path: p.clone(),
+                value: v,
+            }))
+            .collect(),
+            _ => Vec::new(),
         };
+        self.compile_edited(&edits)
+    }
+
+    /// The study's flow with parameters set by path: for a scene, scene paths as in a sweep
+    /// (`joints.*.clearance.radial_clearance`; `*` sets every element), for a built-in system its
+    /// parameter names (`gamma`, `omega`, ...). The study file is not changed; each call compiles
+    /// a new flow from the study's source. Errors name the path.
+    pub fn target_with(&self, edits: &[(&str, f64)]) -> Result<Target> {
+        let edits: Vec<Edit> = edits
+            .iter()
+            .map(|&(path, value)| Edit {
+                field: format!("parameter '{path}'"),
+                path: path.to_string(),
+                value,
+            })
+            .collect();
+        self.compile_edited(&edits)
+    }
+
+    /// Compiles the study's source with `edits` applied (the first one names the edited scene in
+    /// messages).
+    fn compile_edited(&self, edits: &[Edit]) -> Result<Target> {
         match &self.base {
             Base::Scene { path: sp, tree } => {
                 let mut tree = tree.clone();
-                if let (Some(v), Some(sw)) = (value, &self.spec.sweep) {
-                    edit(&mut tree, &sw.parameter, Some(&Value::Float(v))).map_err(|m| {
-                        invalid(
-                            &self.path,
-                            sweep_field(),
-                            format!("{m} in {}", sp.display()),
-                        )
+                for ed in edits {
+                    edit(&mut tree, &ed.path, Some(&Value::Float(ed.value))).map_err(|m| {
+                        invalid(&self.path, &ed.field, format!("{m} in {}", sp.display()))
                     })?;
-                    for (i, p) in sw.also.iter().enumerate() {
-                        edit(&mut tree, p, Some(&Value::Float(v))).map_err(|m| {
-                            invalid(
-                                &self.path,
-                                format!("sweep.also[{i}] ('{p}')"),
-                                format!("{m} in {}", sp.display()),
-                            )
-                        })?;
-                    }
                 }
                 let text = toml::to_string(&tree)
                     .map_err(|e| invalid(&self.path, "study.scene", e.to_string()))?;
-                let named = match value {
-                    Some(v) => PathBuf::from(format!(
-                        "{} ({} = {v} in {})",
+                let named = match edits.first() {
+                    Some(ed) => PathBuf::from(format!(
+                        "{} ({} = {} in {})",
                         sp.display(),
-                        self.spec
-                            .sweep
-                            .as_ref()
-                            .map(|s| s.parameter.as_str())
-                            .unwrap_or(""),
+                        ed.path,
+                        ed.value,
                         self.path.display()
                     )),
                     None => sp.clone(),
@@ -591,19 +614,19 @@ impl Loaded {
             }
             Base::System(table) => {
                 let mut table = table.clone();
-                if let (Some(v), Some(sw)) = (value, &self.spec.sweep) {
-                    if !table.contains_key(&sw.parameter) && sw.parameter != "start_time" {
+                for ed in edits {
+                    if !table.contains_key(&ed.path) && ed.path != "start_time" {
                         // Let the parser name the allowed parameters.
                         let probe = SystemSpec::parse(&{
                             let mut t = table.clone();
-                            t.insert(sw.parameter.clone(), Value::Float(v));
+                            t.insert(ed.path.clone(), Value::Float(ed.value));
                             t
                         });
                         if let Err((_, m)) = probe {
-                            return Err(invalid(&self.path, sweep_field(), m));
+                            return Err(invalid(&self.path, &ed.field, m));
                         }
                     }
-                    table.insert(sw.parameter.clone(), Value::Float(v));
+                    table.insert(ed.path.clone(), Value::Float(ed.value));
                 }
                 let sys = SystemSpec::parse(&table)
                     .map_err(|(k, m)| invalid(&self.path, format!("study.system.{k}"), m))?;

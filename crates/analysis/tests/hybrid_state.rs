@@ -147,3 +147,42 @@ fn a_continuation_sweep_hands_over_the_onset_history() {
     let other = st.run_value_from(v1, &forgetful, &mut |_| {}).unwrap();
     assert_ne!(other.trace.final_state.y, second.y);
 }
+
+#[test]
+fn a_study_sets_any_parameter_by_path() {
+    use jointplay_analysis::flow::Target;
+    use jointplay_analysis::nonlinear::Loaded;
+
+    let st = Loaded::parse(CONTINUATION, &scenes().join("continuation-onset.toml")).unwrap();
+    let clearance = |t: &Target, name: &str| match t {
+        Target::Scene { model, .. } => model
+            .clearances
+            .iter()
+            .find(|c| c.name == name)
+            .unwrap()
+            .geometry
+            .radial_clearance(),
+        Target::System { .. } => unreachable!("a scene study"),
+    };
+    let t = st
+        .target_with(&[("joints.S2.clearance.radial_clearance", 4e-4)])
+        .unwrap();
+    assert_eq!(clearance(&t, "S2"), 4e-4);
+    // The other joints keep the scene's 0.3 mm.
+    assert_eq!(clearance(&t, "S5"), 3e-4);
+    let t = st
+        .target_with(&[("joints.*.clearance.radial_clearance", 2e-4)])
+        .unwrap();
+    // R1's clearance is the difference of its two radii: equal up to their rounding.
+    assert_eq!(clearance(&t, "S2"), 2e-4);
+    assert!((clearance(&t, "R1") - 2e-4).abs() < 1e-17);
+    let e = st
+        .target_with(&[("joints.S9.clearance.radial_clearance", 4e-4)])
+        .err()
+        .unwrap()
+        .to_string();
+    assert!(
+        e.contains("parameter 'joints.S9.clearance.radial_clearance'") && e.contains("S9"),
+        "{e}"
+    );
+}
