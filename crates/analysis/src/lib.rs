@@ -19,6 +19,12 @@
 //! [`inputs`] tells what kind of TOML input or written HDF5 file a path is; [`comparison`] runs a
 //! comparison study end to end (its file, its table, its figures); [`progress`] is the one type in
 //! which every long computation reports its progress.
+//!
+//! Every analysis is written against one flow interface ([`flow::Flow`]: mechanisms and built-in
+//! systems alike) and one hybrid state ([`jointplay_solver::state::HybridState`], saved and loaded
+//! by [`hybrid`]). Kept on purpose: sections generic over any flow; atomic and bit-reproducible
+//! HDF5 output (a file is complete or absent, and the same run writes the same bits); errors that
+//! name the file and the field.
 
 pub mod comparison;
 pub mod figures;

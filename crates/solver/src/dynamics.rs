@@ -16,7 +16,7 @@
 //!
 //! Every row acts on at most two bodies, so `S_ij = sum_k G_i^k M_k^-1 G_j^k^T` over the bodies k
 //! (the ground aside) that rows i and j share, and S_ij = 0 when they share none. That pattern is
-//! fixed by the scene ([`Coupling`], built when the model is compiled). Each evaluation gathers
+//! fixed by the scene ([`Coupling`](crate::coupling::Coupling), built when the model is compiled). Each evaluation gathers
 //! the blocks G_i^k and M_k^-1 G_i^k^T body by body, writes every stored entry of S from its one or
 //! two terms (three products instead of six for rows that constrain rotation only), and factors S
 //! in place with [`SparsePsd`](crate::linalg::SparsePsd), in an elimination order computed once

@@ -7,7 +7,16 @@
 //! Data flows one way: a scene file ([`scene::SceneSpec`], TOML) is validated and compiled into an
 //! immutable [`model::Model`] and an initial [`model::State`]; [`model::Model::assemble`] puts that
 //! state on the constraints; [`dynamics::Mechanism`] exposes the model as an [`ode::OdeSystem`] that
-//! [`ode::integrate`] advances. All quantities are SI: m, kg, s, rad, N, N m.
+//! [`ode::integrate`] advances. All quantities are SI: m, kg, s, rad, N, N m. A run's whole state,
+//! memories included, is a [`state::HybridState`] that [`ode::advance`] continues.
+//!
+//! Kept on purpose, and to be kept: the split between the immutable model and the
+//! [`workspace::Workspace`], so that no step allocates; contact laws as pure functions with their
+//! sources ([`contact`]); joints as sums of constraint primitives ([`model::Prim`]); the
+//! hand-written sparse LDL^T with its minimum-norm solution for redundant constraints
+//! ([`linalg`]); `disable` meaning the scene without the effect ([`disable`]); errors that name the
+//! file and the field ([`error`]); modules that import each other without cycles (small shared
+//! types in the leaf [`kin`]; `tests/module_graph.rs` checks it).
 
 // Index loops over small fixed-size blocks mirror the formulas they implement (rows, columns,
 // vector components); iterator chains would hide the math.
