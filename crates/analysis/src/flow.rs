@@ -413,6 +413,14 @@ impl Target {
         }
     }
 
+    /// The method the target runs with (without building its flow).
+    pub fn method(&self) -> Method {
+        match self {
+            Target::Scene { model, .. } => model.settings.method,
+            Target::System { sys, .. } => sys.method,
+        }
+    }
+
     /// The observables of the target.
     pub fn observables(&self) -> &[Observable] {
         match self {

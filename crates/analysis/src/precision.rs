@@ -232,7 +232,7 @@ impl Runner {
 
     /// The flow's own method (its step is the base of the default fixed steps).
     fn own_method(&self) -> Method {
-        self.target.flow().method()
+        self.target.method()
     }
 }
 
