@@ -4,6 +4,11 @@
 //! * `jointplay run SCENE --out DIR`: simulate it and write `DIR/<scene>.h5` plus figures.
 //! * `jointplay run STUDY --out DIR`: run a comparison study or a nonlinear-analysis study
 //!   (N-period runs, Poincare sections, bifurcation sweeps with `--resume`).
+//! * `jointplay run STUDY --out DIR --shard I/N`: compute shard I of N of a sweep's values into
+//!   `DIR/<study>.shard-I-of-N.h5` (in a Slurm job array, from its `SLURM_ARRAY_*` variables).
+//! * `jointplay merge DIR/<study>.shard-*.h5 --out DIR/<study>.h5`: the study file from its shards.
+//! * `jointplay slurm STUDY --out DIR --shards N`: batch scripts for a Slurm job array of shards
+//!   and the merge job after it; `--submit` submits them.
 //! * `jointplay plot FILE.h5`: redraw an analysis file's figures without simulating.
 //! * `jointplay precision STUDY_OR_SCENE --out DIR`: work-precision of every integrator.
 
@@ -26,6 +31,8 @@ use jointplay_analysis::precision;
 use jointplay_analysis::progress::Progress;
 use jointplay_analysis::report::{self, markdown};
 use jointplay_analysis::run::{resume, simulate};
+use jointplay_analysis::shards::{Shard, merge};
+use jointplay_analysis::slurm::Batch;
 use jointplay_analysis::study::Study;
 use jointplay_analysis::summary::Summary;
 use jointplay_solver::model::Model;
@@ -74,10 +81,64 @@ enum Command {
         /// Analysis sweeps: stop after this many values have finished (resume later).
         #[arg(long)]
         max_jobs: Option<usize>,
+        /// Analysis sweeps: compute only shard I of N of the values (those whose index j has
+        /// j mod N = I) into DIR/<name>.shard-I-of-N.h5, for `jointplay merge`. In a Slurm job
+        /// array it defaults to the task's SLURM_ARRAY_TASK_ID - SLURM_ARRAY_TASK_MIN of
+        /// SLURM_ARRAY_TASK_COUNT.
+        #[arg(long, value_name = "I/N")]
+        shard: Option<Shard>,
         /// Scenes: continue from the final state of a run file of this scene (written by
         /// `jointplay run`) to the scene's end time, as if the run had never stopped.
         #[arg(long, value_name = "RUN.h5")]
         from: Option<PathBuf>,
+    },
+    /// Merge the shard files of a sweep into the study file a single run writes (its datasets
+    /// bit-identical, wall times aside), and draw its figures. Refuses when a value is missing
+    /// or failed, naming the shards to rerun.
+    Merge {
+        /// Shard files written by `jointplay run STUDY --shard I/N`.
+        #[arg(required = true)]
+        files: Vec<PathBuf>,
+        /// The merged file, DIR/<study>.h5 (replaced if it exists).
+        #[arg(long)]
+        out: PathBuf,
+        /// Write missing and failed values as not done (the file is marked incomplete), for
+        /// `jointplay run STUDY --out DIR --resume` to finish.
+        #[arg(long)]
+        partial: bool,
+        /// Skip the figures.
+        #[arg(long)]
+        no_plots: bool,
+    },
+    /// Write Slurm batch scripts for a sweep: a job array of N shards and a merge job that runs
+    /// after every task has succeeded; print the sbatch commands, or submit them with --submit.
+    Slurm {
+        /// Analysis study with a [sweep] (not a continuation sweep).
+        study: PathBuf,
+        /// Output directory of the shards, the merged file and the scripts (created if missing).
+        #[arg(long, default_value = "out")]
+        out: PathBuf,
+        /// Number of shards (array tasks).
+        #[arg(long)]
+        shards: usize,
+        /// Slurm partition.
+        #[arg(long)]
+        partition: Option<String>,
+        /// Time limit of each job, in Slurm's format (e.g. 01:00:00).
+        #[arg(long)]
+        time: Option<String>,
+        /// CPUs per array task (the threads of each shard).
+        #[arg(long, default_value_t = 1)]
+        cpus_per_task: usize,
+        /// Memory of each job, in Slurm's format (e.g. 4G).
+        #[arg(long)]
+        mem: Option<String>,
+        /// At most this many tasks run at once (--array=0-(N-1)%M).
+        #[arg(long)]
+        max_running: Option<usize>,
+        /// Submit the array and the merge job with sbatch.
+        #[arg(long)]
+        submit: bool,
     },
     /// Redraw every figure of a nonlinear-analysis or work-precision file without simulating
     /// again.
@@ -138,6 +199,10 @@ enum Command {
 
 fn main() {
     let cli = Cli::parse();
+    if let Err(e) = threads_from_slurm() {
+        eprintln!("error: {e:#}");
+        std::process::exit(1);
+    }
     let res = match cli.command {
         Command::Check { scene } => check(&scene),
         Command::Run {
@@ -147,14 +212,48 @@ fn main() {
             quiet,
             resume,
             max_jobs,
+            shard,
             from,
         } => run(
             &scene,
             &out,
             !no_plots,
             quiet,
-            Options { resume, max_jobs },
+            Options {
+                resume,
+                max_jobs,
+                shard,
+            },
             from.as_deref(),
+        ),
+        Command::Merge {
+            files,
+            out,
+            partial,
+            no_plots,
+        } => merge_cmd(&files, &out, partial, !no_plots),
+        Command::Slurm {
+            study,
+            out,
+            shards,
+            partition,
+            time,
+            cpus_per_task,
+            mem,
+            max_running,
+            submit,
+        } => slurm_cmd(
+            &study,
+            &out,
+            SlurmOptions {
+                shards,
+                partition,
+                time,
+                cpus_per_task,
+                mem,
+                max_running,
+            },
+            submit,
         ),
         Command::Plot { file, format, out } => plot_cmd(&file, &format, out.as_deref()),
         Command::Report { file, out } => report_cmd(&file, out.as_deref()),
@@ -269,9 +368,9 @@ fn run(
     if kind.is_analysis() {
         return run_analysis(path, out, plots, quiet, opts);
     }
-    if opts.resume || opts.max_jobs.is_some() {
+    if opts.resume || opts.max_jobs.is_some() || opts.shard.is_some() {
         anyhow::bail!(
-            "{}: --resume and --max-jobs apply to analysis studies with a [sweep]",
+            "{}: --resume, --max-jobs and --shard apply to analysis studies with a [sweep]",
             path.display()
         );
     }
@@ -420,13 +519,26 @@ fn precision_cmd(path: &Path, out: &Path, plots: bool, quiet: bool) -> Result<()
 
 /// Runs an analysis study (a single N-period run or a sweep) with a progress bar showing the
 /// values done and the time left.
-fn run_analysis(path: &Path, out: &Path, plots: bool, quiet: bool, opts: Options) -> Result<()> {
+fn run_analysis(
+    path: &Path,
+    out: &Path,
+    plots: bool,
+    quiet: bool,
+    mut opts: Options,
+) -> Result<()> {
     let st = Loaded::load(path)?;
-    if st.spec.sweep.is_none() && (opts.resume || opts.max_jobs.is_some()) {
+    if st.spec.sweep.is_none() && (opts.resume || opts.max_jobs.is_some() || opts.shard.is_some()) {
         anyhow::bail!(
-            "{}: --resume and --max-jobs apply to studies with a [sweep]",
+            "{}: --resume, --max-jobs and --shard apply to studies with a [sweep]",
             path.display()
         );
+    }
+    // In a Slurm job array, a sweep is sharded by the task's id unless --shard says otherwise.
+    let mut from_env = false;
+    if opts.shard.is_none() && st.spec.sweep.is_some() {
+        opts.shard = Shard::from_slurm(|k| std::env::var(k).ok())
+            .map_err(|m| anyhow::anyhow!("{}: {m}", path.display()))?;
+        from_env = opts.shard.is_some();
     }
     let bar = progress_bar(
         1000,
@@ -461,7 +573,14 @@ fn run_analysis(path: &Path, out: &Path, plots: bool, quiet: bool, opts: Options
     };
     let res = execute(&st, out, opts, VERSION, &progress);
     bar.finish_and_clear();
-    let o = res.with_context(|| format!("running {}", path.display()))?;
+    let o = res.with_context(|| match (from_env, opts.shard) {
+        (true, Some(sh)) => format!(
+            "running {} as shard {sh} (from SLURM_ARRAY_TASK_ID, SLURM_ARRAY_TASK_COUNT and \
+             SLURM_ARRAY_TASK_MIN)",
+            path.display()
+        ),
+        _ => format!("running {}", path.display()),
+    })?;
     for w in &o.warnings {
         eprintln!("warning: {w}");
     }
@@ -479,6 +598,15 @@ fn run_analysis(path: &Path, out: &Path, plots: bool, quiet: bool, opts: Options
             o.ran
         );
     }
+    if let Some(sh) = opts.shard {
+        println!(
+            "shard        {sh}: {} of the {} values (index j with j mod {} = {})",
+            o.jobs,
+            st.jobs.len(),
+            sh.count,
+            sh.index
+        );
+    }
     println!(
         "periods      {} ({} transient), {} samples per period",
         st.spec.analysis.periods, st.spec.analysis.transient, st.spec.analysis.samples_per_period
@@ -490,15 +618,23 @@ fn run_analysis(path: &Path, out: &Path, plots: bool, quiet: bool, opts: Options
     );
     println!("wall time    {:.3} s", o.wall);
     println!("wrote        {}", o.file.display());
-    if plots {
+    if opts.shard.is_some() {
+        // Shards may run side by side into one directory: the figures come from the merge.
+        if plots {
+            println!("figures      drawn by `jointplay merge` from the merged file");
+        }
+    } else if plots {
         for f in redraw(&o.file, out, &[Format::Png, Format::Svg])? {
             println!("wrote        {}", f.display());
         }
     }
     if !o.complete {
         println!(
-            "incomplete   stopped after {} values: rerun with --resume to compute the rest",
-            o.ran
+            "incomplete   stopped after {} values: rerun with --resume{} to compute the rest",
+            o.ran,
+            opts.shard
+                .map(|s| format!(" --shard {s}"))
+                .unwrap_or_default()
         );
     }
     if !o.failed.is_empty() {
@@ -540,5 +676,175 @@ fn compare(
             figure(out, fmt, std::slice::from_ref(&panel), 1)?.display()
         );
     }
+    Ok(())
+}
+
+/// In a Slurm job, rayon uses the job's CPUs per task (`SLURM_CPUS_PER_TASK`) unless
+/// `RAYON_NUM_THREADS` is set.
+fn threads_from_slurm() -> Result<()> {
+    if std::env::var_os("RAYON_NUM_THREADS").is_some() {
+        return Ok(());
+    }
+    let Ok(v) = std::env::var("SLURM_CPUS_PER_TASK") else {
+        return Ok(());
+    };
+    let n: usize = v
+        .trim()
+        .parse()
+        .ok()
+        .filter(|&n| n >= 1)
+        .with_context(|| format!("SLURM_CPUS_PER_TASK='{v}' is not a positive whole number"))?;
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(n)
+        .build_global()
+        .context("setting the threads from SLURM_CPUS_PER_TASK")
+}
+
+/// Merges shard files into the study file, prints what the values cost and draws the figures.
+fn merge_cmd(files: &[PathBuf], out: &Path, partial: bool, plots: bool) -> Result<()> {
+    let m = merge(files, out, VERSION, partial)?;
+    println!(
+        "merged       {} shard files of {} into {} values",
+        files.len(),
+        m.shards,
+        m.jobs
+    );
+    let w = &m.value_walls;
+    if !w.is_empty() {
+        let total: f64 = w.iter().sum();
+        let max = w.iter().fold(0.0f64, |a, &b| a.max(b));
+        println!(
+            "cost         {total:.3} s of computing over {} values: {:.4} s per value on \
+             average, {max:.4} s at most",
+            w.len(),
+            total / w.len() as f64
+        );
+    }
+    if let (Some(lo), Some(hi)) = (
+        m.shard_walls.iter().min_by(|a, b| a.1.total_cmp(&b.1)),
+        m.shard_walls.iter().max_by(|a, b| a.1.total_cmp(&b.1)),
+    ) {
+        println!(
+            "shards       {:.3} s (shard {}) to {:.3} s (shard {}) of wall time each",
+            lo.1, lo.0, hi.1, hi.0
+        );
+    }
+    println!("wrote        {}", m.file.display());
+    if plots {
+        let dir = out
+            .parent()
+            .filter(|d| !d.as_os_str().is_empty())
+            .unwrap_or(Path::new("."));
+        for f in redraw(&m.file, dir, &[Format::Png, Format::Svg])? {
+            println!("wrote        {}", f.display());
+        }
+    }
+    if !m.not_done.is_empty() {
+        println!(
+            "incomplete   {} values written as not done: finish with `jointplay run STUDY --out \
+             DIR --resume`",
+            m.not_done.len()
+        );
+    }
+    Ok(())
+}
+
+/// What `jointplay slurm` asks of the cluster.
+struct SlurmOptions {
+    shards: usize,
+    partition: Option<String>,
+    time: Option<String>,
+    cpus_per_task: usize,
+    mem: Option<String>,
+    max_running: Option<usize>,
+}
+
+/// Runs `sbatch --parsable ARGS` and returns the job id it prints.
+fn sbatch(args: &[&str]) -> Result<String> {
+    let out = std::process::Command::new("sbatch")
+        .arg("--parsable")
+        .args(args)
+        .output()
+        .context("cannot run sbatch (is this a machine of a Slurm cluster?)")?;
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    if !out.status.success() {
+        anyhow::bail!(
+            "sbatch {} failed ({}): {}",
+            args.join(" "),
+            out.status,
+            String::from_utf8_lossy(&out.stderr).trim()
+        );
+    }
+    // --parsable prints "id" or "id;cluster".
+    let id = stdout.trim().split(';').next().unwrap_or("").to_string();
+    if id.is_empty() || !id.chars().all(|c| c.is_ascii_digit()) {
+        anyhow::bail!(
+            "sbatch {}: expected a job id, got '{}'",
+            args.join(" "),
+            stdout.trim()
+        );
+    }
+    Ok(id)
+}
+
+/// Writes the array and merge scripts of a sweep, and prints or runs the sbatch commands.
+fn slurm_cmd(study: &Path, out: &Path, o: SlurmOptions, submit: bool) -> Result<()> {
+    let st = Loaded::load(study)?;
+    if st.spec.sweep.is_none() {
+        anyhow::bail!(
+            "{}: a job array splits a sweep's values; this study has no [sweep]",
+            study.display()
+        );
+    }
+    // The same refusals as the shards would meet (continuation, too many shards), before
+    // anything is written.
+    let sh = Shard::new(0, o.shards).map_err(|m| anyhow::anyhow!("--shards: {m}"))?;
+    jointplay_analysis::shards::check(&st, sh)?;
+    let program = std::env::current_exe()
+        .and_then(|p| p.canonicalize())
+        .context("cannot find the path of this program for the batch script")?;
+    let b = Batch {
+        program,
+        workdir: std::env::current_dir().context("cannot read the working directory")?,
+        study: study.to_path_buf(),
+        out: out.to_path_buf(),
+        name: st.spec.study.name.clone(),
+        values: st.jobs.len(),
+        shards: o.shards,
+        partition: o.partition,
+        time: o.time,
+        cpus_per_task: o.cpus_per_task,
+        mem: o.mem,
+        max_running: o.max_running,
+        version: VERSION.into(),
+    };
+    b.check().map_err(|m| anyhow::anyhow!("{m}"))?;
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    let (array, merge) = (b.array_file(), b.merge_file());
+    for (file, text) in [(&array, b.array_script()), (&merge, b.merge_script())] {
+        std::fs::write(file, text).with_context(|| format!("writing {}", file.display()))?;
+        println!("wrote        {}", file.display());
+    }
+    let (a, m) = (array.display().to_string(), merge.display().to_string());
+    if !submit {
+        println!("submit with:");
+        println!("  array=$(sbatch --parsable {a})");
+        println!("  sbatch --dependency=afterok:${{array%%;*}} {m}");
+        return Ok(());
+    }
+    let id = sbatch(&[&a])?;
+    println!(
+        "array job    {id} ({} tasks{})",
+        b.shards,
+        b.max_running
+            .map(|r| format!(", at most {r} at once"))
+            .unwrap_or_default()
+    );
+    let dep = format!("--dependency=afterok:{id}");
+    let mid = sbatch(&[&dep, &m]).with_context(|| {
+        format!("the array job {id} is submitted; submit the merge with: sbatch {dep} {m}")
+    })?;
+    println!("merge job    {mid} (after every task of {id} has succeeded: {dep})");
+    println!("merged file  {}", b.merged_file().display());
     Ok(())
 }

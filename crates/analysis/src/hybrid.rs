@@ -143,7 +143,7 @@ pub fn read_run_file(path: &Path) -> Result<HybridState> {
 
 /// Sizes of the state rows of a sweep: the continuous state, the contacts and the clearance
 /// joints of its flow.
-#[derive(Debug, Clone, Copy)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct StateShape {
     pub dim: usize,
     pub contacts: usize,

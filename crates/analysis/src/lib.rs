@@ -40,6 +40,8 @@ pub mod progress;
 pub mod report;
 pub mod run;
 pub mod sections;
+pub mod shards;
+pub mod slurm;
 pub mod study;
 pub mod summary;
 pub mod systems;

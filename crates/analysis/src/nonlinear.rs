@@ -33,13 +33,14 @@ use toml::{Table, Value};
 
 use crate::flow::{Flow, Target};
 use crate::h5::{
-    create_nan, f64_attr, f64_attr_set, h5err, str_attr, u8_attr_set, u64_attr, write_atomically,
-    write_column, write_element, write_row, write1,
+    create_nan, f64_attr, f64_attr_set, h5err, read_attr, read_str, str_attr, u8_attr_set,
+    u64_attr, write_atomically, write_column, write_element, write_row, write1,
 };
 use crate::hybrid;
 use crate::observe::Observable;
 use crate::progress::Progress;
 use crate::sections::{Direction, Hyperplane, Plan, Trace, trace_partial};
+use crate::shards::Shard;
 use crate::study::{edit, edited_scene, invalid};
 use crate::systems::SystemSpec;
 use crate::{Error, Result};
@@ -111,7 +112,7 @@ fn default_spp() -> usize {
 }
 
 /// One observable: a dataset name and a path.
-#[derive(Debug, Clone, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct ObservableSpec {
     pub name: String,
@@ -279,6 +280,46 @@ fn finite(file: &Path, field: &str, v: f64) -> Result<()> {
     }
 }
 
+/// The parameter value and direction (+1 up, -1 down) of each job of the study's sweep (none
+/// without a sweep): the values in order, and with `continuation` back down again.
+pub(crate) fn sweep_jobs(spec: &AnalysisStudy, path: &Path) -> Result<Vec<(f64, i8)>> {
+    let mut jobs = Vec::new();
+    let Some(sw) = &spec.sweep else {
+        return Ok(jobs);
+    };
+    // Each value is a whole simulation; a million is beyond any sweep that can finish.
+    if let Some(n) = sw.count
+        && n > 1_000_000
+    {
+        return Err(invalid(
+            path,
+            "sweep.count",
+            format!("{n} values; at most 1000000 are allowed"),
+        ));
+    }
+    let values = match (&sw.values[..], sw.from, sw.to, sw.count) {
+        (v, None, None, None) if !v.is_empty() => v.to_vec(),
+        ([], Some(a), Some(b), Some(n)) if n >= 2 => (0..n)
+            .map(|i| a + (b - a) * (i as f64) / ((n - 1) as f64))
+            .collect(),
+        _ => {
+            return Err(invalid(
+                path,
+                "sweep",
+                "give either values = [...] or from, to and count (count at least 2)",
+            ));
+        }
+    };
+    for (i, v) in values.iter().enumerate() {
+        finite(path, &format!("sweep.values[{i}]"), *v)?;
+    }
+    jobs.extend(values.iter().map(|v| (*v, 1i8)));
+    if sw.continuation {
+        jobs.extend(values.iter().rev().map(|v| (*v, -1i8)));
+    }
+    Ok(jobs)
+}
+
 /// One parameter set by path, with the field that asked for it (for error messages).
 struct Edit {
     field: String,
@@ -433,39 +474,7 @@ impl Loaded {
                 ));
             }
         };
-        let mut jobs = Vec::new();
-        if let Some(sw) = &spec.sweep {
-            // Each value is a whole simulation; a million is beyond any sweep that can finish.
-            if let Some(n) = sw.count
-                && n > 1_000_000
-            {
-                return Err(invalid(
-                    path,
-                    "sweep.count",
-                    format!("{n} values; at most 1000000 are allowed"),
-                ));
-            }
-            let values = match (&sw.values[..], sw.from, sw.to, sw.count) {
-                (v, None, None, None) if !v.is_empty() => v.to_vec(),
-                ([], Some(a), Some(b), Some(n)) if n >= 2 => (0..n)
-                    .map(|i| a + (b - a) * (i as f64) / ((n - 1) as f64))
-                    .collect(),
-                _ => {
-                    return Err(invalid(
-                        path,
-                        "sweep",
-                        "give either values = [...] or from, to and count (count at least 2)",
-                    ));
-                }
-            };
-            for (i, v) in values.iter().enumerate() {
-                finite(path, &format!("sweep.values[{i}]"), *v)?;
-            }
-            jobs.extend(values.iter().map(|v| (*v, 1i8)));
-            if sw.continuation {
-                jobs.extend(values.iter().rev().map(|v| (*v, -1i8)));
-            }
-        }
+        let jobs = sweep_jobs(&spec, path)?;
         let loaded = Loaded {
             path: path.to_path_buf(),
             text: text.to_string(),
@@ -773,10 +782,12 @@ fn throttled(job: usize, progress: &(dyn Fn(Progress) + Sync)) -> impl FnMut(f64
 #[derive(Debug, Clone)]
 pub struct Outcome {
     pub file: PathBuf,
+    /// Jobs in the file: every value of the sweep, or a shard's values.
     pub jobs: usize,
     pub ran: usize,
-    /// Every job done (or failed); false when stopped by `max_jobs`.
+    /// Every job of the file done (or failed); false when stopped by `max_jobs`.
     pub complete: bool,
+    /// Failed jobs: their index in the whole sweep and the message.
     pub failed: Vec<(usize, String)>,
     /// Warnings of a single run (the scene's and the step-size guard's).
     pub warnings: Vec<String>,
@@ -791,10 +802,13 @@ pub struct Options {
     pub resume: bool,
     /// Stop after this many jobs have finished (the file stays incomplete; resume later).
     pub max_jobs: Option<usize>,
+    /// Run only this shard of the sweep's values, into its shard file (see [`crate::shards`]).
+    pub shard: Option<Shard>,
 }
 
 /// Runs the study and writes `dir/<name>.h5`: atomically at the end for a single run; streamed
-/// job by job for a sweep (with `resume`, only the jobs the existing file lacks).
+/// job by job for a sweep (with `resume`, only the jobs the existing file lacks). With a shard,
+/// only the shard's values, into `dir/<name>.shard-I-of-N.h5`.
 pub fn execute(
     st: &Loaded,
     dir: &Path,
@@ -805,6 +819,13 @@ pub fn execute(
     let start = Instant::now();
     let name = &st.spec.study.name;
     let Some(sw) = &st.spec.sweep else {
+        if let Some(sh) = opts.shard {
+            return Err(invalid(
+                &st.path,
+                "sweep",
+                format!("--shard {sh}: shards split a sweep's values; this study has no [sweep]"),
+            ));
+        }
         progress(Progress::Start {
             total: 1,
             pending: 1,
@@ -816,7 +837,8 @@ pub fn execute(
             ok: failure.is_none(),
         });
         let file = write_atomically(dir, name, version, |file| {
-            write_root(file, st, &r, u8::from(failure.is_none()))?;
+            Root::of(st, &r.integrator, r.start, r.period)
+                .write(file, u8::from(failure.is_none()))?;
             if !r.warnings.is_empty() {
                 str_attr(file, "warnings", &r.warnings.join("\n"))?;
             }
@@ -839,13 +861,25 @@ pub fn execute(
             rhs_evals: r.trace.stats.rhs_evals,
         });
     };
+    // The jobs this file holds, by their index in the whole sweep; row r of every dataset is
+    // job rows[r] (the identity without a shard).
+    let rows: Vec<usize> = match opts.shard {
+        Some(sh) => {
+            sh.check(st)?;
+            sh.jobs(st.jobs.len())
+        }
+        None => (0..st.jobs.len()).collect(),
+    };
     std::fs::create_dir_all(dir).map_err(|e| Error::Io {
         file: dir.to_path_buf(),
         message: format!("cannot create output directory: {e}"),
     })?;
-    let path = dir.join(format!("{name}.h5"));
+    let path = match opts.shard {
+        Some(sh) => dir.join(sh.file_name(name)),
+        None => dir.join(format!("{name}.h5")),
+    };
     let e = h5err(&path);
-    let n = st.jobs.len();
+    let n = rows.len();
     let (file, mut done) = if opts.resume && path.exists() {
         let file = hdf5::File::open_rw(&path).map_err(&e)?;
         let old: String = file
@@ -871,16 +905,36 @@ pub fn execute(
                     .into(),
             });
         }
+        if Shard::of_file(&file).map_err(&e)? != opts.shard {
+            return Err(Error::Io {
+                file: path.clone(),
+                message: "holds other values of the sweep than this run computes (its shard \
+                          attributes do not match): remove it or run without --resume"
+                    .into(),
+            });
+        }
         let done = file
             .dataset("sweep/done")
             .and_then(|d| d.read_raw::<u8>())
             .map_err(&e)?;
+        if done.len() != n {
+            return Err(Error::Io {
+                file: path.clone(),
+                message: format!(
+                    "has {} values where this run has {n}: remove it or run without --resume",
+                    done.len()
+                ),
+            });
+        }
         (file, done)
     } else {
         let _ = std::fs::remove_file(&path);
-        (create_sweep_file(&path, st, sw, version)?, vec![0u8; n])
+        let jobs: Vec<(f64, i8)> = rows.iter().map(|&j| st.jobs[j]).collect();
+        let shard = opts.shard.map(|sh| (sh, rows.as_slice()));
+        let file = create_sweep_file(&path, &st.layout(sw)?, version, &jobs, shard)?;
+        (file, vec![0u8; n])
     };
-    let pending: Vec<usize> = (0..n).filter(|&j| done[j] == 0).collect();
+    let pending: Vec<usize> = (0..n).filter(|&r| done[r] == 0).collect();
     progress(Progress::Start {
         total: n,
         pending: pending.len(),
@@ -890,25 +944,27 @@ pub fn execute(
     let limit = opts.max_jobs.unwrap_or(usize::MAX);
     let mut finished = 0usize;
     let stop = AtomicBool::new(limit == 0);
-    let mut write = |j: usize, res: Result<JobResult>, done: &mut Vec<u8>| -> Result<()> {
+    // Writes the result of the job in row `r`.
+    let mut write = |r: usize, res: Result<JobResult>, done: &mut Vec<u8>| -> Result<()> {
+        let j = rows[r];
         match res {
-            Ok(r) => {
-                rhs += r.trace.stats.rhs_evals;
-                write_job(&file, st, j, &r).map_err(&e)?;
-                done[j] = 1;
+            Ok(res) => {
+                rhs += res.trace.stats.rhs_evals;
+                write_job(&file, st, r, &res).map_err(&e)?;
+                done[r] = 1;
                 progress(Progress::Done { job: j, ok: true });
             }
             Err(err) => {
                 let msg = err.to_string();
                 let g = file.group("sweep/errors").map_err(&e)?;
-                str_attr(&g, &j.to_string(), &msg).map_err(&e)?;
-                done[j] = 2;
+                str_attr(&g, &r.to_string(), &msg).map_err(&e)?;
+                done[r] = 2;
                 failed.push((j, msg));
                 progress(Progress::Done { job: j, ok: false });
             }
         }
         file.dataset("sweep/done")
-            .and_then(|d| d.write_slice(&Array1::from(vec![done[j]]), s![j..j + 1]))
+            .and_then(|d| d.write_slice(&Array1::from(vec![done[r]]), s![r..r + 1]))
             .map_err(&e)?;
         finished += 1;
         if finished >= limit {
@@ -918,7 +974,8 @@ pub fn execute(
     };
     if sw.continuation {
         // In order; each job starts from the previous job's final state (read back from the file
-        // when resuming, so a resumed run continues from exactly the same state).
+        // when resuming, so a resumed run continues from exactly the same state). Never sharded:
+        // rows are jobs.
         let mut prev: Option<HybridState> = None;
         let sweep = file.group("sweep").map_err(&e)?;
         for j in 0..n {
@@ -945,22 +1002,23 @@ pub fn execute(
         let (tx, rx) = mpsc::channel::<(usize, Result<JobResult>)>();
         let mut write_err = None;
         std::thread::scope(|scope| {
-            let (pending, stop) = (&pending, &stop);
+            let (pending, stop, rows) = (&pending, &stop, &rows);
             scope.spawn(move || {
-                pending.par_iter().for_each_with(tx, |tx, &j| {
+                pending.par_iter().for_each_with(tx, |tx, &r| {
                     if stop.load(Ordering::SeqCst) {
                         return;
                     }
-                    let r = st.run_job(Some(st.jobs[j].0), None, &mut throttled(j, progress));
+                    let j = rows[r];
+                    let res = st.run_job(Some(st.jobs[j].0), None, &mut throttled(j, progress));
                     // The receiver lives until every sender is gone.
-                    let _ = tx.send((j, r));
+                    let _ = tx.send((r, res));
                 });
             });
-            for (j, r) in rx {
+            for (r, res) in rx {
                 // Jobs that were running when the limit was reached are dropped unwritten.
                 if write_err.is_none()
                     && !stop.load(Ordering::SeqCst)
-                    && let Err(err) = write(j, r, &mut done)
+                    && let Err(err) = write(r, res, &mut done)
                 {
                     write_err = Some(err);
                 }
@@ -987,43 +1045,240 @@ pub fn execute(
     })
 }
 
-/// Root attributes shared by single runs and sweeps.
-fn write_root(file: &hdf5::File, st: &Loaded, r: &JobResult, complete: u8) -> hdf5::Result<()> {
-    let a = &st.spec.analysis;
-    str_attr(file, "kind", "analysis")?;
-    str_attr(file, "study_name", &st.spec.study.name)?;
-    str_attr(file, "study_file", &st.path.display().to_string())?;
-    str_attr(file, "study", &st.text)?;
-    str_attr(file, "description", &st.spec.study.description)?;
-    let (flow, flow_text) = match &st.base {
-        Base::Scene { path, .. } => (format!("scene {}", path.display()), st.base_text()),
-        Base::System(_) => ("system".to_string(), st.base_text()),
-    };
-    str_attr(file, "flow", &flow)?;
-    str_attr(file, "flow_text", &flow_text)?;
-    str_attr(file, "integrator", &r.integrator)?;
-    f64_attr(file, "start_time", r.start)?;
-    f64_attr(file, "period", r.period)?;
-    f64_attr(file, "phase", a.phase)?;
-    u64_attr(file, "periods", a.periods as u64)?;
-    u64_attr(file, "transient", a.transient as u64)?;
-    u64_attr(file, "samples_per_period", a.samples_per_period as u64)?;
-    u64_attr(
-        file,
-        "history_periods",
-        a.history_periods.unwrap_or(a.periods - a.transient) as u64,
-    )?;
-    u8_attr_set(file, "complete", complete)
+/// The root attributes of an analysis file besides `program`, `program_version`, `units` and
+/// `complete`: what a merge checks to be the same in every shard and writes once.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct Root {
+    pub study_name: String,
+    pub study_file: String,
+    pub study: String,
+    pub description: String,
+    pub flow: String,
+    pub flow_text: String,
+    pub integrator: String,
+    pub start_time: f64,
+    pub period: f64,
+    pub phase: f64,
+    pub periods: u64,
+    pub transient: u64,
+    pub samples_per_period: u64,
+    pub history_periods: u64,
+}
+
+impl Root {
+    fn of(st: &Loaded, integrator: &str, start: f64, period: f64) -> Root {
+        let a = &st.spec.analysis;
+        let flow = match &st.base {
+            Base::Scene { path, .. } => format!("scene {}", path.display()),
+            Base::System(_) => "system".to_string(),
+        };
+        Root {
+            study_name: st.spec.study.name.clone(),
+            study_file: st.path.display().to_string(),
+            study: st.text.clone(),
+            description: st.spec.study.description.clone(),
+            flow,
+            flow_text: st.base_text(),
+            integrator: integrator.to_string(),
+            start_time: start,
+            period,
+            phase: a.phase,
+            periods: a.periods as u64,
+            transient: a.transient as u64,
+            samples_per_period: a.samples_per_period as u64,
+            history_periods: a.history_periods.unwrap_or(a.periods - a.transient) as u64,
+        }
+    }
+
+    /// Writes the attributes, with `kind` and `complete`.
+    fn write(&self, file: &hdf5::File, complete: u8) -> hdf5::Result<()> {
+        str_attr(file, "kind", "analysis")?;
+        str_attr(file, "study_name", &self.study_name)?;
+        str_attr(file, "study_file", &self.study_file)?;
+        str_attr(file, "study", &self.study)?;
+        str_attr(file, "description", &self.description)?;
+        str_attr(file, "flow", &self.flow)?;
+        str_attr(file, "flow_text", &self.flow_text)?;
+        str_attr(file, "integrator", &self.integrator)?;
+        f64_attr(file, "start_time", self.start_time)?;
+        f64_attr(file, "period", self.period)?;
+        f64_attr(file, "phase", self.phase)?;
+        u64_attr(file, "periods", self.periods)?;
+        u64_attr(file, "transient", self.transient)?;
+        u64_attr(file, "samples_per_period", self.samples_per_period)?;
+        u64_attr(file, "history_periods", self.history_periods)?;
+        u8_attr_set(file, "complete", complete)
+    }
+
+    /// Reads what [`Root::write`] wrote.
+    pub(crate) fn read(file: &hdf5::File) -> hdf5::Result<Root> {
+        let s = |n: &str| read_str(file, n);
+        let f = |n: &str| read_attr::<f64>(file, n);
+        let u = |n: &str| read_attr::<u64>(file, n);
+        Ok(Root {
+            study_name: s("study_name")?,
+            study_file: s("study_file")?,
+            study: s("study")?,
+            description: s("description")?,
+            flow: s("flow")?,
+            flow_text: s("flow_text")?,
+            integrator: s("integrator")?,
+            start_time: f("start_time")?,
+            period: f("period")?,
+            phase: f("phase")?,
+            periods: u("periods")?,
+            transient: u("transient")?,
+            samples_per_period: u("samples_per_period")?,
+            history_periods: u("history_periods")?,
+        })
+    }
+
+    /// The names of the attributes whose values differ between `self` and `other`.
+    pub(crate) fn differences(&self, other: &Root) -> Vec<&'static str> {
+        let strings = [
+            ("study_name", &self.study_name, &other.study_name),
+            ("study_file", &self.study_file, &other.study_file),
+            ("study", &self.study, &other.study),
+            ("description", &self.description, &other.description),
+            ("flow", &self.flow, &other.flow),
+            ("flow_text", &self.flow_text, &other.flow_text),
+            ("integrator", &self.integrator, &other.integrator),
+        ];
+        let floats = [
+            ("start_time", self.start_time, other.start_time),
+            ("period", self.period, other.period),
+            ("phase", self.phase, other.phase),
+        ];
+        let counts = [
+            ("periods", self.periods, other.periods),
+            ("transient", self.transient, other.transient),
+            (
+                "samples_per_period",
+                self.samples_per_period,
+                other.samples_per_period,
+            ),
+            (
+                "history_periods",
+                self.history_periods,
+                other.history_periods,
+            ),
+        ];
+        strings
+            .iter()
+            .filter(|(_, a, b)| a != b)
+            .map(|(n, ..)| *n)
+            .chain(
+                floats
+                    .iter()
+                    .filter(|(_, a, b)| a.to_bits() != b.to_bits())
+                    .map(|(n, ..)| *n),
+            )
+            .chain(counts.iter().filter(|(_, a, b)| a != b).map(|(n, ..)| *n))
+            .collect()
+    }
+}
+
+/// Everything that fixes the datasets of a sweep file apart from its jobs: its root attributes,
+/// the observables with their units, the sections and the sizes of the rows. Taken from the
+/// study for a run, read back from a shard for a merge, so both write the same file.
+#[derive(Debug, Clone, PartialEq)]
+pub(crate) struct SweepLayout {
+    pub root: Root,
+    /// Observable names and paths, and their units.
+    pub observables: Vec<ObservableSpec>,
+    pub units: Vec<String>,
+    /// Names of the hyperplane sections.
+    pub sections: Vec<String>,
+    /// The swept parameter's path and unit, and whether the sweep is a continuation.
+    pub parameter: String,
+    pub unit: String,
+    pub continuation: bool,
+    /// Strobe points and history samples per job.
+    pub kept: usize,
+    pub history: usize,
+    pub shape: hybrid::StateShape,
+}
+
+impl SweepLayout {
+    /// The layout of the sweep file `file`, whose study text parses to `spec`.
+    pub(crate) fn read(file: &hdf5::File, spec: &AnalysisStudy) -> hdf5::Result<SweepLayout> {
+        let root = Root::read(file)?;
+        let sw = spec
+            .sweep
+            .as_ref()
+            .ok_or_else(|| hdf5::Error::from("its study text has no [sweep]"))?;
+        let g = file.group("sweep")?;
+        let cols = |g: &hdf5::Group, name: &str| -> hdf5::Result<usize> {
+            Ok(g.dataset(name)?.shape().get(1).copied().unwrap_or(0))
+        };
+        let units = spec
+            .observables
+            .iter()
+            .map(|o| {
+                let ds = g.dataset(&o.name)?;
+                read_str(&ds, "unit")
+            })
+            .collect::<hdf5::Result<Vec<_>>>()?;
+        let history = match g.group("history") {
+            Ok(h) => cols(&h, "time")?,
+            Err(_) => 0,
+        };
+        Ok(SweepLayout {
+            root,
+            observables: spec.observables.clone(),
+            units,
+            sections: spec.sections.iter().map(|s| s.name.clone()).collect(),
+            parameter: sw.parameter.clone(),
+            unit: sw.unit.clone(),
+            continuation: sw.continuation,
+            kept: cols(&g, "strobe_time")?,
+            history,
+            shape: hybrid::StateShape {
+                dim: cols(&g, "final_state")?,
+                contacts: cols(&g, "final_onset")?,
+                clearances: cols(&g, "final_warned")?,
+            },
+        })
+    }
+}
+
+impl Loaded {
+    /// The layout of this study's sweep file, from a probe of job 0 (its flow is built, not run).
+    fn layout(&self, sw: &SweepSpec) -> Result<SweepLayout> {
+        let target = self.target(Some(self.jobs[0].0))?;
+        let flow = target.flow();
+        // The memory of a new run has the sizes of the flow's memory (contacts, clearance joints).
+        let mut memory = HybridState::default();
+        flow.save_memory(&mut memory);
+        let (method, period, start) = (flow.method(), flow.period(), flow.start_time());
+        let plan = self.plan(method, start, period);
+        Ok(SweepLayout {
+            root: Root::of(self, &method.describe(), start, period),
+            observables: self.spec.observables.clone(),
+            units: flow.observable_units(),
+            sections: self.planes.iter().map(|p| p.name.clone()).collect(),
+            parameter: sw.parameter.clone(),
+            unit: sw.unit.clone(),
+            continuation: sw.continuation,
+            kept: plan.kept(),
+            history: plan.history_len(),
+            shape: hybrid::StateShape {
+                dim: flow.dim(),
+                contacts: memory.onset.len(),
+                clearances: memory.warned.len(),
+            },
+        })
+    }
 }
 
 fn obs_datasets(
     g: &hdf5::Group,
-    st: &Loaded,
+    observables: &[ObservableSpec],
     units: &[String],
     values: &[Vec<f64>],
     what: &str,
 ) -> hdf5::Result<()> {
-    for ((o, u), v) in st.spec.observables.iter().zip(units).zip(values) {
+    for ((o, u), v) in observables.iter().zip(units).zip(values) {
         write1(g, &o.name, v, u, &format!("{} {what}", o.path))?;
         {
             let ds = g.dataset(&o.name)?;
@@ -1033,8 +1288,23 @@ fn obs_datasets(
     Ok(())
 }
 
+/// Writes one hyperplane section's crossings (times and observables) into a new group `name`.
+pub(crate) fn write_crossings(
+    g: &hdf5::Group,
+    name: &str,
+    observables: &[ObservableSpec],
+    units: &[String],
+    time: &[f64],
+    values: &[Vec<f64>],
+) -> hdf5::Result<()> {
+    let gp = g.create_group(name)?;
+    write1(&gp, "time", time, "s", "crossing times")?;
+    obs_datasets(&gp, observables, units, values, "at the crossings")
+}
+
 fn write_single(file: &hdf5::File, st: &Loaded, r: &JobResult) -> hdf5::Result<()> {
     let t = &r.trace;
+    let obs = &st.spec.observables;
     u64_attr(file, "rhs_evals", t.stats.rhs_evals)?;
     u64_attr(file, "accepted_steps", t.stats.accepted)?;
     f64_attr(file, "wall_time", r.wall)?;
@@ -1047,7 +1317,7 @@ fn write_single(file: &hdf5::File, st: &Loaded, r: &JobResult) -> hdf5::Result<(
             "s",
             "sample times over the kept window",
         )?;
-        obs_datasets(&g, st, &r.units, &t.history, "over the kept window")?;
+        obs_datasets(&g, obs, &r.units, &t.history, "over the kept window")?;
     }
     let g = file.create_group("sections")?;
     let s0 = g.create_group("strobe")?;
@@ -1058,71 +1328,47 @@ fn write_single(file: &hdf5::File, st: &Loaded, r: &JobResult) -> hdf5::Result<(
         "s",
         "t0 + phase + k T, one per kept period",
     )?;
-    obs_datasets(&s0, st, &r.units, &t.strobe, "at the strobe times")?;
+    obs_datasets(&s0, obs, &r.units, &t.strobe, "at the strobe times")?;
     for (p, c) in st.planes.iter().zip(&t.crossings) {
-        let gp = g.create_group(&p.name)?;
-        write1(&gp, "time", &c.time, "s", "crossing times")?;
-        obs_datasets(&gp, st, &r.units, &c.values, "at the crossings")?;
+        write_crossings(&g, &p.name, obs, &r.units, &c.time, &c.values)?;
     }
     hybrid::write_state(file, &t.final_state)
 }
 
-fn create_sweep_file(
+/// Creates the sweep file `path` of `layout` with one row per job of `jobs` (parameter value
+/// and direction), every row not done. A shard file also records its shard (root attributes
+/// `shard` and `shards`) and the index of each row's job in the whole sweep (`/sweep/job`).
+pub(crate) fn create_sweep_file(
     path: &Path,
-    st: &Loaded,
-    sw: &SweepSpec,
+    layout: &SweepLayout,
     version: &str,
+    jobs: &[(f64, i8)],
+    shard: Option<(Shard, &[usize])>,
 ) -> Result<hdf5::File> {
     let e = h5err(path);
-    // Probe run to learn the units, period and state size without simulating: build job 0.
-    let target = st.target(Some(st.jobs[0].0))?;
-    let flow = target.flow();
-    // The memory of a new run has the sizes of the flow's memory (contacts, clearance joints).
-    let mut memory = HybridState::default();
-    flow.save_memory(&mut memory);
-    let shape = hybrid::StateShape {
-        dim: flow.dim(),
-        contacts: memory.onset.len(),
-        clearances: memory.warned.len(),
-    };
-    let (units, method, period, start) = (
-        flow.observable_units(),
-        flow.method(),
-        flow.period(),
-        flow.start_time(),
-    );
-    let n = st.jobs.len();
-    let plan = st.plan(method, start, period);
-    let (kept, hl) = (plan.kept(), plan.history_len());
-    let probe = JobResult {
-        trace: Trace::default(),
-        warnings: Vec::new(),
-        units: units.clone(),
-        integrator: method.describe(),
-        period,
-        start,
-        wall: 0.0,
-    };
+    let l = layout;
+    let n = jobs.len();
+    let (kept, hl) = (l.kept, l.history);
     let file = hdf5::File::create(path).map_err(&e)?;
     (|| -> hdf5::Result<()> {
         str_attr(&file, "program", "jointplay")?;
         str_attr(&file, "program_version", version)?;
         str_attr(&file, "units", "SI: m, kg, s, rad, N, N m, J")?;
-        write_root(&file, st, &probe, 0)?;
+        l.root.write(&file, 0)?;
         let g = file.create_group("sweep")?;
-        let params: Vec<f64> = st.jobs.iter().map(|j| j.0).collect();
+        let params: Vec<f64> = jobs.iter().map(|j| j.0).collect();
         write1(
             &g,
             "parameter",
             &params,
-            &sw.unit,
+            &l.unit,
             "swept parameter value of each job",
         )?;
         {
             let ds = g.dataset("parameter")?;
-            str_attr(&ds, "path", &sw.parameter)?;
+            str_attr(&ds, "path", &l.parameter)?;
         }
-        let dirs: Vec<i8> = st.jobs.iter().map(|j| j.1).collect();
+        let dirs: Vec<i8> = jobs.iter().map(|j| j.1).collect();
         write_column(
             &g,
             "direction",
@@ -1138,9 +1384,9 @@ fn create_sweep_file(
             "0 not run, 1 done, 2 failed (message in /sweep/errors)",
         )?;
         g.create_group("errors")?;
-        u8_attr_set(&g, "continuation", u8::from(sw.continuation))?;
+        u8_attr_set(&g, "continuation", u8::from(l.continuation))?;
         create_nan(&g, "strobe_time", &[n, kept], "s", "strobe times of each job")?;
-        for (o, u) in st.spec.observables.iter().zip(&units) {
+        for (o, u) in l.observables.iter().zip(&l.units) {
             create_nan(
                 &g,
                 &o.name,
@@ -1162,7 +1408,7 @@ fn create_sweep_file(
                 "s",
                 "sample times over the kept window, per job",
             )?;
-            for (o, u) in st.spec.observables.iter().zip(&units) {
+            for (o, u) in l.observables.iter().zip(&l.units) {
                 create_nan(
                     &h,
                     &o.name,
@@ -1172,7 +1418,7 @@ fn create_sweep_file(
                 )?;
             }
         }
-        hybrid::create_rows(&g, n, shape)?;
+        hybrid::create_rows(&g, n, l.shape)?;
         g.new_dataset::<u64>().shape(n).create("rhs_evals")?;
         create_nan(
             &g,
@@ -1181,8 +1427,20 @@ fn create_sweep_file(
             "s",
             "wall-clock time of each job (machine-dependent, the only dataset that is not reproducible)",
         )?;
-        if !st.planes.is_empty() {
+        if !l.sections.is_empty() {
             g.create_group("sections")?;
+        }
+        if let Some((sh, rows)) = shard {
+            u64_attr(&file, "shard", sh.index as u64)?;
+            u64_attr(&file, "shards", sh.count as u64)?;
+            let rows: Vec<u64> = rows.iter().map(|&j| j as u64).collect();
+            write_column(
+                &g,
+                "job",
+                &rows,
+                Some("1"),
+                "index of each row's job in the whole sweep (shard files only)",
+            )?;
         }
         Ok(())
     })()
@@ -1191,34 +1449,40 @@ fn create_sweep_file(
     Ok(file)
 }
 
-fn write_job(file: &hdf5::File, st: &Loaded, j: usize, r: &JobResult) -> hdf5::Result<()> {
+/// Writes the result of the job in row `row` of the file.
+fn write_job(file: &hdf5::File, st: &Loaded, row: usize, r: &JobResult) -> hdf5::Result<()> {
     let g = file.group("sweep")?;
     let t = &r.trace;
-    write_row(&g, "strobe_time", j, &t.strobe_time)?;
+    write_row(&g, "strobe_time", row, &t.strobe_time)?;
     for (o, v) in st.spec.observables.iter().zip(&t.strobe) {
-        write_row(&g, &o.name, j, v)?;
+        write_row(&g, &o.name, row, v)?;
     }
     if st.spec.analysis.samples_per_period > 0 {
         let h = g.group("history")?;
-        write_row(&h, "time", j, &t.history_time)?;
+        write_row(&h, "time", row, &t.history_time)?;
         for (o, v) in st.spec.observables.iter().zip(&t.history) {
-            write_row(&h, &o.name, j, v)?;
+            write_row(&h, &o.name, row, v)?;
         }
     }
-    hybrid::write_row(&g, j, &t.final_state)?;
-    write_element(&g, "rhs_evals", j, t.stats.rhs_evals)?;
-    write_element(&g, "wall_time", j, r.wall)?;
+    hybrid::write_row(&g, row, &t.final_state)?;
+    write_element(&g, "rhs_evals", row, t.stats.rhs_evals)?;
+    write_element(&g, "wall_time", row, r.wall)?;
     if !st.planes.is_empty() {
         let sec = g.group("sections")?;
         // A job interrupted while being written left a partial group: replace it.
-        if sec.link_exists(&j.to_string()) {
-            sec.unlink(&j.to_string())?;
+        if sec.link_exists(&row.to_string()) {
+            sec.unlink(&row.to_string())?;
         }
-        let gj = sec.create_group(&j.to_string())?;
+        let gj = sec.create_group(&row.to_string())?;
         for (p, c) in st.planes.iter().zip(&t.crossings) {
-            let gp = gj.create_group(&p.name)?;
-            write1(&gp, "time", &c.time, "s", "crossing times")?;
-            obs_datasets(&gp, st, &r.units, &c.values, "at the crossings")?;
+            write_crossings(
+                &gj,
+                &p.name,
+                &st.spec.observables,
+                &r.units,
+                &c.time,
+                &c.values,
+            )?;
         }
     }
     Ok(())

@@ -1,0 +1,665 @@
+//! Sweeps split over processes or machines: shards, their files and an exact merge.
+//!
+//! **Assignment.** Shard `I` of `N` (`0 <= I < N`) computes the jobs `j` of the sweep with
+//! `j mod N = I`: interleaved, not contiguous blocks, so that neighbouring values (which cost
+//! about the same) go to different shards and every shard gets a fair share of the expensive
+//! part of the sweep. `N` may not exceed the number of values. A continuation sweep cannot be
+//! sharded: each of its values starts from the previous value's final state.
+//!
+//! **Shard files.** Shard `I` of `N` writes `DIR/<study>.shard-I-of-N.h5`: a sweep file (layout in
+//! the README) whose rows are the shard's jobs alone, in order, with the root attributes `shard`
+//! (`I`) and `shards` (`N`) and the dataset `/sweep/job` (each row's index in the whole sweep).
+//! It records each value's status in `/sweep/done` like any sweep file, so `run --resume`
+//! computes only what the shard lacks, and `plot` draws the shard's values.
+//!
+//! **Merge.** [`merge`] checks that every shard file comes from the same program version and the
+//! same study (every root attribute but the wall time), that no shard is given twice and that
+//! every value is done exactly once, then writes the study file through the code a single
+//! process writes it with, copying each shard's rows into place. Each job's result depends only
+//! on its inputs, so the merged datasets are bit-identical to a single-process run; only the wall
+//! times differ (`/sweep/wall_time` per job, and the root `wall_time`, which in a merged file is
+//! the sum of the shards'). Missing or failed values make the merge refuse and name the shards to
+//! rerun, unless `partial`, which writes them as not done (root `complete` = 0) for
+//! `run --resume` to finish.
+
+use std::fmt;
+use std::path::{Path, PathBuf};
+use std::str::FromStr;
+
+use hdf5::types::VarLenUnicode;
+use ndarray::s;
+
+use crate::h5::{f64_attr_set, h5err, read_attr, read_str, u8_attr_set};
+use crate::nonlinear::{
+    AnalysisStudy, Loaded, Root, SweepLayout, create_sweep_file, sweep_jobs, write_crossings,
+};
+use crate::study::invalid;
+use crate::{Error, Result};
+
+/// One shard of a sweep: `index` of `count`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Shard {
+    pub index: usize,
+    pub count: usize,
+}
+
+impl fmt::Display for Shard {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}/{}", self.index, self.count)
+    }
+}
+
+impl FromStr for Shard {
+    type Err = String;
+
+    /// Parses `I/N`.
+    fn from_str(s: &str) -> std::result::Result<Shard, String> {
+        let (i, n) = s
+            .split_once('/')
+            .ok_or_else(|| format!("'{s}': give the shard as I/N, e.g. 0/8"))?;
+        let num = |v: &str, what: &str| {
+            v.trim()
+                .parse::<usize>()
+                .map_err(|_| format!("'{s}': {what} '{v}' is not a whole number"))
+        };
+        Shard::new(num(i, "shard index")?, num(n, "number of shards")?)
+    }
+}
+
+impl Shard {
+    /// Shard `index` of `count`; an error unless `count >= 1` and `index < count`.
+    pub fn new(index: usize, count: usize) -> std::result::Result<Shard, String> {
+        if count == 0 {
+            return Err(format!(
+                "{index}/{count}: the number of shards must be at least 1"
+            ));
+        }
+        if index >= count {
+            return Err(format!(
+                "{index}/{count}: the shard index must be less than the number of shards \
+                 (0 to {})",
+                count - 1
+            ));
+        }
+        Ok(Shard { index, count })
+    }
+
+    /// The shard of a Slurm array task, from `SLURM_ARRAY_TASK_ID`, `SLURM_ARRAY_TASK_COUNT` and
+    /// `SLURM_ARRAY_TASK_MIN` (the offset; 0 when unset) as `var` returns them; `None` outside
+    /// an array job. An array that is not one contiguous range of ids (a step or a list) has no
+    /// such mapping and is refused.
+    pub fn from_slurm(
+        var: impl Fn(&str) -> Option<String>,
+    ) -> std::result::Result<Option<Shard>, String> {
+        let Some(id) = var("SLURM_ARRAY_TASK_ID") else {
+            return Ok(None);
+        };
+        let num = |name: &str, v: &str| {
+            v.trim()
+                .parse::<usize>()
+                .map_err(|_| format!("{name}='{v}' is not a whole number"))
+        };
+        let id = num("SLURM_ARRAY_TASK_ID", &id)?;
+        let count = var("SLURM_ARRAY_TASK_COUNT").ok_or(
+            "SLURM_ARRAY_TASK_ID is set but SLURM_ARRAY_TASK_COUNT is not: give --shard I/N",
+        )?;
+        let count = num("SLURM_ARRAY_TASK_COUNT", &count)?;
+        let min = match var("SLURM_ARRAY_TASK_MIN") {
+            Some(v) => num("SLURM_ARRAY_TASK_MIN", &v)?,
+            None => 0,
+        };
+        if let Some(max) = var("SLURM_ARRAY_TASK_MAX") {
+            let max = num("SLURM_ARRAY_TASK_MAX", &max)?;
+            if max < min || max - min + 1 != count {
+                return Err(format!(
+                    "the job array ({min} to {max}, {count} tasks) is not one contiguous range of \
+                     task ids, so its tasks are not shards 0 to N-1: give --shard I/N"
+                ));
+            }
+        }
+        if id < min {
+            return Err(format!(
+                "SLURM_ARRAY_TASK_ID={id} is below SLURM_ARRAY_TASK_MIN={min}"
+            ));
+        }
+        Shard::new(id - min, count)
+            .map(Some)
+            .map_err(|m| format!("from SLURM_ARRAY_TASK_ID, _COUNT and _MIN: {m}"))
+    }
+
+    /// The jobs of a sweep of `jobs` jobs that this shard computes: `index`, `index + count`, ...
+    pub fn jobs(self, jobs: usize) -> Vec<usize> {
+        (self.index..jobs).step_by(self.count).collect()
+    }
+
+    /// The shard file's name for the study `study`: `<study>.shard-I-of-N.h5`.
+    pub fn file_name(self, study: &str) -> String {
+        format!("{study}.shard-{}-of-{}.h5", self.index, self.count)
+    }
+
+    /// Refuses a study whose sweep cannot be split into this shard.
+    pub(crate) fn check(self, st: &Loaded) -> Result<()> {
+        check(st, self)
+    }
+
+    /// The shard a file holds (root attributes `shard` and `shards`), `None` for a file of the
+    /// whole sweep.
+    pub(crate) fn of_file(file: &hdf5::File) -> hdf5::Result<Option<Shard>> {
+        if file.attr("shard").is_err() {
+            return Ok(None);
+        }
+        let (i, n) = (
+            read_attr::<u64>(file, "shard")?,
+            read_attr::<u64>(file, "shards")?,
+        );
+        Shard::new(i as usize, n as usize)
+            .map(Some)
+            .map_err(hdf5::Error::from)
+    }
+}
+
+/// Refuses a study whose sweep cannot be split as `shard` says: a continuation sweep, or more
+/// shards than values. The error names the study file and the field.
+pub fn check(st: &Loaded, shard: Shard) -> Result<()> {
+    if st.spec.sweep.as_ref().is_some_and(|s| s.continuation) {
+        return Err(invalid(
+            &st.path,
+            "sweep.continuation",
+            "a continuation sweep cannot be split into shards: each value starts from the \
+             previous value's final state, so its values run in order in one process; run it \
+             without --shard and outside a job array",
+        ));
+    }
+    let n = st.jobs.len();
+    if shard.count > n {
+        return Err(invalid(
+            &st.path,
+            "sweep",
+            format!(
+                "{} shards for {n} values: use at most {n} shards",
+                shard.count
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// What [`merge`] wrote, and what the values cost.
+#[derive(Debug, Clone)]
+pub struct Merged {
+    pub file: PathBuf,
+    /// Values of the sweep.
+    pub jobs: usize,
+    pub shards: usize,
+    /// Jobs written as not done (with `partial`), by index in the sweep.
+    pub not_done: Vec<usize>,
+    /// Wall time of each done value (s), from the shards' `/sweep/wall_time`.
+    pub value_walls: Vec<f64>,
+    /// Each shard given, with its file's `wall_time` (s): the time its last run took.
+    pub shard_walls: Vec<(Shard, f64)>,
+}
+
+/// One shard file, read for the merge.
+struct ShardFile {
+    path: PathBuf,
+    file: hdf5::File,
+    shard: Shard,
+    version: String,
+    root: Root,
+    layout: SweepLayout,
+    done: Vec<u8>,
+    /// Messages of failed rows.
+    errors: Vec<(usize, String)>,
+}
+
+fn io(file: &Path, message: impl Into<String>) -> Error {
+    Error::Io {
+        file: file.to_path_buf(),
+        message: message.into(),
+    }
+}
+
+impl ShardFile {
+    fn open(path: &Path) -> Result<ShardFile> {
+        let e = h5err(path);
+        let file = hdf5::File::open(path).map_err(&e)?;
+        let shard = Shard::of_file(&file).map_err(&e)?.ok_or_else(|| {
+            io(
+                path,
+                "not a shard file (no 'shard' attribute): merge takes the files written by \
+                 `jointplay run STUDY --shard I/N`",
+            )
+        })?;
+        let version = read_str(&file, "program_version").map_err(&e)?;
+        let root = Root::read(&file).map_err(&e)?;
+        let spec = AnalysisStudy::parse_spec(&root.study, path)?;
+        let layout = SweepLayout::read(&file, &spec).map_err(&e)?;
+        let g = file.group("sweep").map_err(&e)?;
+        let done = g
+            .dataset("done")
+            .and_then(|d| d.read_raw::<u8>())
+            .map_err(&e)?;
+        let eg = g.group("errors").map_err(&e)?;
+        let mut errors = Vec::new();
+        for (r, d) in done.iter().enumerate() {
+            if *d == 2 {
+                let m = eg
+                    .attr(&r.to_string())
+                    .and_then(|a| a.read_scalar::<VarLenUnicode>())
+                    .map(|v| v.to_string())
+                    .unwrap_or_else(|_| "no message recorded".into());
+                errors.push((r, m));
+            }
+        }
+        Ok(ShardFile {
+            path: path.to_path_buf(),
+            file,
+            shard,
+            version,
+            root,
+            layout,
+            done,
+            errors,
+        })
+    }
+}
+
+/// True when `a` and `b` name the same file (`b` need not exist).
+fn same_file(a: &Path, b: &Path) -> bool {
+    match (a.canonicalize(), b.canonicalize()) {
+        (Ok(x), Ok(y)) => x == y,
+        _ => {
+            // `b` does not exist yet: compare its directory and name.
+            let dir = |p: &Path| {
+                p.parent()
+                    .filter(|d| !d.as_os_str().is_empty())
+                    .unwrap_or(Path::new("."))
+                    .canonicalize()
+                    .ok()
+            };
+            a.file_name() == b.file_name() && dir(a).is_some() && dir(a) == dir(b)
+        }
+    }
+}
+
+/// Up to eight parameter values, then how many more.
+fn some_values(name: &str, values: &[f64]) -> String {
+    let mut s: Vec<String> = values
+        .iter()
+        .take(8)
+        .map(|v| crate::report::num(*v))
+        .collect();
+    if values.len() > 8 {
+        s.push(format!("... ({} more)", values.len() - 8));
+    }
+    format!("{name} = {}", s.join(", "))
+}
+
+/// Copies every row of dataset `name` of shard `sh` into its rows of the merged file.
+fn copy_rows<T: hdf5::H5Type + Clone>(
+    src: &hdf5::Group,
+    dst: &hdf5::Group,
+    name: &str,
+    sh: Shard,
+) -> hdf5::Result<()> {
+    let ds = src.dataset(name)?;
+    let shape = ds.shape();
+    if shape.contains(&0) {
+        return Ok(());
+    }
+    let (a, step) = (sh.index, sh.count);
+    let b = a + step * (shape[0] - 1) + 1;
+    let out = dst.dataset(name)?;
+    match shape.len() {
+        1 => out.write_slice(&ds.read_1d::<T>()?, s![a..b;step]),
+        2 => out.write_slice(&ds.read_2d::<T>()?, s![a..b;step, ..]),
+        d => Err(format!("{name}: {d} dimensions, expected 1 or 2").into()),
+    }
+}
+
+/// Merges the shard files `inputs` into the study file `out` (written under a temporary name and
+/// renamed once complete); `version` is this program's version. See the module documentation.
+pub fn merge(inputs: &[PathBuf], out: &Path, version: &str, partial: bool) -> Result<Merged> {
+    let Some(first) = inputs.first() else {
+        return Err(io(out, "no shard files given"));
+    };
+    for p in inputs {
+        if same_file(p, out) {
+            return Err(io(
+                out,
+                "the output is one of the shard files: give another --out (the merged file is \
+                 DIR/<study>.h5)",
+            ));
+        }
+    }
+    let mut shards: Vec<ShardFile> = Vec::new();
+    for p in inputs {
+        let s = ShardFile::open(p)?;
+        if let Some(o) = shards.first() {
+            if s.version != o.version {
+                return Err(io(
+                    p,
+                    format!(
+                        "written by jointplay {} but {} by jointplay {}: every shard must come \
+                         from the same program version; rerun the shards with one version",
+                        s.version,
+                        o.path.display(),
+                        o.version
+                    ),
+                ));
+            }
+            if s.root.study != o.root.study {
+                return Err(io(
+                    p,
+                    format!(
+                        "comes from another study text than {} (its 'study' attribute differs): \
+                         shards of different studies, or of a study edited between runs, cannot \
+                         be merged; rerun the shards of the study as it is now",
+                        o.path.display()
+                    ),
+                ));
+            }
+            let diff = s.root.differences(&o.root);
+            if !diff.is_empty() || s.layout != o.layout {
+                return Err(io(
+                    p,
+                    format!(
+                        "differs from {} in {}: the shards were not computed from the same flow \
+                         (was the scene edited between runs?); rerun them",
+                        o.path.display(),
+                        if diff.is_empty() {
+                            "the shape of its datasets".to_string()
+                        } else {
+                            format!("the attribute(s) {}", diff.join(", "))
+                        }
+                    ),
+                ));
+            }
+            if s.shard.count != o.shard.count {
+                return Err(io(
+                    p,
+                    format!(
+                        "is shard {} but {} is shard {}: every shard must come from one split \
+                         of the sweep",
+                        s.shard,
+                        o.path.display(),
+                        o.shard
+                    ),
+                ));
+            }
+            if let Some(d) = shards.iter().find(|d| d.shard == s.shard) {
+                return Err(io(
+                    p,
+                    format!(
+                        "shard {} is given twice (also {})",
+                        s.shard,
+                        d.path.display()
+                    ),
+                ));
+            }
+        }
+        shards.push(s);
+    }
+    let o = &shards[0];
+    if o.version != version {
+        return Err(io(
+            first,
+            format!(
+                "written by jointplay {}; this is jointplay {version}: merge with the version \
+                 that computed the shards",
+                o.version
+            ),
+        ));
+    }
+    let study_path = PathBuf::from(&o.root.study_file);
+    let spec = AnalysisStudy::parse_spec(&o.root.study, &study_path)?;
+    let jobs = sweep_jobs(&spec, &study_path)?;
+    let n = shards[0].shard.count;
+    if jobs.is_empty() || n > jobs.len() {
+        return Err(io(
+            first,
+            format!("{n} shards of a sweep of {} values", jobs.len()),
+        ));
+    }
+    // Every shard holds exactly its jobs, with the values the study gives them.
+    for s in &shards {
+        let e = h5err(&s.path);
+        let expect = s.shard.jobs(jobs.len());
+        let g = s.file.group("sweep").map_err(&e)?;
+        let rows = g
+            .dataset("job")
+            .and_then(|d| d.read_raw::<u64>())
+            .map_err(&e)?;
+        let params = g
+            .dataset("parameter")
+            .and_then(|d| d.read_raw::<f64>())
+            .map_err(&e)?;
+        let same = rows.len() == expect.len()
+            && s.done.len() == expect.len()
+            && params.len() == expect.len()
+            && rows.iter().zip(&expect).all(|(r, j)| *r as usize == *j)
+            && params
+                .iter()
+                .zip(&expect)
+                .all(|(p, &j)| p.to_bits() == jobs[j].0.to_bits());
+        if !same {
+            return Err(io(
+                &s.path,
+                format!(
+                    "does not hold the values of shard {} of the study's sweep ({} of {} values)",
+                    s.shard,
+                    expect.len(),
+                    jobs.len()
+                ),
+            ));
+        }
+    }
+    // What is missing, shard by shard.
+    let pname = spec
+        .sweep
+        .as_ref()
+        .map(|s| s.parameter.clone())
+        .unwrap_or_default();
+    let dir = first
+        .parent()
+        .filter(|d| !d.as_os_str().is_empty())
+        .unwrap_or(Path::new("."));
+    let rerun = |sh: Shard| {
+        format!(
+            "jointplay run {} --out {} --shard {sh} --resume",
+            o.root.study_file,
+            dir.display()
+        )
+    };
+    let mut lines = Vec::new();
+    let mut not_done = Vec::new();
+    for i in 0..n {
+        let sh = Shard { index: i, count: n };
+        let js = sh.jobs(jobs.len());
+        let values = |idx: &[usize]| {
+            let v: Vec<f64> = idx.iter().map(|&j| jobs[j].0).collect();
+            some_values(&pname, &v)
+        };
+        match shards.iter().find(|s| s.shard == sh) {
+            None => {
+                lines.push(format!(
+                    "shard {sh}: no file given ({}); its {} values ({}); rerun: {}",
+                    dir.join(sh.file_name(&o.root.study_name)).display(),
+                    js.len(),
+                    values(&js),
+                    rerun(sh)
+                ));
+                not_done.extend(js);
+            }
+            Some(s) => {
+                let missing: Vec<usize> = (0..js.len()).filter(|&r| s.done[r] == 0).collect();
+                if !missing.is_empty() {
+                    let idx: Vec<usize> = missing.iter().map(|&r| js[r]).collect();
+                    lines.push(format!(
+                        "shard {sh}: {} of its {} values not run in {} ({}); rerun: {}",
+                        idx.len(),
+                        js.len(),
+                        s.path.display(),
+                        values(&idx),
+                        rerun(sh)
+                    ));
+                    not_done.extend(idx);
+                }
+                for (r, m) in &s.errors {
+                    lines.push(format!(
+                        "shard {sh}: value {} = {} (job {}) failed: {m}",
+                        pname,
+                        crate::report::num(jobs[js[*r]].0),
+                        js[*r]
+                    ));
+                    not_done.push(js[*r]);
+                }
+            }
+        }
+    }
+    not_done.sort_unstable();
+    if !not_done.is_empty() && !partial {
+        return Err(io(
+            out,
+            format!(
+                "not written: {} of {} values are missing or failed; rerun the shards named \
+                 below (a rerun computes only what its file lacks) and merge again, or merge \
+                 with --partial and finish the merged file with `jointplay run {} --out {} \
+                 --resume`:\n  {}",
+                not_done.len(),
+                jobs.len(),
+                o.root.study_file,
+                out.parent()
+                    .filter(|d| !d.as_os_str().is_empty())
+                    .unwrap_or(Path::new("."))
+                    .display(),
+                lines.join("\n  ")
+            ),
+        ));
+    }
+    // Write the study file as a single process writes it, then copy each shard's rows in.
+    if let Some(d) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
+        std::fs::create_dir_all(d)
+            .map_err(|err| io(d, format!("cannot create output directory: {err}")))?;
+    }
+    let mut tmp = out.as_os_str().to_owned();
+    tmp.push(".partial");
+    let tmp = PathBuf::from(tmp);
+    let _ = std::fs::remove_file(&tmp);
+    let written = (|| -> Result<(Vec<f64>, Vec<(Shard, f64)>)> {
+        let file = create_sweep_file(&tmp, &o.layout, version, &jobs, None)?;
+        let e = h5err(&tmp);
+        let dst = file.group("sweep").map_err(&e)?;
+        let mut done = vec![0u8; jobs.len()];
+        let mut value_walls = Vec::new();
+        let mut shard_walls = Vec::new();
+        for s in &shards {
+            let src = s.file.group("sweep").map_err(h5err(&s.path))?;
+            copy_shard(s, &src, &dst, &o.layout).map_err(|err| Error::Hdf5 {
+                file: s.path.clone(),
+                message: format!("copying into {}: {err}", tmp.display()),
+            })?;
+            let walls = src
+                .dataset("wall_time")
+                .and_then(|d| d.read_raw::<f64>())
+                .map_err(h5err(&s.path))?;
+            for (r, &j) in s.shard.jobs(jobs.len()).iter().enumerate() {
+                if s.done[r] == 1 {
+                    done[j] = 1;
+                    value_walls.push(walls[r]);
+                }
+            }
+            shard_walls.push((
+                s.shard,
+                read_attr::<f64>(&s.file, "wall_time").unwrap_or(f64::NAN),
+            ));
+        }
+        let ds = dst.dataset("done").map_err(&e)?;
+        ds.write(&ndarray::Array1::from(done.clone())).map_err(&e)?;
+        let complete = done.iter().all(|&d| d == 1);
+        u8_attr_set(&file, "complete", u8::from(complete)).map_err(&e)?;
+        let total: f64 = shard_walls
+            .iter()
+            .map(|w| w.1)
+            .filter(|w| w.is_finite())
+            .sum();
+        f64_attr_set(&file, "wall_time", total).map_err(&e)?;
+        file.close().map_err(&e)?;
+        Ok((value_walls, shard_walls))
+    })();
+    let (value_walls, shard_walls) = match written {
+        Ok(w) => w,
+        Err(err) => {
+            let _ = std::fs::remove_file(&tmp);
+            return Err(err);
+        }
+    };
+    std::fs::rename(&tmp, out).map_err(|err| {
+        io(
+            out,
+            format!("cannot move the merged file into place: {err}"),
+        )
+    })?;
+    let mut shard_walls = shard_walls;
+    shard_walls.sort_by_key(|w| w.0.index);
+    Ok(Merged {
+        file: out.to_path_buf(),
+        jobs: jobs.len(),
+        shards: n,
+        not_done,
+        value_walls,
+        shard_walls,
+    })
+}
+
+/// Copies the rows and sections of one shard into the merged file's `/sweep`.
+fn copy_shard(
+    s: &ShardFile,
+    src: &hdf5::Group,
+    dst: &hdf5::Group,
+    l: &SweepLayout,
+) -> hdf5::Result<()> {
+    let sh = s.shard;
+    let mut f64s = vec![
+        "strobe_time",
+        "final_state",
+        "final_time",
+        "final_onset",
+        "final_stepper",
+        "wall_time",
+    ];
+    f64s.extend(l.observables.iter().map(|o| o.name.as_str()));
+    for name in f64s {
+        copy_rows::<f64>(src, dst, name, sh)?;
+    }
+    copy_rows::<u8>(src, dst, "final_warned", sh)?;
+    copy_rows::<u64>(src, dst, "rhs_evals", sh)?;
+    if l.history > 0 {
+        let (hs, hd) = (src.group("history")?, dst.group("history")?);
+        copy_rows::<f64>(&hs, &hd, "time", sh)?;
+        for o in &l.observables {
+            copy_rows::<f64>(&hs, &hd, &o.name, sh)?;
+        }
+    }
+    if !l.sections.is_empty() {
+        let (ss, sd) = (src.group("sections")?, dst.group("sections")?);
+        for (r, d) in s.done.iter().enumerate() {
+            if *d != 1 {
+                continue;
+            }
+            let j = sh.index + r * sh.count;
+            let (gr, gj) = (ss.group(&r.to_string())?, sd.create_group(&j.to_string())?);
+            for name in &l.sections {
+                let gp = gr.group(name)?;
+                let time = gp.dataset("time")?.read_raw::<f64>()?;
+                let values = l
+                    .observables
+                    .iter()
+                    .map(|o| gp.dataset(&o.name)?.read_raw::<f64>())
+                    .collect::<hdf5::Result<Vec<_>>>()?;
+                write_crossings(&gj, name, &l.observables, &l.units, &time, &values)?;
+            }
+        }
+    }
+    Ok(())
+}
