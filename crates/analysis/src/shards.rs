@@ -284,11 +284,7 @@ fn same_file(a: &Path, b: &Path) -> bool {
 
 /// Up to eight parameter values, then how many more.
 fn some_values(name: &str, values: &[f64]) -> String {
-    let mut s: Vec<String> = values
-        .iter()
-        .take(8)
-        .map(|v| crate::report::num(*v))
-        .collect();
+    let mut s: Vec<String> = values.iter().take(8).map(|v| v.to_string()).collect();
     if values.len() > 8 {
         s.push(format!("... ({} more)", values.len() - 8));
     }
@@ -508,9 +504,7 @@ pub fn merge(inputs: &[PathBuf], out: &Path, version: &str, partial: bool) -> Re
                 for (r, m) in &s.errors {
                     lines.push(format!(
                         "shard {sh}: value {} = {} (job {}) failed: {m}",
-                        pname,
-                        crate::report::num(jobs[js[*r]].0),
-                        js[*r]
+                        pname, jobs[js[*r]].0, js[*r]
                     ));
                     not_done.push(js[*r]);
                 }
@@ -662,4 +656,88 @@ fn copy_shard(
         }
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn shards_interleave_the_values_and_cover_each_once() {
+        let n = 10;
+        let parts: Vec<Vec<usize>> = (0..3).map(|i| Shard::new(i, 3).unwrap().jobs(n)).collect();
+        assert_eq!(parts[0], [0, 3, 6, 9]);
+        assert_eq!(parts[1], [1, 4, 7]);
+        assert_eq!(parts[2], [2, 5, 8]);
+        let mut all: Vec<usize> = parts.concat();
+        all.sort_unstable();
+        assert_eq!(all, (0..n).collect::<Vec<_>>());
+        assert_eq!(
+            Shard::new(2, 3).unwrap().file_name("cascade"),
+            "cascade.shard-2-of-3.h5"
+        );
+    }
+
+    #[test]
+    fn a_shard_is_parsed_from_i_slash_n() {
+        assert_eq!("1/4".parse::<Shard>(), Ok(Shard { index: 1, count: 4 }));
+        for (bad, what) in [
+            ("4/4", "less than the number of shards (0 to 3)"),
+            ("0/0", "at least 1"),
+            ("1", "give the shard as I/N"),
+            ("-1/4", "'-1' is not a whole number"),
+        ] {
+            let e = bad.parse::<Shard>().unwrap_err();
+            assert!(e.contains(what), "{bad}: {e}");
+        }
+    }
+
+    #[test]
+    fn a_slurm_array_task_is_a_shard() {
+        fn env<'a>(vars: &'a [(&'a str, &'a str)]) -> impl Fn(&str) -> Option<String> + 'a {
+            move |k: &str| {
+                vars.iter()
+                    .find(|(n, _)| *n == k)
+                    .map(|(_, v)| v.to_string())
+            }
+        }
+        assert_eq!(Shard::from_slurm(env(&[])), Ok(None));
+        let task: [(&str, &str); 4] = [
+            ("SLURM_ARRAY_TASK_ID", "7"),
+            ("SLURM_ARRAY_TASK_COUNT", "4"),
+            ("SLURM_ARRAY_TASK_MIN", "5"),
+            ("SLURM_ARRAY_TASK_MAX", "8"),
+        ];
+        assert_eq!(
+            Shard::from_slurm(env(&task[..])),
+            Ok(Some(Shard { index: 2, count: 4 }))
+        );
+        // Without MIN the array starts at 0, and id 7 of 4 tasks is no shard.
+        let e = Shard::from_slurm(env(&task[..2])).unwrap_err();
+        assert!(e.contains("7/4: the shard index must be less"), "{e}");
+        assert_eq!(
+            Shard::from_slurm(env(&[
+                ("SLURM_ARRAY_TASK_ID", "3"),
+                ("SLURM_ARRAY_TASK_COUNT", "4")
+            ])),
+            Ok(Some(Shard { index: 3, count: 4 }))
+        );
+        // --array=0-6:2: ids 0, 2, 4, 6 are not shards 0 to 3.
+        let stepped: [(&str, &str); 4] = [
+            ("SLURM_ARRAY_TASK_ID", "2"),
+            ("SLURM_ARRAY_TASK_COUNT", "4"),
+            ("SLURM_ARRAY_TASK_MIN", "0"),
+            ("SLURM_ARRAY_TASK_MAX", "6"),
+        ];
+        let e = Shard::from_slurm(env(&stepped[..])).unwrap_err();
+        assert!(e.contains("not one contiguous range"), "{e}");
+        let e = Shard::from_slurm(env(&[("SLURM_ARRAY_TASK_ID", "1")])).unwrap_err();
+        assert!(e.contains("SLURM_ARRAY_TASK_COUNT is not"), "{e}");
+        let e = Shard::from_slurm(env(&[
+            ("SLURM_ARRAY_TASK_ID", "x"),
+            ("SLURM_ARRAY_TASK_COUNT", "2"),
+        ]))
+        .unwrap_err();
+        assert!(e.contains("SLURM_ARRAY_TASK_ID='x'"), "{e}");
+    }
 }

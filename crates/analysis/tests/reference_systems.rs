@@ -328,6 +328,7 @@ fn an_interrupted_sweep_resumed_equals_an_uninterrupted_one() {
             Options {
                 resume: false,
                 max_jobs: Some(3),
+                shard: None,
             },
             "test",
             &|_| {},
@@ -346,6 +347,7 @@ fn an_interrupted_sweep_resumed_equals_an_uninterrupted_one() {
             Options {
                 resume: true,
                 max_jobs: None,
+                shard: None,
             },
             "test",
             &|_| {},
