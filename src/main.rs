@@ -74,8 +74,8 @@ enum Command {
         /// No progress bar.
         #[arg(long, short)]
         quiet: bool,
-        /// Analysis sweeps: keep the finished values of an existing DIR/<name>.h5 and compute
-        /// only the rest.
+        /// Analysis sweeps: keep the finished values of an existing DIR/<name>.h5 (with --shard,
+        /// of the shard's file) and compute only the rest.
         #[arg(long)]
         resume: bool,
         /// Analysis sweeps: stop after this many values have finished (resume later).

@@ -15,6 +15,10 @@
 //! 1 done, 2 failed, its message in `/sweep/errors`), and `resume` runs only the jobs not done.
 //! Each job's result depends only on its inputs, so the datasets are bit-identical whatever the
 //! number of threads and whether the sweep was interrupted.
+//!
+//! **Shards.** With [`Options::shard`], a sweep computes only the values of one shard into its
+//! own file ([`crate::shards`]: assignment, shard files, the merge); the file is written by the
+//! same code, its rows being the shard's jobs.
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

@@ -540,49 +540,8 @@ pub fn merge(inputs: &[PathBuf], out: &Path, version: &str, partial: bool) -> Re
     tmp.push(".partial");
     let tmp = PathBuf::from(tmp);
     let _ = std::fs::remove_file(&tmp);
-    let written = (|| -> Result<(Vec<f64>, Vec<(Shard, f64)>)> {
-        let file = create_sweep_file(&tmp, &o.layout, version, &jobs, None)?;
-        let e = h5err(&tmp);
-        let dst = file.group("sweep").map_err(&e)?;
-        let mut done = vec![0u8; jobs.len()];
-        let mut value_walls = Vec::new();
-        let mut shard_walls = Vec::new();
-        for s in &shards {
-            let src = s.file.group("sweep").map_err(h5err(&s.path))?;
-            copy_shard(s, &src, &dst, &o.layout).map_err(|err| Error::Hdf5 {
-                file: s.path.clone(),
-                message: format!("copying into {}: {err}", tmp.display()),
-            })?;
-            let walls = src
-                .dataset("wall_time")
-                .and_then(|d| d.read_raw::<f64>())
-                .map_err(h5err(&s.path))?;
-            for (r, &j) in s.shard.jobs(jobs.len()).iter().enumerate() {
-                if s.done[r] == 1 {
-                    done[j] = 1;
-                    value_walls.push(walls[r]);
-                }
-            }
-            shard_walls.push((
-                s.shard,
-                read_attr::<f64>(&s.file, "wall_time").unwrap_or(f64::NAN),
-            ));
-        }
-        let ds = dst.dataset("done").map_err(&e)?;
-        ds.write(&ndarray::Array1::from(done.clone())).map_err(&e)?;
-        let complete = done.iter().all(|&d| d == 1);
-        u8_attr_set(&file, "complete", u8::from(complete)).map_err(&e)?;
-        let total: f64 = shard_walls
-            .iter()
-            .map(|w| w.1)
-            .filter(|w| w.is_finite())
-            .sum();
-        f64_attr_set(&file, "wall_time", total).map_err(&e)?;
-        file.close().map_err(&e)?;
-        Ok((value_walls, shard_walls))
-    })();
-    let (value_walls, shard_walls) = match written {
-        Ok(w) => w,
+    let costs = match write_merged(&tmp, &shards, version, &jobs) {
+        Ok(c) => c,
         Err(err) => {
             let _ = std::fs::remove_file(&tmp);
             return Err(err);
@@ -594,13 +553,75 @@ pub fn merge(inputs: &[PathBuf], out: &Path, version: &str, partial: bool) -> Re
             format!("cannot move the merged file into place: {err}"),
         )
     })?;
-    let mut shard_walls = shard_walls;
+    let Costs {
+        value_walls,
+        mut shard_walls,
+    } = costs;
     shard_walls.sort_by_key(|w| w.0.index);
     Ok(Merged {
         file: out.to_path_buf(),
         jobs: jobs.len(),
         shards: n,
         not_done,
+        value_walls,
+        shard_walls,
+    })
+}
+
+/// The wall times a merge reads from the shards.
+struct Costs {
+    value_walls: Vec<f64>,
+    shard_walls: Vec<(Shard, f64)>,
+}
+
+/// Writes the merged file `tmp`: the study file of the first shard's layout with every job of
+/// `jobs`, each shard's rows copied into place, `/sweep/done`, `complete` and `wall_time`.
+fn write_merged(
+    tmp: &Path,
+    shards: &[ShardFile],
+    version: &str,
+    jobs: &[(f64, i8)],
+) -> Result<Costs> {
+    let layout = &shards[0].layout;
+    let file = create_sweep_file(tmp, layout, version, jobs, None)?;
+    let e = h5err(tmp);
+    let dst = file.group("sweep").map_err(&e)?;
+    let mut done = vec![0u8; jobs.len()];
+    let mut value_walls = Vec::new();
+    let mut shard_walls = Vec::new();
+    for s in shards {
+        let src = s.file.group("sweep").map_err(h5err(&s.path))?;
+        copy_shard(s, &src, &dst, layout).map_err(|err| Error::Hdf5 {
+            file: s.path.clone(),
+            message: format!("copying into {}: {err}", tmp.display()),
+        })?;
+        let walls = src
+            .dataset("wall_time")
+            .and_then(|d| d.read_raw::<f64>())
+            .map_err(h5err(&s.path))?;
+        for (r, &j) in s.shard.jobs(jobs.len()).iter().enumerate() {
+            if s.done[r] == 1 {
+                done[j] = 1;
+                value_walls.push(walls[r]);
+            }
+        }
+        shard_walls.push((
+            s.shard,
+            read_attr::<f64>(&s.file, "wall_time").unwrap_or(f64::NAN),
+        ));
+    }
+    let ds = dst.dataset("done").map_err(&e)?;
+    ds.write(&ndarray::Array1::from(done.clone())).map_err(&e)?;
+    let complete = done.iter().all(|&d| d == 1);
+    u8_attr_set(&file, "complete", u8::from(complete)).map_err(&e)?;
+    let total: f64 = shard_walls
+        .iter()
+        .map(|w| w.1)
+        .filter(|w| w.is_finite())
+        .sum();
+    f64_attr_set(&file, "wall_time", total).map_err(&e)?;
+    file.close().map_err(&e)?;
+    Ok(Costs {
         value_walls,
         shard_walls,
     })

@@ -291,7 +291,8 @@ mod tests {
 
     #[test]
     fn bad_settings_name_the_option() {
-        let cases: [(fn(&mut Batch), &str); 5] = [
+        type Edit = fn(&mut Batch);
+        let cases: [(Edit, &str); 5] = [
             (|b| b.shards = 0, "--shards"),
             (|b| b.shards = 602, "at most 601"),
             (|b| b.cpus_per_task = 0, "--cpus-per-task"),
