@@ -598,3 +598,102 @@ fn slurm_writes_an_array_and_a_merge_script_and_submits_them() {
         assert!(se.contains(what), "{what}: {se}");
     }
 }
+
+#[test]
+fn a_mechanism_sweep_with_contacts_merges_bit_for_bit() {
+    // The clearance slider-crank over three bushing radii: rows of contact onsets and guard
+    // flags, and hyperplane crossings, besides the observables.
+    let scene =
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("data/scenes/slider-crank-clearance.toml");
+    let s = Setup::new(&format!(
+        r#"
+[study]
+name = "{NAME}"
+scene = "{}"
+[analysis]
+periods = 4
+transient = 2
+samples_per_period = 20
+[[observables]]
+name = "slider_vx"
+path = "bodies.slider.velocity.x"
+[[observables]]
+name = "pin_ex"
+path = "joints.piston_pin.eccentricity_global.x"
+[[sections]]
+name = "dead_point"
+terms = {{ slider_vx = 1.0 }}
+direction = "down"
+[sweep]
+parameter = "joints.piston_pin.clearance.bushing_radius"
+unit = "m"
+values = [0.0097, 0.0099, 0.0100]
+"#,
+        scene.display()
+    ));
+    s.run("single", &[]);
+    let single = s.path("single").join(format!("{NAME}.h5"));
+    {
+        let f = hdf5::File::open(&single).unwrap();
+        assert_eq!(f.dataset("sweep/final_warned").unwrap().shape(), [3, 1]);
+        assert_eq!(f.dataset("sweep/final_onset").unwrap().shape(), [3, 1]);
+        assert_eq!(
+            f.group("sweep/sections")
+                .unwrap()
+                .member_names()
+                .unwrap()
+                .len(),
+            3
+        );
+    }
+    for i in 0..2 {
+        s.run("sh", &["--shard", &format!("{i}/2")]);
+    }
+    let merged = s.path("merged.h5");
+    let o = s.merge(
+        &[s.shard("sh", 1, 2), s.shard("sh", 0, 2)],
+        &merged,
+        &["--no-plots"],
+    );
+    assert!(o.status.success(), "{:?}", text(&o));
+    assert_same(&single, &merged);
+}
+
+#[test]
+fn a_failed_value_is_refused_and_partial_with_resume_records_it_as_one_process_does() {
+    // RK4 at 0.05 s is unstable once gamma = 1e6 drives the oscillator to |x| ~ 100.
+    let s = Setup::new(
+        &SWEEP
+            .replace(
+                "initial = [1.0, 0.0] }",
+                "initial = [1.0, 0.0], solver = { integrator = \"rk4\", step = 0.05 } }",
+            )
+            .replace("0.3, 0.37, 0.5]", "0.3, 1e6, 0.5]"),
+    );
+    let o = s.run_env("single", &[], &[]);
+    assert_eq!(o.status.code(), Some(1), "{:?}", text(&o));
+    let single = s.path("single").join(format!("{NAME}.h5"));
+    assert_eq!(done(&single), [1, 1, 1, 1, 1, 2, 1]);
+    for i in 0..3 {
+        let o = s.run_env("sh", &["--shard", &format!("{i}/3")], &[]);
+        // Value 5 (gamma = 1e6) belongs to shard 2, whose run reports the failure.
+        assert_eq!(o.status.success(), i != 2, "{i}: {:?}", text(&o));
+    }
+    let files: Vec<PathBuf> = (0..3).map(|i| s.shard("sh", i, 3)).collect();
+    let out = s.path("sh").join(format!("{NAME}.h5"));
+    let o = s.merge(&files, &out, &[]);
+    let (_, se) = text(&o);
+    assert_eq!(o.status.code(), Some(1), "{se}");
+    assert!(
+        se.contains("shard 2/3: value gamma = 1000000 (job 5) failed: integration stopped")
+            && se.contains("the same inputs fail again"),
+        "{se}"
+    );
+    assert!(!out.exists());
+    let o = s.merge(&files, &out, &["--partial", "--no-plots"]);
+    assert!(o.status.success(), "{:?}", text(&o));
+    assert_eq!(done(&out), [1, 1, 1, 1, 1, 0, 1]);
+    let o = s.run_env("sh", &["--resume"], &[]);
+    assert_eq!(o.status.code(), Some(1), "{:?}", text(&o));
+    assert_same(&single, &out);
+}

@@ -503,7 +503,9 @@ pub fn merge(inputs: &[PathBuf], out: &Path, version: &str, partial: bool) -> Re
                 }
                 for (r, m) in &s.errors {
                     lines.push(format!(
-                        "shard {sh}: value {} = {} (job {}) failed: {m}",
+                        "shard {sh}: value {} = {} (job {}) failed: {m} (the same inputs fail \
+                         again: merge with --partial and finish with --resume to record the \
+                         failure as one process does, or change the study)",
                         pname, jobs[js[*r]].0, js[*r]
                     ));
                     not_done.push(js[*r]);
