@@ -82,6 +82,8 @@ pub struct MechFlow<'m> {
     /// The declared initial state (assembled by [`Flow::initial_state`]).
     start: &'m State,
     period: f64,
+    /// Scratch of the tangent dynamics ([`crate::tangent`]), made on first use.
+    pub(crate) tangent: Option<Box<crate::tangent::MechTangent>>,
 }
 
 impl OdeSystem for MechFlow<'_> {
@@ -182,7 +184,16 @@ impl<'m> MechFlow<'m> {
             obs,
             start,
             period,
+            tangent: None,
         }
+    }
+
+    /// Free degrees of freedom at the declared start (what `jointplay check` prints).
+    pub fn remaining_dof(&self) -> usize {
+        self.mech
+            .model
+            .structure(self.start.t, &self.start.y)
+            .remaining_dof
     }
 }
 

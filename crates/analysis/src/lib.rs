@@ -32,6 +32,7 @@ pub mod flow;
 pub mod h5;
 pub mod hybrid;
 pub mod inputs;
+pub mod lyapunov;
 pub mod nonlinear;
 pub mod observe;
 pub mod plot;
@@ -43,6 +44,7 @@ pub mod sections;
 pub mod study;
 pub mod summary;
 pub mod systems;
+pub mod tangent;
 
 use std::path::PathBuf;
 

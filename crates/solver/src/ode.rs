@@ -71,6 +71,15 @@ pub trait OdeSystem {
     /// Writes `f(t, y)` into `dydt` (both of length [`OdeSystem::dim`]).
     fn rhs(&mut self, t: f64, y: &[f64], dydt: &mut [f64]);
 
+    /// How many leading components of the state the adaptive error control (and the initial
+    /// step estimate) measures; the rest are carried along in the same steps without steering
+    /// them. The default is all of them. A state extended by its tangent vectors
+    /// (`jointplay_analysis::lyapunov`) sets this to the length of the physical state, so that
+    /// the extended run takes exactly the steps of the plain run.
+    fn error_dim(&self) -> usize {
+        self.dim()
+    }
+
     /// Called after every accepted step from `(t0, y0)` to `(t1, y1)`, before the samples inside
     /// the step are emitted, for bookkeeping of discrete history (such as the approach velocity
     /// at contact onset, located inside the step). Returns true when that history changed the
@@ -451,12 +460,15 @@ struct Work {
     cont: Vec<Vec<f64>>,
     /// Jacobian and factorisation of a linearly implicit scheme.
     lin: Option<LinearWork>,
+    /// Leading components the error norm measures ([`OdeSystem::error_dim`]).
+    n_err: usize,
 }
 
 impl Work {
-    fn new(n: usize, integrator: &Integrator) -> Self {
+    fn new(n: usize, n_err: usize, integrator: &Integrator) -> Self {
         let v = |count: usize| vec![vec![0.0; n]; count];
         Work {
+            n_err: n_err.min(n),
             k: v(integrator.stages),
             tmp: vec![0.0; n],
             y_new: vec![0.0; n],
@@ -506,7 +518,8 @@ trait Stepper: Sync {
     /// The scaled error norm of the step just taken (adaptive schemes): by default the root mean
     /// square of the estimate in `w.tmp` scaled by `atol + rtol * max(|y_old|, |y_new|)`.
     fn error_norm(&self, w: &Work, y: &[f64], _h: f64, rtol: f64, atol: f64) -> f64 {
-        error_norm(&w.tmp, y, &w.y_new, rtol, atol)
+        let n = w.n_err;
+        error_norm(&w.tmp[..n], &y[..n], &w.y_new[..n], rtol, atol)
     }
 
     /// Prepares the continuous extension of the step just taken from (t, y); nothing by default
@@ -547,7 +560,7 @@ fn initial_step<S: OdeSystem>(
     q: f64,
     stats: &mut Stats,
 ) -> f64 {
-    let n = y.len();
+    let n = sys.error_dim().min(y.len());
     let sc = |i: usize| atol + rtol * y[i].abs();
     let rms = |v: &dyn Fn(usize) -> f64| {
         ((0..n).map(|i| v(i) * v(i)).sum::<f64>() / n.max(1) as f64).sqrt()
@@ -560,8 +573,8 @@ fn initial_step<S: OdeSystem>(
         0.01 * d0 / d1
     };
     h0 = h0.min(max_step);
-    let y1: Vec<f64> = (0..n).map(|i| y[i] + h0 * f0[i]).collect();
-    let mut f1 = vec![0.0; n];
+    let y1: Vec<f64> = (0..y.len()).map(|i| y[i] + h0 * f0[i]).collect();
+    let mut f1 = vec![0.0; y.len()];
     sys.rhs(t + h0, &y1, &mut f1);
     stats.rhs_evals += 1;
     let d2 = rms(&|i| (f1[i] - f0[i]) / sc(i)) / h0;
@@ -726,7 +739,7 @@ fn step_loop<S: OdeSystem>(
     let t0 = *t_out;
     let integrator = method.integrator;
     let stepper = integrator.stepper;
-    let mut w = Work::new(n, integrator);
+    let mut w = Work::new(n, sys.error_dim(), integrator);
     let mut ys = vec![0.0; n];
     let mut next_sample = 0usize;
     // Samples at t0 itself.
@@ -1142,7 +1155,7 @@ mod tests {
         steps: usize,
     ) -> Vec<f64> {
         let n = sys.dim();
-        let mut w = Work::new(n, integrator);
+        let mut w = Work::new(n, n, integrator);
         let mut stats = Stats::default();
         let mut y = y0.to_vec();
         let h = t_end / steps as f64;
@@ -1234,7 +1247,7 @@ mod tests {
         let t0 = 0.7;
         let y0 = kepler_exact(0.0, t0);
         let local = |h: f64| {
-            let mut w = Work::new(4, &dop853::DOP853);
+            let mut w = Work::new(4, 4, &dop853::DOP853);
             let mut stats = Stats::default();
             Kepler.rhs(t0, &y0, &mut w.k[0]);
             dop853::DOP853
@@ -1342,7 +1355,7 @@ mod tests {
         let t0 = 0.7;
         let y0 = kepler_exact(0.0, t0);
         let one_step = |h: f64| {
-            let mut w = Work::new(4, &rosenbrock23::ROSENBROCK23);
+            let mut w = Work::new(4, 4, &rosenbrock23::ROSENBROCK23);
             let mut stats = Stats::default();
             Kepler.rhs(t0, &y0, &mut w.k[0]);
             rosenbrock23::ROSENBROCK23
@@ -1504,7 +1517,7 @@ mod tests {
         while h * rosenbrock23::D != 0.5 {
             h = f64::from_bits(h.to_bits() + 1);
         }
-        let mut w = Work::new(1, &rosenbrock23::ROSENBROCK23);
+        let mut w = Work::new(1, 1, &rosenbrock23::ROSENBROCK23);
         let mut stats = Stats::default();
         let err = rosenbrock23::ROSENBROCK23
             .stepper
@@ -1621,7 +1634,7 @@ mod tests {
             ] {
                 let h = 0.1;
                 let mut sys = Linear(re / h, im / h);
-                let mut w = Work::new(2, integrator);
+                let mut w = Work::new(2, 2, integrator);
                 let mut stats = Stats::default();
                 // y0 = 1 + i; both components nonzero, so that Rosenbrock23's differenced
                 // Jacobian is accurate (to ~1e-8) in both columns.
