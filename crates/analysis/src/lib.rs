@@ -45,6 +45,7 @@ pub mod study;
 pub mod summary;
 pub mod systems;
 pub mod tangent;
+pub mod zero_one;
 
 use std::path::PathBuf;
 

@@ -256,7 +256,8 @@ fn tangent_map_through_contact_onsets_matches_finite_differences() {
         assert_eq!(basis.ncols(), 4, "twice the 2 free degrees of freedom");
         for c in 0..basis.ncols() {
             let v: Vec<f64> = basis.column(c).iter().copied().collect();
-            let (_, tv) = tangent_map(&mut flow, start, std::slice::from_ref(&v), start.t + tau).unwrap();
+            let (_, tv) =
+                tangent_map(&mut flow, start, std::slice::from_ref(&v), start.t + tau).unwrap();
             // Central differences at two increments: their spread measures the difference
             // quotient's own error through the stiff contact (about 1e-2 here).
             let fd_at = |eps: f64, flow: &mut _| -> Vec<f64> {
