@@ -289,6 +289,7 @@ mod tests {
             mean_divergence: None,
             rhs_evals: 0,
             stopped_early: false,
+            events: 0,
             end: HybridState::new(0.0, vec![]),
         }
     }

@@ -165,6 +165,8 @@ pub struct Spectrum {
     pub rhs_evals: u64,
     /// The standard-error target was met before the requested periods.
     pub stopped_early: bool,
+    /// Events (impacts with a state reset) of the trajectory while averaging.
+    pub events: u64,
     /// The flow's hybrid state at the end.
     pub end: HybridState,
 }
@@ -190,6 +192,8 @@ struct Extended<'f, F: Tangent> {
     w: Vec<Vec<f64>>,
     f0: Vec<f64>,
     before: Vec<f64>,
+    /// Events (impacts) of the first trajectory so far.
+    events: u64,
 }
 
 impl<F: Tangent> Extended<'_, F> {
@@ -288,6 +292,59 @@ impl<F: Tangent> OdeSystem for Extended<'_, F> {
     }
     fn save_memory(&self, state: &mut HybridState) {
         self.flow.save_memory(state)
+    }
+    fn events(&self) -> usize {
+        self.flow.events() + self.second.as_ref().map_or(0, |g| g.events())
+    }
+    fn event_values(&mut self, t: f64, y: &[f64], g: &mut [f64]) {
+        let ne = self.flow.events();
+        let r2 = self.second_range();
+        self.flow.event_values(t, &y[..self.n], &mut g[..ne]);
+        if let Some(s) = self.second.as_deref_mut() {
+            s.event_values(t, &y[r2], &mut g[ne..]);
+        }
+    }
+    /// A reset of the first trajectory maps every tangent vector with the saltation matrix
+    /// `S = DR + (f+ - DR f-) n^T / (n^T f-)` (Mueller 1995), n the gradient of the event
+    /// function and f-, f+ the vector field before and after the reset; the second trajectory's
+    /// own events reset it alone.
+    fn apply_event(&mut self, i: usize, t: f64, y: &mut [f64]) -> std::result::Result<(), String> {
+        let (n, ne) = (self.n, self.flow.events());
+        if i >= ne {
+            let r2 = self.second_range();
+            return match self.second.as_deref_mut() {
+                Some(s) => s.apply_event(i - ne, t, &mut y[r2]),
+                None => Ok(()),
+            };
+        }
+        let y_minus = y[..n].to_vec();
+        let mut f_minus = vec![0.0; n];
+        self.flow.rhs(t, &y_minus, &mut f_minus);
+        self.flow.apply_event(i, t, &mut y[..n])?;
+        let mut f_plus = vec![0.0; n];
+        self.flow.rhs(t, &y[..n], &mut f_plus);
+        let mut grad = vec![0.0; n];
+        self.flow.event_gradient(i, t, &y_minus, &mut grad);
+        let dot = |a: &[f64], b: &[f64]| a.iter().zip(b).map(|(x, y)| x * y).sum::<f64>();
+        let nf = dot(&grad, &f_minus);
+        let mut dr_f = vec![0.0; n];
+        self.flow.reset_jvp(i, t, &y_minus, &f_minus, &mut dr_f);
+        let mut out = vec![0.0; n];
+        for j in 0..self.k {
+            let v = &mut y[(j + 1) * n..(j + 2) * n];
+            let nv = dot(&grad, v);
+            self.flow.reset_jvp(i, t, &y_minus, v, &mut out);
+            for c in 0..n {
+                v[c] = out[c]
+                    + if nf != 0.0 {
+                        (f_plus[c] - dr_f[c]) * nv / nf
+                    } else {
+                        0.0
+                    };
+            }
+        }
+        self.events += 1;
+        Ok(())
     }
 }
 
@@ -391,6 +448,7 @@ pub fn tangent_map<F: Tangent>(
         flow,
         f0: vec![0.0; n],
         before: Vec::new(),
+        events: 0,
     };
     let (_, res) = ode::advance(
         &mut ext,
@@ -482,6 +540,7 @@ pub fn spectrum<F: Tangent>(
     let mut div_sum = 0.0;
     let mut div_known = flow.divergence(state.t, &state.y).is_some();
     let mut rhs_evals = 0;
+    let mut events = 0;
     let mut stopped_early = false;
     let mut done = 0;
     let mut ext_state = HybridState {
@@ -498,6 +557,7 @@ pub fn spectrum<F: Tangent>(
             w: std::mem::take(&mut w),
             f0: vec![0.0; n],
             before: Vec::new(),
+            events: 0,
         };
         // The divergence is integrated by the trapezoid rule on the accepted steps.
         let use_div = div_known;
@@ -523,6 +583,7 @@ pub fn spectrum<F: Tangent>(
             if use_div { Some(&mut on_step) } else { None },
         );
         div_known &= !div_lost;
+        events += ext.events;
         w = ext.w;
         rhs_evals += stats.rhs_evals;
         res?;
@@ -607,5 +668,6 @@ pub fn spectrum<F: Tangent>(
         mean_divergence: div_known.then(|| div_sum / time),
         rhs_evals,
         stopped_early,
+        events,
     })
 }

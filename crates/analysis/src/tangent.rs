@@ -93,6 +93,16 @@ pub trait Tangent: Flow {
     fn manifold_basis(&mut self, _t: f64, _y: &[f64]) -> crate::Result<Option<DMatrix<f64>>> {
         Ok(None)
     }
+    /// `out = DR v`: the Jacobian of event `i`'s reset at the pre-event state `y`, applied to
+    /// `v`. Identity by default.
+    fn reset_jvp(&self, _i: usize, _t: f64, _y: &[f64], v: &[f64], out: &mut [f64]) {
+        out.copy_from_slice(v);
+    }
+    /// The gradient of event function `i` at `(t, y)` (see
+    /// [`OdeSystem::event_values`]); zeros by default (no events).
+    fn event_gradient(&self, _i: usize, _t: f64, _y: &[f64], out: &mut [f64]) {
+        out.fill(0.0);
+    }
     /// Dimension of the phase space (the number of exponents of the full spectrum).
     fn phase_dim(&self) -> usize {
         self.dim()
@@ -110,6 +120,19 @@ impl Tangent for SysFlow<'_> {
     }
     fn divergence(&self, _t: f64, y: &[f64]) -> Option<f64> {
         Some(self.sys.divergence(y))
+    }
+    fn reset_jvp(&self, _i: usize, _t: f64, _y: &[f64], v: &[f64], out: &mut [f64]) {
+        out.copy_from_slice(v);
+        if let Builtin::Impact { restitution, .. } = self.sys {
+            out[1] = -restitution * v[1];
+        }
+    }
+    fn event_gradient(&self, _i: usize, _t: f64, _y: &[f64], out: &mut [f64]) {
+        out.fill(0.0);
+        if let Builtin::Impact { .. } = self.sys {
+            // g = stop - x.
+            out[0] = -1.0;
+        }
     }
 }
 
@@ -134,6 +157,12 @@ impl Builtin {
                 out[1] = (rho - y[2]) * v[0] - v[1] - y[0] * v[2];
                 out[2] = y[1] * v[0] + y[0] * v[1] - beta * v[2];
             }
+            Builtin::Impact {
+                damping, stiffness, ..
+            } => {
+                out[0] = v[1];
+                out[1] = -stiffness * v[0] - damping * v[1];
+            }
         }
     }
 
@@ -143,6 +172,7 @@ impl Builtin {
             Builtin::Duffing { delta, .. } => -delta,
             Builtin::Pendulum { damping, .. } => -damping,
             Builtin::Lorenz { sigma, beta, .. } => -(sigma + 1.0 + beta),
+            Builtin::Impact { damping, .. } => -damping,
         }
     }
 }
@@ -427,6 +457,18 @@ impl Tangent for AnyFlow<'_> {
         match self {
             AnyFlow::Mechanism(f) => f.divergence(t, y),
             AnyFlow::System(f) => f.divergence(t, y),
+        }
+    }
+    fn reset_jvp(&self, i: usize, t: f64, y: &[f64], v: &[f64], out: &mut [f64]) {
+        match self {
+            AnyFlow::Mechanism(f) => f.reset_jvp(i, t, y, v, out),
+            AnyFlow::System(f) => f.reset_jvp(i, t, y, v, out),
+        }
+    }
+    fn event_gradient(&self, i: usize, t: f64, y: &[f64], out: &mut [f64]) {
+        match self {
+            AnyFlow::Mechanism(f) => f.event_gradient(i, t, y, out),
+            AnyFlow::System(f) => f.event_gradient(i, t, y, out),
         }
     }
 }
