@@ -697,3 +697,32 @@ fn a_failed_value_is_refused_and_partial_with_resume_records_it_as_one_process_d
     assert_eq!(o.status.code(), Some(1), "{:?}", text(&o));
     assert_same(&single, &out);
 }
+
+/// A sweep with the chaos measures (Lyapunov exponents with the two-trajectory estimate, the
+/// 0-1 test and the class of each value) merges bit for bit too.
+#[test]
+fn a_chaos_sweep_merges_bit_for_bit() {
+    let study = SWEEP.replace("periods = 30\n", "periods = 520\n").replace(
+        "[sweep]",
+        "[lyapunov]\nexponents = 2\nperiods = 20\nper_period = 2\ntwo_trajectory = true\n[zero_one]\nobservable = \"x\"\n[sweep]",
+    );
+    let s = Setup::new(&study);
+    s.run("single", &[]);
+    let single = s.path("single").join(format!("{NAME}.h5"));
+    let mut files = Vec::new();
+    for i in 0..2 {
+        s.run("sh", &["--shard", &format!("{i}/2")]);
+        files.push(s.shard("sh", i, 2));
+    }
+    let merged = s.path("sh").join(format!("{NAME}.h5"));
+    let o = s.merge(&files, &merged, &["--no-plots"]);
+    assert!(o.status.success(), "{:?}", text(&o));
+    assert_same(&single, &merged);
+    let f = hdf5::File::open(&merged).unwrap();
+    let k: Vec<f64> = f.dataset("sweep/chaos/k").unwrap().read_raw().unwrap();
+    let class: Vec<u8> = f.dataset("sweep/chaos/class").unwrap().read_raw().unwrap();
+    // gamma = 0.5 is chaotic (K near 1, lambda_1 > 0); gamma = 0.2 is period 1 (a constant
+    // strobe series repeats) and periodic.
+    assert!(k[6] > 0.8 && class[6] == 3, "{k:?} {class:?}");
+    assert!(k[0] < 0.2 && class[0] == 1, "{k:?} {class:?}");
+}

@@ -82,6 +82,8 @@ pub struct MechFlow<'m> {
     /// The declared initial state (assembled by [`Flow::initial_state`]).
     start: &'m State,
     period: f64,
+    /// Scratch of the tangent dynamics ([`crate::tangent`]), made on first use.
+    pub(crate) tangent: Option<Box<crate::tangent::MechTangent>>,
 }
 
 impl OdeSystem for MechFlow<'_> {
@@ -156,6 +158,15 @@ impl OdeSystem for SysFlow<'_> {
     fn rhs(&mut self, t: f64, y: &[f64], d: &mut [f64]) {
         self.sys.rhs(t, y, d)
     }
+    fn events(&self) -> usize {
+        self.sys.events()
+    }
+    fn event_values(&mut self, t: f64, y: &[f64], g: &mut [f64]) {
+        self.sys.event_values(t, y, g)
+    }
+    fn apply_event(&mut self, i: usize, t: f64, y: &mut [f64]) -> Result<(), String> {
+        self.sys.apply_event(i, t, y)
+    }
 }
 
 impl Observed for SysFlow<'_> {
@@ -182,7 +193,16 @@ impl<'m> MechFlow<'m> {
             obs,
             start,
             period,
+            tangent: None,
         }
+    }
+
+    /// Free degrees of freedom at the declared start (what `jointplay check` prints).
+    pub fn remaining_dof(&self) -> usize {
+        self.mech
+            .model
+            .structure(self.start.t, &self.start.y)
+            .remaining_dof
     }
 }
 
@@ -340,6 +360,15 @@ impl OdeSystem for AnyFlow<'_> {
     }
     fn save_memory(&self, state: &mut HybridState) {
         either!(self, f => f.save_memory(state))
+    }
+    fn events(&self) -> usize {
+        either!(self, f => f.events())
+    }
+    fn event_values(&mut self, t: f64, y: &[f64], g: &mut [f64]) {
+        either!(self, f => f.event_values(t, y, g))
+    }
+    fn apply_event(&mut self, i: usize, t: f64, y: &mut [f64]) -> std::result::Result<(), String> {
+        either!(self, f => f.apply_event(i, t, y))
     }
 }
 

@@ -28,12 +28,14 @@
 //! HDF5 output (a file is complete or absent, and the same run writes the same bits); errors that
 //! name the file and the field.
 
+pub mod chaos;
 pub mod comparison;
 pub mod figures;
 pub mod flow;
 pub mod h5;
 pub mod hybrid;
 pub mod inputs;
+pub mod lyapunov;
 pub mod nonlinear;
 pub mod observe;
 pub mod plot;
@@ -47,6 +49,8 @@ pub mod slurm;
 pub mod study;
 pub mod summary;
 pub mod systems;
+pub mod tangent;
+pub mod zero_one;
 
 use std::path::PathBuf;
 

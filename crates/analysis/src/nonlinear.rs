@@ -66,6 +66,12 @@ pub struct AnalysisStudy {
     /// Work-precision settings, read by `jointplay precision` (see [`crate::precision`]).
     #[serde(default)]
     pub precision: Option<crate::precision::PrecisionSpec>,
+    /// Lyapunov exponents of the run or of every sweep value (see [`crate::chaos`]).
+    #[serde(default)]
+    pub lyapunov: Option<crate::lyapunov::LyapunovSpec>,
+    /// The 0-1 test for chaos on one observable's section samples.
+    #[serde(default)]
+    pub zero_one: Option<crate::chaos::ZeroOneSpec>,
 }
 
 /// The `[study]` table.
@@ -243,7 +249,8 @@ pub fn is_analysis(text: &str) -> bool {
         .unwrap_or(false)
 }
 
-const RESERVED: [&str; 10] = [
+const RESERVED: [&str; 11] = [
+    "chaos",
     "parameter",
     "direction",
     "done",
@@ -437,6 +444,36 @@ impl Loaded {
                 value: s.value,
                 direction: s.direction,
             });
+        }
+        if let Some(z) = &spec.zero_one {
+            if !names.contains_key(&z.observable) {
+                return Err(invalid(
+                    path,
+                    "zero_one.observable",
+                    format!("'{}' is not an observable of this study", z.observable),
+                ));
+            }
+            if z.section != "strobe" && !planes.iter().any(|p| p.name == z.section) {
+                return Err(invalid(
+                    path,
+                    "zero_one.section",
+                    format!(
+                        "'{}' is neither 'strobe' nor a section of this study",
+                        z.section
+                    ),
+                ));
+            }
+            let kept = a.periods - a.transient;
+            if z.section == "strobe" && kept < crate::zero_one::MIN_SAMPLES {
+                return Err(invalid(
+                    path,
+                    "zero_one",
+                    format!(
+                        "the strobe section keeps {kept} samples (analysis.periods - analysis.transient), but the 0-1 test needs at least {}",
+                        crate::zero_one::MIN_SAMPLES
+                    ),
+                ));
+            }
         }
         let dir = path.parent().unwrap_or(Path::new("."));
         let base = match (&spec.study.scene, &spec.study.system) {
@@ -694,6 +731,8 @@ pub struct JobResult {
     pub period: f64,
     pub start: f64,
     pub wall: f64,
+    /// The chaos measures, when the study asks for them.
+    pub chaos: Option<crate::chaos::Chaos>,
 }
 
 impl Loaded {
@@ -736,7 +775,12 @@ impl Loaded {
         flow.prepare(&state)?;
         let plan = self.plan(flow.method(), state.t, flow.period());
         let (tr, res) = trace_partial(&mut flow, &plan, &mut state, progress);
+        let chaos = match &res {
+            Ok(()) => self.chaos(&target, &mut flow, &tr)?,
+            Err(_) => None,
+        };
         let r = JobResult {
+            chaos,
             warnings: [flow.compile_warnings(), flow.warnings()].concat(),
             trace: tr,
             units: flow.observable_units(),
@@ -746,6 +790,79 @@ impl Loaded {
             wall: t0.elapsed().as_secs_f64(),
         };
         Ok((r, res.err()))
+    }
+
+    /// The chaos measures of a finished run `tr` of `flow`: the Lyapunov spectrum from its final
+    /// state (the analysis's periods serve as the transient) and the 0-1 test on its section
+    /// samples; None when the study asks for neither.
+    fn chaos<'t>(
+        &self,
+        target: &'t Target,
+        flow: &mut crate::flow::AnyFlow<'t>,
+        tr: &Trace,
+    ) -> Result<Option<crate::chaos::Chaos>> {
+        use crate::tangent::Tangent;
+        let spec = &self.spec;
+        if spec.lyapunov.is_none() && spec.zero_one.is_none() {
+            return Ok(None);
+        }
+        let spectrum = match &spec.lyapunov {
+            Some(l) => {
+                l.check(flow.phase_dim(), &flow.method())
+                    .map_err(|(field, m)| invalid(&self.path, field, m))?;
+                let mut second = l.two_trajectory.then(|| target.flow());
+                let s = crate::lyapunov::spectrum(
+                    flow,
+                    second.as_mut(),
+                    &tr.final_state,
+                    l,
+                    0,
+                    &mut |_| {},
+                )?;
+                Some(s)
+            }
+            None => None,
+        };
+        let zero_one = match &spec.zero_one {
+            Some(z) => {
+                let i = spec.observable(&z.observable).expect("checked when loaded");
+                let series = if z.section == "strobe" {
+                    &tr.strobe[i]
+                } else {
+                    let p = self
+                        .planes
+                        .iter()
+                        .position(|p| p.name == z.section)
+                        .expect("checked when loaded");
+                    &tr.crossings[p].values[i]
+                };
+                Some(
+                    crate::zero_one::zero_one(series)
+                        .map_err(|m| invalid(&self.path, "zero_one", m))?,
+                )
+            }
+            None => None,
+        };
+        let obs = spec
+            .zero_one
+            .as_ref()
+            .and_then(|z| spec.observable(&z.observable))
+            .unwrap_or(0);
+        let period = crate::chaos::strobe_period(&tr.strobe[obs]);
+        let class = crate::chaos::classify(spectrum.as_ref(), zero_one.as_ref(), period);
+        Ok(Some(crate::chaos::Chaos {
+            spectrum,
+            zero_one,
+            class,
+        }))
+    }
+
+    /// The chaos settings of the study.
+    pub fn chaos_spec(&self) -> crate::chaos::ChaosSpec {
+        crate::chaos::ChaosSpec {
+            lyapunov: self.spec.lyapunov.clone(),
+            zero_one: self.spec.zero_one.clone(),
+        }
     }
 
     /// Runs the single run of a study without a sweep and returns its result.
@@ -1201,6 +1318,8 @@ pub(crate) struct SweepLayout {
     pub kept: usize,
     pub history: usize,
     pub shape: hybrid::StateShape,
+    /// The chaos measures each value stores.
+    pub chaos: crate::chaos::ChaosSpec,
 }
 
 impl SweepLayout {
@@ -1242,6 +1361,10 @@ impl SweepLayout {
                 contacts: cols(&g, "final_onset")?,
                 clearances: cols(&g, "final_warned")?,
             },
+            chaos: crate::chaos::ChaosSpec {
+                lyapunov: spec.lyapunov.clone(),
+                zero_one: spec.zero_one.clone(),
+            },
         })
     }
 }
@@ -1271,6 +1394,7 @@ impl Loaded {
                 contacts: memory.onset.len(),
                 clearances: memory.warned.len(),
             },
+            chaos: self.chaos_spec(),
         })
     }
 }
@@ -1335,6 +1459,9 @@ fn write_single(file: &hdf5::File, st: &Loaded, r: &JobResult) -> hdf5::Result<(
     obs_datasets(&s0, obs, &r.units, &t.strobe, "at the strobe times")?;
     for (p, c) in st.planes.iter().zip(&t.crossings) {
         write_crossings(&g, &p.name, obs, &r.units, &c.time, &c.values)?;
+    }
+    if let Some(c) = &r.chaos {
+        crate::chaos::write_single(file, c)?;
     }
     hybrid::write_state(file, &t.final_state)
 }
@@ -1434,6 +1561,9 @@ pub(crate) fn create_sweep_file(
         if !l.sections.is_empty() {
             g.create_group("sections")?;
         }
+        if l.chaos.any() {
+            crate::chaos::create_rows(&g, n, &l.chaos)?;
+        }
         if let Some((sh, rows)) = shard {
             u64_attr(&file, "shard", sh.index as u64)?;
             u64_attr(&file, "shards", sh.count as u64)?;
@@ -1471,6 +1601,9 @@ fn write_job(file: &hdf5::File, st: &Loaded, row: usize, r: &JobResult) -> hdf5:
     hybrid::write_row(&g, row, &t.final_state)?;
     write_element(&g, "rhs_evals", row, t.stats.rhs_evals)?;
     write_element(&g, "wall_time", row, r.wall)?;
+    if let Some(c) = &r.chaos {
+        crate::chaos::write_row(&g, row, c)?;
+    }
     if !st.planes.is_empty() {
         let sec = g.group("sections")?;
         // A job interrupted while being written left a partial group: replace it.

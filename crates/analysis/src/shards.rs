@@ -658,6 +658,21 @@ fn copy_shard(
             copy_rows::<f64>(&hs, &hd, &o.name, sh)?;
         }
     }
+    if l.chaos.any() {
+        let (cs, cd) = (src.group("chaos")?, dst.group("chaos")?);
+        copy_rows::<u8>(&cs, &cd, "class", sh)?;
+        for name in [
+            "exponents",
+            "stderr",
+            "map_exponents",
+            "two_trajectory",
+            "k",
+        ] {
+            if cs.link_exists(name) {
+                copy_rows::<f64>(&cs, &cd, name, sh)?;
+            }
+        }
+    }
     if !l.sections.is_empty() {
         let (ss, sd) = (src.group("sections")?, dst.group("sections")?);
         for (r, d) in s.done.iter().enumerate() {

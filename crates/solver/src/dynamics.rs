@@ -374,6 +374,38 @@ impl Model {
         changed
     }
 
+    /// Penetration and its rate of every contact at `y` into `ws.contacts` (m, m/s), with
+    /// `out[s] = (delta, delta_dot)` per contact slot and whether the slot keeps an onset
+    /// history (its law reads the approach velocity). The tangent dynamics
+    /// (`jointplay_analysis::lyapunov`) differentiate the onset bookkeeping of
+    /// [`Model::update_onsets`] with it.
+    pub fn contact_rates(&self, y: &[f64], ws: &mut Workspace, out: &mut Vec<(f64, f64, bool)>) {
+        out.clear();
+        out.resize(self.n_contacts, (f64::NAN, f64::NAN, false));
+        if !self.effects.clearance {
+            return;
+        }
+        let nb = self.nb();
+        let idx = |b: usize| if b == GROUND { nb } else { b };
+        self.kinematics(y, ws);
+        for c in &self.clearances {
+            let n = c.geometry.n_contacts();
+            let slots = c.first..c.first + n;
+            c.geometry(
+                &ws.kin[idx(c.housing)],
+                &ws.kin[idx(c.journal)],
+                &mut ws.contacts[slots.clone()],
+            );
+            for s in slots {
+                out[s] = (
+                    ws.contacts[s].delta,
+                    ws.contacts[s].delta_dot,
+                    c.law.needs_onset(),
+                );
+            }
+        }
+    }
+
     /// Accelerations and multipliers at (t, y) into the workspace.
     pub fn accelerations(&self, t: f64, y: &[f64], ws: &mut Workspace) {
         self.accelerations_with(t, y, ws, false);
@@ -1011,6 +1043,64 @@ impl OdeSystem for Mechanism<'_> {
     }
 }
 
+/// The derivative of [`onset_rate`] along a perturbation `(dd0, dr0, dd1, dr1)` of its data: the
+/// first-order change of the approach velocity stored at an onset when the trajectory is
+/// perturbed. The crossing moves with the perturbation (implicit differentiation of
+/// `p(s*) = 0`), which is the saltation rule of the onset-velocity reset (Mueller, Chaos Solitons
+/// Fractals 5, 1995) applied to the same Hermite interpolant that locates the onset.
+#[allow(clippy::too_many_arguments)]
+pub fn onset_rate_tangent(
+    (d0, r0, d1, r1): (f64, f64, f64, f64),
+    h: f64,
+    (dd0, dr0, dd1, dr1): (f64, f64, f64, f64),
+) -> f64 {
+    let basis = |s: f64| {
+        [
+            2.0 * s * s * s - 3.0 * s * s + 1.0,
+            (s * s * s - 2.0 * s * s + s) * h,
+            -2.0 * s * s * s + 3.0 * s * s,
+            (s * s * s - s * s) * h,
+        ]
+    };
+    let dbasis = |s: f64| {
+        [
+            6.0 * s * s - 6.0 * s,
+            (3.0 * s * s - 4.0 * s + 1.0) * h,
+            -6.0 * s * s + 6.0 * s,
+            (3.0 * s * s - 2.0 * s) * h,
+        ]
+    };
+    let ddbasis = |s: f64| {
+        [
+            12.0 * s - 6.0,
+            (6.0 * s - 4.0) * h,
+            -12.0 * s + 6.0,
+            (6.0 * s - 2.0) * h,
+        ]
+    };
+    let dot = |b: [f64; 4], x: [f64; 4]| b.iter().zip(x).map(|(b, x)| b * x).sum::<f64>();
+    let data = [d0, r0, d1, r1];
+    let pert = [dd0, dr0, dd1, dr1];
+    let (mut lo, mut hi) = (0.0, 1.0);
+    for _ in 0..50 {
+        let mid = 0.5 * (lo + hi);
+        if dot(basis(mid), data) > 0.0 {
+            hi = mid
+        } else {
+            lo = mid
+        }
+    }
+    let s = 0.5 * (lo + hi);
+    let slope = dot(dbasis(s), data);
+    // p(s*, data) = 0: ds*/d(data) = -p_data / p_s; the stored rate is p_s(s*) / h.
+    let ds = if slope != 0.0 {
+        -dot(basis(s), pert) / slope
+    } else {
+        0.0
+    };
+    (dot(dbasis(s), pert) + dot(ddbasis(s), data) * ds) / h
+}
+
 /// Approach velocity where delta crosses zero inside a step of length h, from delta and its rate
 /// at both ends, on the cubic Hermite interpolant (bisection on the sign change).
 fn onset_rate(d0: f64, r0: f64, d1: f64, r1: f64, h: f64) -> f64 {
@@ -1032,4 +1122,31 @@ fn onset_rate(d0: f64, r0: f64, d1: f64, r1: f64, h: f64) -> f64 {
         if p(mid) > 0.0 { hi = mid } else { lo = mid }
     }
     dp(0.5 * (lo + hi)) / h
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn onset_rate_tangent_matches_finite_differences() {
+        // A crossing inside the step: delta from -1e-6 m (approaching at 0.3 m/s) to 2e-6 m.
+        let data = (-1e-6, 0.3, 2e-6, 0.25);
+        let h = 1e-5;
+        let pert = (3e-7, -0.05, 1e-7, 0.02);
+        let at = |e: f64| {
+            onset_rate(
+                data.0 + e * pert.0,
+                data.1 + e * pert.1,
+                data.2 + e * pert.2,
+                data.3 + e * pert.3,
+                h,
+            )
+        };
+        // Central differences with e = 1e-3: the rate is smooth in the data (a simple root of a
+        // cubic), truncation O(e^2) ~ 1e-6 relative, far above the bisection's 2^-50 resolution.
+        let fd = (at(1e-3) - at(-1e-3)) / 2e-3;
+        let an = onset_rate_tangent(data, h, pert);
+        assert!((an - fd).abs() < 1e-5 * fd.abs().max(1e-3), "{an} vs {fd}");
+    }
 }

@@ -71,6 +71,15 @@ pub trait OdeSystem {
     /// Writes `f(t, y)` into `dydt` (both of length [`OdeSystem::dim`]).
     fn rhs(&mut self, t: f64, y: &[f64], dydt: &mut [f64]);
 
+    /// How many leading components of the state the adaptive error control (and the initial
+    /// step estimate) measures; the rest are carried along in the same steps without steering
+    /// them. The default is all of them. A state extended by its tangent vectors
+    /// (`jointplay_analysis::lyapunov`) sets this to the length of the physical state, so that
+    /// the extended run takes exactly the steps of the plain run.
+    fn error_dim(&self) -> usize {
+        self.dim()
+    }
+
     /// Called after every accepted step from `(t0, y0)` to `(t1, y1)`, before the samples inside
     /// the step are emitted, for bookkeeping of discrete history (such as the approach velocity
     /// at contact onset, located inside the step). Returns true when that history changed the
@@ -103,6 +112,29 @@ pub trait OdeSystem {
 
     /// Writes the system's discrete memory into `state` after [`advance`] has integrated.
     fn save_memory(&self, _state: &mut HybridState) {}
+
+    /// Number of event functions: state resets such as an impact (a Newton impact law
+    /// `v -> -e v` at a rigid stop). 0 by default: a smooth or compliant system.
+    fn events(&self) -> usize {
+        0
+    }
+
+    /// Values of the event functions at `(t, y)` into `g`: event `i` fires where `g_i` crosses
+    /// from positive to zero or below inside a step. The integrator locates the crossing on its
+    /// dense output (bisection to round-off), ends the step there, calls
+    /// [`OdeSystem::apply_event`] and restarts from the reset state (a fresh first stage).
+    fn event_values(&mut self, _t: f64, _y: &[f64], _g: &mut [f64]) {}
+
+    /// Applies event `i` at `(t, y)`: resets `y` in place. An error (a sentence) stops the run at
+    /// `t` (for example an impact too slow to resolve: chattering).
+    fn apply_event(
+        &mut self,
+        _i: usize,
+        _t: f64,
+        _y: &mut [f64],
+    ) -> std::result::Result<(), String> {
+        Ok(())
+    }
 }
 
 /// An integration scheme and how it is used: the descriptor each integrator file defines and
@@ -451,12 +483,15 @@ struct Work {
     cont: Vec<Vec<f64>>,
     /// Jacobian and factorisation of a linearly implicit scheme.
     lin: Option<LinearWork>,
+    /// Leading components the error norm measures ([`OdeSystem::error_dim`]).
+    n_err: usize,
 }
 
 impl Work {
-    fn new(n: usize, integrator: &Integrator) -> Self {
+    fn new(n: usize, n_err: usize, integrator: &Integrator) -> Self {
         let v = |count: usize| vec![vec![0.0; n]; count];
         Work {
+            n_err: n_err.min(n),
             k: v(integrator.stages),
             tmp: vec![0.0; n],
             y_new: vec![0.0; n],
@@ -506,7 +541,8 @@ trait Stepper: Sync {
     /// The scaled error norm of the step just taken (adaptive schemes): by default the root mean
     /// square of the estimate in `w.tmp` scaled by `atol + rtol * max(|y_old|, |y_new|)`.
     fn error_norm(&self, w: &Work, y: &[f64], _h: f64, rtol: f64, atol: f64) -> f64 {
-        error_norm(&w.tmp, y, &w.y_new, rtol, atol)
+        let n = w.n_err;
+        error_norm(&w.tmp[..n], &y[..n], &w.y_new[..n], rtol, atol)
     }
 
     /// Prepares the continuous extension of the step just taken from (t, y); nothing by default
@@ -547,7 +583,7 @@ fn initial_step<S: OdeSystem>(
     q: f64,
     stats: &mut Stats,
 ) -> f64 {
-    let n = y.len();
+    let n = sys.error_dim().min(y.len());
     let sc = |i: usize| atol + rtol * y[i].abs();
     let rms = |v: &dyn Fn(usize) -> f64| {
         ((0..n).map(|i| v(i) * v(i)).sum::<f64>() / n.max(1) as f64).sqrt()
@@ -560,8 +596,8 @@ fn initial_step<S: OdeSystem>(
         0.01 * d0 / d1
     };
     h0 = h0.min(max_step);
-    let y1: Vec<f64> = (0..n).map(|i| y[i] + h0 * f0[i]).collect();
-    let mut f1 = vec![0.0; n];
+    let y1: Vec<f64> = (0..y.len()).map(|i| y[i] + h0 * f0[i]).collect();
+    let mut f1 = vec![0.0; y.len()];
     sys.rhs(t + h0, &y1, &mut f1);
     stats.rhs_evals += 1;
     let d2 = rms(&|i| (f1[i] - f0[i]) / sc(i)) / h0;
@@ -587,13 +623,16 @@ pub struct Step<'a> {
     pub y1: &'a [f64],
     stepper: &'a dyn Stepper,
     w: &'a Work,
+    /// The length of the integrator's step the dense output belongs to (longer than t1 - t0
+    /// when an event ended the step early).
+    h: f64,
 }
 
 impl Step<'_> {
     /// The state at `t` in `[t0, t1]` on the integrator's dense output (the same interpolant as
     /// the samples).
     pub fn eval(&self, t: f64, out: &mut [f64]) {
-        let h = self.t1 - self.t0;
+        let h = self.h;
         let theta = ((t - self.t0) / h).clamp(0.0, 1.0);
         if theta == 1.0 {
             out.copy_from_slice(self.y1);
@@ -726,7 +765,7 @@ fn step_loop<S: OdeSystem>(
     let t0 = *t_out;
     let integrator = method.integrator;
     let stepper = integrator.stepper;
-    let mut w = Work::new(n, integrator);
+    let mut w = Work::new(n, sys.error_dim(), integrator);
     let mut ys = vec![0.0; n];
     let mut next_sample = 0usize;
     // Samples at t0 itself.
@@ -776,6 +815,13 @@ fn step_loop<S: OdeSystem>(
     let span = t_end - t0;
     let mut k_step: u64 = memory.grid_steps;
     let mut t = t0;
+    // Event functions at the start of the current step and at its end.
+    let n_events = sys.events();
+    let (mut g0, mut g1) = (vec![0.0; n_events], vec![0.0; n_events]);
+    let mut y_event = vec![0.0; if n_events > 0 { n } else { 0 }];
+    if n_events > 0 {
+        sys.event_values(t0, y, &mut g0);
+    }
     let res = 'run: {
         while t < t_end {
             let t_next_grid = if adaptive {
@@ -785,13 +831,13 @@ fn step_loop<S: OdeSystem>(
             };
             // Land exactly on t_end when within a small fraction of a step of it.
             let tol = 1e-9 * h.max(span * 1e-12);
-            let (h_try, t_new) = if t_next_grid >= t_end - tol {
+            let (h_try, mut t_new) = if t_next_grid >= t_end - tol {
                 (t_end - t, t_end)
             } else {
                 (t_next_grid - t, t_next_grid)
             };
             // A step shortened to end at t_end does not reach the next grid point.
-            let on_grid = t_next_grid <= t_end + tol;
+            let mut on_grid = t_next_grid <= t_end + tol;
             if let Err(e) = stepper.step(sys, t, y, h_try, &mut w, stats, last_rejected) {
                 break 'run Err(e);
             }
@@ -832,13 +878,57 @@ fn step_loop<S: OdeSystem>(
                     message: sys.explain_non_finite(t, y, i),
                 });
             }
+            // An event inside the step ends it at the event (located on the dense output).
+            let mut event = None;
+            let mut dense_ready = false;
+            if n_events > 0 {
+                sys.event_values(t_new, &w.y_new, &mut g1);
+                if g0.iter().zip(&g1).any(|(a, b)| *a > 0.0 && *b <= 0.0) {
+                    stepper.dense(sys, t, y, h_try, &mut w, stats);
+                    dense_ready = true;
+                    let mut first: Option<(usize, f64)> = None;
+                    let mut gi = vec![0.0; n_events];
+                    for i in 0..n_events {
+                        if !(g0[i] > 0.0 && g1[i] <= 0.0) {
+                            continue;
+                        }
+                        let (mut lo, mut hi) = (0.0, 1.0);
+                        for _ in 0..60 {
+                            let mid = 0.5 * (lo + hi);
+                            stepper.eval(y, &w, h_try, mid, &mut ys);
+                            sys.event_values(t + mid * h_try, &ys, &mut gi);
+                            if gi[i] > 0.0 { lo = mid } else { hi = mid }
+                        }
+                        if first.is_none_or(|(_, th)| hi < th) {
+                            first = Some((i, hi));
+                        }
+                    }
+                    if let Some((i, theta)) = first
+                        && theta < 1.0
+                    {
+                        stepper.eval(y, &w, h_try, theta, &mut y_event);
+                        t_new = t + theta * h_try;
+                        on_grid = false;
+                        event = Some(i);
+                    } else if let Some((i, _)) = first {
+                        event = Some(i);
+                    }
+                }
+            }
+            // The step's end state: the event state when an event cut the step short.
+            let at_event = event.is_some() && t_new < t + h_try;
+            macro_rules! y_end {
+                () => {
+                    if at_event { &y_event[..] } else { &w.y_new[..] }
+                };
+            }
             stats.accepted += 1;
             if on_grid {
                 k_step += 1;
             }
-            let history_changed = sys.step_accepted(t, y, t_new, &w.y_new);
-            if let Some(message) = sys.check_step(t_new, &w.y_new) {
-                y.copy_from_slice(&w.y_new);
+            let history_changed = sys.step_accepted(t, y, t_new, y_end!());
+            if let Some(message) = sys.check_step(t_new, y_end!()) {
+                y.copy_from_slice(y_end!());
                 t = t_new;
                 break 'run Err(Error::Diverged {
                     time: t_new,
@@ -846,7 +936,7 @@ fn step_loop<S: OdeSystem>(
                 });
             }
             let has_dense_sample = next_sample < samples.len() && samples[next_sample] < t_new;
-            if has_dense_sample || on_step.is_some() {
+            if (has_dense_sample || on_step.is_some()) && !dense_ready {
                 stepper.dense(sys, t, y, h_try, &mut w, stats);
             }
             // Emit the samples inside (t, t_new].
@@ -854,14 +944,14 @@ fn step_loop<S: OdeSystem>(
                 let ts = samples[next_sample];
                 let theta = ((ts - t) / h_try).clamp(0.0, 1.0);
                 let flow = if ts == t_new {
-                    observer(sys, ts, &w.y_new)
+                    observer(sys, ts, y_end!())
                 } else {
                     stepper.eval(y, &w, h_try, theta, &mut ys);
                     observer(sys, ts, &ys)
                 };
                 next_sample += 1;
                 if flow == Flow::Stop {
-                    y.copy_from_slice(&w.y_new);
+                    y.copy_from_slice(y_end!());
                     t = t_new;
                     break 'run Ok(());
                 }
@@ -871,18 +961,32 @@ fn step_loop<S: OdeSystem>(
                     t0: t,
                     t1: t_new,
                     y0: y,
-                    y1: &w.y_new,
+                    y1: y_end!(),
                     stepper,
                     w: &w,
+                    h: h_try,
                 };
                 if f(sys, &step) == Flow::Stop {
-                    y.copy_from_slice(&w.y_new);
+                    y.copy_from_slice(y_end!());
                     t = t_new;
                     break 'run Ok(());
                 }
             }
-            y.copy_from_slice(&w.y_new);
+            y.copy_from_slice(y_end!());
             t = t_new;
+            if let Some(i) = event {
+                // The reset, then a fresh first stage from the reset state.
+                if let Err(message) = sys.apply_event(i, t, y) {
+                    break 'run Err(Error::Diverged { time: t, message });
+                }
+                sys.rhs(t, y, &mut w.k[0]);
+                stats.rhs_evals += 1;
+                sys.event_values(t, y, &mut g0);
+                continue;
+            }
+            if n_events > 0 {
+                g0.copy_from_slice(&g1);
+            }
             // The last stage is f(t_new, y_new): first stage of the next step (FSAL), unless the
             // system's history changed at the step end.
             w.k.swap(0, integrator.fsal);
@@ -1142,7 +1246,7 @@ mod tests {
         steps: usize,
     ) -> Vec<f64> {
         let n = sys.dim();
-        let mut w = Work::new(n, integrator);
+        let mut w = Work::new(n, n, integrator);
         let mut stats = Stats::default();
         let mut y = y0.to_vec();
         let h = t_end / steps as f64;
@@ -1234,7 +1338,7 @@ mod tests {
         let t0 = 0.7;
         let y0 = kepler_exact(0.0, t0);
         let local = |h: f64| {
-            let mut w = Work::new(4, &dop853::DOP853);
+            let mut w = Work::new(4, 4, &dop853::DOP853);
             let mut stats = Stats::default();
             Kepler.rhs(t0, &y0, &mut w.k[0]);
             dop853::DOP853
@@ -1342,7 +1446,7 @@ mod tests {
         let t0 = 0.7;
         let y0 = kepler_exact(0.0, t0);
         let one_step = |h: f64| {
-            let mut w = Work::new(4, &rosenbrock23::ROSENBROCK23);
+            let mut w = Work::new(4, 4, &rosenbrock23::ROSENBROCK23);
             let mut stats = Stats::default();
             Kepler.rhs(t0, &y0, &mut w.k[0]);
             rosenbrock23::ROSENBROCK23
@@ -1504,7 +1608,7 @@ mod tests {
         while h * rosenbrock23::D != 0.5 {
             h = f64::from_bits(h.to_bits() + 1);
         }
-        let mut w = Work::new(1, &rosenbrock23::ROSENBROCK23);
+        let mut w = Work::new(1, 1, &rosenbrock23::ROSENBROCK23);
         let mut stats = Stats::default();
         let err = rosenbrock23::ROSENBROCK23
             .stepper
@@ -1621,7 +1725,7 @@ mod tests {
             ] {
                 let h = 0.1;
                 let mut sys = Linear(re / h, im / h);
-                let mut w = Work::new(2, integrator);
+                let mut w = Work::new(2, 2, integrator);
                 let mut stats = Stats::default();
                 // y0 = 1 + i; both components nonzero, so that Rosenbrock23's differenced
                 // Jacobian is accurate (to ~1e-8) in both columns.

@@ -9,6 +9,11 @@
 //! For a sweep, per-value figures draw one panel per selected value (`values`, default the
 //! first six done). Without `[[figures]]`, every observable gets a time history and, in a sweep,
 //! a bifurcation diagram.
+//!
+//! When the study computed the chaos measures ([`crate::chaos`]), a bifurcation diagram gets
+//! panels below it on the same parameter axis: lambda_1 with its 3-standard-error band (and the
+//! two-trajectory estimate), and the 0-1 test's K; a single run gets a convergence figure of the
+//! running exponent estimates (`<study>-lyapunov.png`).
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
@@ -38,7 +43,17 @@ struct Data {
     units: BTreeMap<String, String>,
     sweep: Option<(String, String)>,
     jobs: Vec<Job>,
+    /// Per done sweep value: parameter, lambda_1, its standard error, the two-trajectory
+    /// estimate and K (NaN where not computed).
+    chaos: Vec<[f64; 5]>,
+    /// A single run's running Lyapunov estimates: times, one row per time, and the
+    /// two-trajectory estimate.
+    convergence: Option<Convergence>,
 }
+
+/// Times of the re-orthonormalisations, the running estimates there (one row per time) and the
+/// two-trajectory estimate.
+type Convergence = (Vec<f64>, Vec<Vec<f64>>, Vec<f64>);
 
 fn read_group(g: &hdf5::Group, spec: &AnalysisStudy) -> hdf5::Result<BTreeMap<String, Vec<f64>>> {
     let mut m = BTreeMap::new();
@@ -64,6 +79,8 @@ fn read(path: &Path) -> Result<Data> {
     let mut units = BTreeMap::new();
     let mut jobs = Vec::new();
     let mut sweep = None;
+    let mut chaos = Vec::new();
+    let mut convergence = None;
     if let Ok(g) = file.group("sweep") {
         let pds = g.dataset("parameter").map_err(&e)?;
         let params = pds.read_raw::<f64>().map_err(&e)?;
@@ -129,8 +146,41 @@ fn read(path: &Path) -> Result<Data> {
                 sections,
             });
         }
+        if let Ok(c) = g.group("chaos") {
+            let col = |name: &str, k: usize| -> Vec<f64> {
+                c.dataset(name)
+                    .and_then(|d| {
+                        let cols = d.shape().get(1).copied().unwrap_or(1);
+                        d.read_raw::<f64>()
+                            .map(|v| v.iter().skip(k).step_by(cols).copied().collect())
+                    })
+                    .unwrap_or_else(|_| vec![f64::NAN; params.len()])
+            };
+            let (l1, e1, two, k) = (
+                col("exponents", 0),
+                col("stderr", 0),
+                col("two_trajectory", 0),
+                col("k", 0),
+            );
+            for (j, p) in params.iter().enumerate() {
+                if done[j] == 1 {
+                    chaos.push([*p, l1[j], e1[j], two[j], k[j]]);
+                }
+            }
+        }
         sweep = Some((pname, punit));
     } else {
+        if let Ok(l) = file.group("chaos/lyapunov") {
+            let t = l.dataset("history_time").and_then(|d| d.read_raw::<f64>());
+            let h = read_rows(&l, "history");
+            if let (Ok(t), Ok(h)) = (t, h) {
+                let two = l
+                    .dataset("two_trajectory_history")
+                    .and_then(|d| d.read_raw::<f64>())
+                    .unwrap_or_default();
+                convergence = Some((t, h, two));
+            }
+        }
         let mut job = Job {
             up: true,
             ..Default::default()
@@ -160,6 +210,8 @@ fn read(path: &Path) -> Result<Data> {
         units,
         sweep,
         jobs,
+        chaos,
+        convergence,
     })
 }
 
@@ -196,6 +248,80 @@ fn default_figures(d: &Data) -> Vec<FigureSpec> {
         }
     }
     v
+}
+
+/// The chaos panels under a bifurcation diagram: lambda_1 with its 3-standard-error band and the
+/// two-trajectory estimate, and K; none when the sweep has no chaos measures.
+fn chaos_panels(d: &Data, x_label: &str) -> Vec<Panel> {
+    let mut out = Vec::new();
+    let rows: Vec<&[f64; 5]> = d.chaos.iter().filter(|r| r[1].is_finite()).collect();
+    if !rows.is_empty() {
+        let x: Vec<f64> = rows.iter().map(|r| r[0]).collect();
+        let line = |label: &str, f: &dyn Fn(&[f64; 5]) -> f64| Series {
+            label: label.into(),
+            x: x.clone(),
+            y: rows.iter().map(|r| f(r)).collect(),
+        };
+        let mut p = Panel::new(
+            "Largest Lyapunov exponent",
+            x_label,
+            "lambda_1 (1/s)",
+            vec![
+                line("lambda_1 + 3 s.e.", &|r| r[1] + 3.0 * r[2]),
+                line("lambda_1 - 3 s.e.", &|r| r[1] - 3.0 * r[2]),
+                Series {
+                    label: "0".into(),
+                    x: vec![x[0], x[x.len() - 1]],
+                    y: vec![0.0, 0.0],
+                },
+            ],
+        );
+        p.line_width = 1;
+        p.points = vec![line("lambda_1 (tangent)", &|r| r[1])];
+        if rows.iter().any(|r| r[3].is_finite()) {
+            p.points
+                .push(line("lambda_1 (two trajectories)", &|r| r[3]));
+        }
+        out.push(p);
+    }
+    let krows: Vec<&[f64; 5]> = d.chaos.iter().filter(|r| r[4].is_finite()).collect();
+    if !krows.is_empty() {
+        let mut p = Panel::new("0-1 test for chaos", x_label, "K", Vec::new());
+        p.y_range = Some((-0.1, 1.1));
+        p.points = vec![Series {
+            label: "K".into(),
+            x: krows.iter().map(|r| r[0]).collect(),
+            y: krows.iter().map(|r| r[4]).collect(),
+        }];
+        out.push(p);
+    }
+    out
+}
+
+/// The convergence figure of a single run's Lyapunov exponents.
+fn convergence_panel(d: &Data) -> Option<Panel> {
+    let (t, h, two) = d.convergence.as_ref()?;
+    let k = h.first().map_or(0, Vec::len);
+    let mut series: Vec<Series> = (0..k)
+        .map(|j| Series {
+            label: format!("lambda_{}", j + 1),
+            x: t.clone(),
+            y: h.iter().map(|r| r[j]).collect(),
+        })
+        .collect();
+    if !two.is_empty() {
+        series.push(Series {
+            label: "lambda_1, two trajectories".into(),
+            x: t.clone(),
+            y: two.clone(),
+        });
+    }
+    Some(Panel::new(
+        format!("{}: running Lyapunov exponents", d.name),
+        "time (s)",
+        "exponent (1/s)",
+        series,
+    ))
 }
 
 fn scaled(v: &[f64], s: f64) -> Vec<f64> {
@@ -283,7 +409,22 @@ fn panels_for(d: &Data, f: &FigureSpec) -> Result<Vec<Panel>> {
         } else {
             p.points = vec![up, down];
         }
-        return Ok(vec![p]);
+        let mut panels = vec![p];
+        panels.extend(chaos_panels(d, &panels[0].x_label));
+        if panels.len() > 1 {
+            // One parameter axis for the stacked panels.
+            let (lo, hi) = d
+                .jobs
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), j| {
+                    (a.min(j.parameter), b.max(j.parameter))
+                });
+            let pad = 0.02 * (hi - lo).max(f64::MIN_POSITIVE);
+            for p in &mut panels {
+                p.x_range = Some((lo - pad, hi + pad));
+            }
+        }
+        return Ok(panels);
     }
     let jobs: Vec<&Job> = if f.values.is_empty() {
         d.jobs.iter().take(6).collect()
@@ -454,8 +595,23 @@ pub fn render(path: &Path, out: &Path, formats: &[Format]) -> Result<Vec<PathBuf
     let mut files = Vec::new();
     for f in &specs {
         let panels = panels_for(&d, f)?;
-        let cols = if panels.len() >= 3 { 3 } else { panels.len() };
+        let cols = if f.kind == FigureKind::Bifurcation {
+            1
+        } else if panels.len() >= 3 {
+            3
+        } else {
+            panels.len()
+        };
         files.extend(write(out, &stem(&d, f), &panels, cols, formats)?);
+    }
+    if let Some(p) = convergence_panel(&d) {
+        files.extend(write(
+            out,
+            &format!("{}-lyapunov", d.name),
+            &[p],
+            1,
+            formats,
+        )?);
     }
     Ok(files)
 }

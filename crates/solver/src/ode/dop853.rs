@@ -104,7 +104,8 @@ impl Stepper for Dop853 {
     /// the 5th-order one honest at large steps, where the latter can be accidentally small.
     fn error_norm(&self, w: &Work, y: &[f64], h: f64, rtol: f64, atol: f64) -> f64 {
         let (mut s5, mut s3) = (0.0, 0.0);
-        for i in 0..y.len() {
+        let n = w.n_err;
+        for i in 0..n {
             let sc = atol + rtol * y[i].abs().max(w.y_new[i].abs());
             let (mut e5, mut e3) = (0.0, 0.0);
             for &(j, e) in E5 {
@@ -119,7 +120,7 @@ impl Stepper for Dop853 {
         if s5 == 0.0 && s3 == 0.0 {
             return 0.0;
         }
-        h.abs() * s5 / ((s5 + 0.01 * s3) * y.len() as f64).sqrt()
+        h.abs() * s5 / ((s5 + 0.01 * s3) * n as f64).sqrt()
     }
 
     /// DOP853's order-7 continuous extension of the step from (t, y): the three extra stages

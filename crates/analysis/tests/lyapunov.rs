@@ -1,0 +1,421 @@
+//! Lyapunov spectra against published values, exact identities and finite differences of the
+//! flow map.
+#![allow(clippy::needless_range_loop)]
+
+use std::path::Path;
+
+use jointplay_analysis::flow::{Flow, Target};
+use jointplay_analysis::lyapunov::{LyapunovSpec, Spectrum, spectrum, tangent_map};
+use jointplay_analysis::nonlinear::Loaded;
+use jointplay_analysis::tangent::Tangent;
+use jointplay_solver::ode::{Flow as Step, advance};
+use jointplay_solver::state::HybridState;
+
+fn system(system: &str, period: Option<f64>) -> Target {
+    let text = format!(
+        "[study]\nname = \"l\"\nsystem = {{ {system} }}\n[analysis]\nperiods = 2\n{}samples_per_period = 0\n[[observables]]\nname = \"x\"\npath = \"x\"\n",
+        period.map_or(String::new(), |p| format!("period = {p}\n"))
+    );
+    let st = Loaded::parse(&text, Path::new("lyapunov-test.toml")).unwrap();
+    st.target_with(&[]).unwrap()
+}
+
+/// The clearance slider-crank (0.5 mm planar clearance in the piston pin, L-N contact) with
+/// extra scene edits.
+fn slider_crank(set: &str) -> Target {
+    let text = format!(
+        "[study]\nname = \"l\"\nscene = \"../../../data/scenes/slider-crank-clearance.toml\"\nset = {{ \"solver.integrator\" = \"dopri5\", \"solver.rtol\" = 1e-11, \"solver.atol\" = 1e-13{set} }}\n[analysis]\nperiods = 2\nsamples_per_period = 0\n[[observables]]\nname = \"x\"\npath = \"bodies.slider.position.x\"\n"
+    );
+    let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/lyapunov.toml");
+    Loaded::parse(&text, &file)
+        .unwrap()
+        .target_with(&[])
+        .unwrap()
+}
+
+fn spec(exponents: usize, periods: usize, per_period: usize) -> LyapunovSpec {
+    toml::from_str(&format!(
+        "exponents = {exponents}\nperiods = {periods}\nper_period = {per_period}"
+    ))
+    .unwrap()
+}
+
+fn run(target: &Target, spec: &LyapunovSpec, transient: usize) -> Spectrum {
+    let mut flow = target.flow();
+    let mut second = spec.two_trajectory.then(|| target.flow());
+    let start = flow.initial_state(None).unwrap();
+    spec.check(flow.phase_dim(), &flow.method()).unwrap();
+    spectrum(
+        &mut flow,
+        second.as_mut(),
+        &start,
+        spec,
+        transient,
+        &mut |_| {},
+    )
+    .unwrap()
+}
+
+fn lorenz() -> Target {
+    system(
+        "kind = \"lorenz\", sigma = 10.0, rho = 28.0, beta = 2.6666666666666667, initial = [1.0, 1.0, 20.0], solver = { integrator = \"dopri5\", rtol = 1e-10, atol = 1e-10 }",
+        Some(1.0),
+    )
+}
+
+/// Sprott's two-well Duffing x'' + 0.25 x' - x + x^3 = 0.4 sin t (here with cos t: the same
+/// attractor shifted by a quarter period).
+fn duffing() -> Target {
+    system(
+        "kind = \"duffing\", delta = 0.25, alpha = -1.0, beta = 1.0, gamma = 0.4, omega = 1.0, initial = [1.0, 0.0], solver = { integrator = \"dopri5\", rtol = 1e-10, atol = 1e-10 }",
+        None,
+    )
+}
+
+/// Lorenz (10, 28, 8/3): Sprott (Chaos and Time-Series Analysis, 2003, appendix A) gives 0.9056,
+/// 0, -14.5723. Over T = 2000 the finite-time estimates scatter by a few 1e-3 (their batch-means
+/// standard errors say 0.004 for lambda_1), so each must lie within 3 standard errors plus 0.2 %
+/// of the reference (Sprott's last digit). The sum of the spectrum is the time average of the
+/// divergence, -(sigma + 1 + beta), exactly: it depends only on the integration error of the
+/// tangent equations (rtol 1e-10), so it must hold to 1e-8 relative.
+#[test]
+fn lorenz_spectrum_matches_sprott_and_the_divergence() {
+    let mut s = spec(3, 2000, 10);
+    s.two_trajectory = true;
+    let sp = run(&lorenz(), &s, 20);
+    let reference: [f64; 3] = [0.9056, 0.0, -14.5723];
+    for j in 0..3 {
+        let band = 3.0 * sp.stderr[j] + 2e-3 * reference[j].abs();
+        assert!(
+            (sp.exponents[j] - reference[j]).abs() < band,
+            "lambda_{} = {} +- {}, Sprott {}",
+            j + 1,
+            sp.exponents[j],
+            sp.stderr[j],
+            reference[j]
+        );
+    }
+    let sum: f64 = sp.exponents.iter().sum();
+    let div = -(10.0 + 1.0 + 8.0 / 3.0);
+    assert!(
+        ((sum - div) / div).abs() < 1e-8,
+        "sum {sum}, divergence {div}"
+    );
+    assert!((sp.mean_divergence.unwrap() - div).abs() < 1e-12);
+    // The two-trajectory estimate, in the same steps but without the Jacobian: the same number
+    // within its standard error.
+    let (l2, e2, _) = sp.two_trajectory.clone().unwrap();
+    assert!((l2 - sp.exponents[0]).abs() < 3.0 * e2, "{l2} +- {e2}");
+}
+
+/// Sprott's two-well Duffing: lambda_1 = 0.1572; the sum is -delta = -0.25 exactly.
+#[test]
+fn duffing_largest_exponent_matches_sprott_and_the_sum_is_minus_delta() {
+    let mut s = spec(2, 2000, 4);
+    s.two_trajectory = true;
+    let sp = run(&duffing(), &s, 20);
+    let band = 3.0 * sp.stderr[0] + 2e-3 * 0.1572;
+    assert!(
+        (sp.exponents[0] - 0.1572).abs() < band,
+        "{} +- {}",
+        sp.exponents[0],
+        sp.stderr[0]
+    );
+    let sum = sp.exponents[0] + sp.exponents[1];
+    assert!(((sum + 0.25) / 0.25).abs() < 1e-8, "sum {sum}");
+    let (l2, e2, _) = sp.two_trajectory.clone().unwrap();
+    assert!((l2 - sp.exponents[0]).abs() < 3.0 * e2);
+    // The running estimate ends at the reported value.
+    assert_eq!(sp.history.last().unwrap()[0], sp.exponents[0]);
+    assert_eq!(sp.history.len(), 2000 * 4);
+}
+
+/// The exponents of the stroboscopic map are the flow's times the period. Checked against the
+/// map's own Jacobians, taken by central differences of one-period runs (step 1e-6, error
+/// ~1e-10 relative for these smooth runs at rtol 1e-12) and multiplied with QR along 300
+/// periods: an estimate that never uses the tangent equations. The finite-time values of the
+/// two differ only by the integration and difference errors, far below 1e-5.
+#[test]
+fn stroboscopic_map_exponents_are_the_flow_exponents_times_the_period() {
+    let target = system(
+        "kind = \"duffing\", delta = 0.25, alpha = -1.0, beta = 1.0, gamma = 0.4, omega = 1.0, initial = [1.0, 0.0], solver = { integrator = \"dopri5\", rtol = 1e-12, atol = 1e-12 }",
+        None,
+    );
+    let periods = 300;
+    let sp = run(&target, &spec(2, periods, 1), 0);
+    let mut flow = target.flow();
+    let period = flow.period();
+    let method = target.method();
+    let mut state = flow.initial_state(None).unwrap();
+    let step = |flow: &mut _, s: &mut HybridState, t: f64| {
+        let (_, r) = advance(flow, method, s, t, &[], |_, _, _| Step::Continue, None);
+        r.unwrap();
+    };
+    let mut q = nalgebra::Matrix2::<f64>::identity();
+    let mut logs = [0.0; 2];
+    let skip = 50;
+    let t0 = state.t;
+    for p in 0..periods {
+        if p == skip {
+            logs = [0.0; 2];
+        }
+        // The strobe times as the spectrum computes them (t0 + i T, not a running sum), so that
+        // both follow the same trajectory bit for bit.
+        let t1 = t0 + (p + 1) as f64 * period;
+        let mut jac = nalgebra::Matrix2::zeros();
+        for c in 0..2 {
+            let mut ends = Vec::new();
+            for sgn in [1.0, -1.0] {
+                let mut s = HybridState::new(state.t, state.y.clone());
+                s.y[c] += sgn * 1e-6;
+                step(&mut flow, &mut s, t1);
+                ends.push(s.y);
+            }
+            for r in 0..2 {
+                jac[(r, c)] = (ends[0][r] - ends[1][r]) / 2e-6;
+            }
+        }
+        let qr = (jac * q).qr();
+        let rr = qr.r();
+        for j in 0..2 {
+            logs[j] += rr[(j, j)].abs().ln();
+        }
+        q = qr.q();
+        step(&mut flow, &mut state, t1);
+    }
+    // Compared over periods 50 to 300, after both sets of vectors have aligned with the same
+    // Lyapunov vectors (at rate exp(-(lambda_1 - lambda_2) t), e^-170 here): the finite-time
+    // values from the start differ by the initial vectors' alignment, O(1) / periods.
+    assert_eq!(sp.end.y, state.y, "the same trajectory");
+    let map = sp.map_exponents();
+    let span = (periods - skip) as f64;
+    for j in 0..2 {
+        let direct = logs[j] / span;
+        let (a, b) = (
+            sp.history[skip - 1][j] * skip as f64,
+            sp.history[periods - 1][j] * periods as f64,
+        );
+        let from_flow = (b - a) * period / span;
+        assert!(
+            (from_flow - direct).abs() < 1e-5 * direct.abs().max(1e-3),
+            "mu_{}: {} from the flow, {} from the map",
+            j + 1,
+            from_flow,
+            direct
+        );
+        assert_eq!(map[j], sp.exponents[j] * period);
+    }
+}
+
+/// The tangent map through contact equals the derivative of the flow map: on the L-N
+/// slider-crank, windows of 1 ms in which a contact begins or ends (found by a plain run) are
+/// crossed by each basis vector of the constraint manifold's tangent space, carried with the
+/// onset-velocity saltation, and compared with central differences of perturbed runs (+-1e-7
+/// along the vector, each with its own contact history). Through the stiff contact the
+/// difference quotient itself is uncertain by about 1e-2 (it changes by that much between
+/// increments 1e-6 and 1e-7), so the tangent must agree within three times that spread plus
+/// 2e-3. Without the saltation term the error is 0.15 of the vector (measured; the onset
+/// velocity then does not follow the perturbation), far outside the bound.
+#[test]
+fn tangent_map_through_contact_onsets_matches_finite_differences() {
+    let target = slider_crank("");
+    let mut flow = target.flow();
+    let method = target.method();
+    let mut state = flow.initial_state(None).unwrap();
+    flow.prepare(&state).unwrap();
+    let tau = 1e-3;
+    let mut windows = Vec::new();
+    while windows.len() < 2 && state.t < 0.2 {
+        let before = state.clone();
+        let (_, r) = advance(
+            &mut flow,
+            method,
+            &mut state,
+            before.t + tau,
+            &[],
+            |_, _, _| Step::Continue,
+            None,
+        );
+        r.unwrap();
+        let began = before
+            .onset
+            .iter()
+            .zip(&state.onset)
+            .any(|(a, b)| a.is_nan() && !b.is_nan());
+        if began && before.t > 0.01 {
+            windows.push(before);
+        }
+    }
+    assert_eq!(
+        windows.len(),
+        2,
+        "the slider-crank makes contact within 0.2 s"
+    );
+    for start in &windows {
+        let basis = flow.manifold_basis(start.t, &start.y).unwrap().unwrap();
+        assert_eq!(basis.ncols(), 4, "twice the 2 free degrees of freedom");
+        for c in 0..basis.ncols() {
+            let v: Vec<f64> = basis.column(c).iter().copied().collect();
+            let (_, tv) =
+                tangent_map(&mut flow, start, std::slice::from_ref(&v), start.t + tau).unwrap();
+            // Central differences at two increments: their spread measures the difference
+            // quotient's own error through the stiff contact (about 1e-2 here).
+            let fd_at = |eps: f64, flow: &mut _| -> Vec<f64> {
+                let mut ends = Vec::new();
+                for sgn in [1.0, -1.0] {
+                    let mut s = start.clone();
+                    for i in 0..v.len() {
+                        s.y[i] += sgn * eps * v[i];
+                    }
+                    Flow::prepare(flow, &s).unwrap();
+                    let (_, r) = advance(
+                        flow,
+                        method,
+                        &mut s,
+                        start.t + tau,
+                        &[],
+                        |_, _, _| Step::Continue,
+                        None,
+                    );
+                    r.unwrap();
+                    ends.push(s.y);
+                }
+                ends[0]
+                    .iter()
+                    .zip(&ends[1])
+                    .map(|(a, b)| (a - b) / (2.0 * eps))
+                    .collect()
+            };
+            let fd = fd_at(1e-7, &mut flow);
+            let fd_coarse = fd_at(1e-6, &mut flow);
+            let dist = |a: &[f64], b: &[f64]| {
+                a.iter()
+                    .zip(b)
+                    .map(|(x, y)| (x - y).powi(2))
+                    .sum::<f64>()
+                    .sqrt()
+            };
+            let nfd = dist(&fd, &vec![0.0; fd.len()]);
+            let spread = dist(&fd, &fd_coarse);
+            let err = dist(&tv[0], &fd);
+            assert!(
+                err < 3.0 * spread + 2e-3 * nfd,
+                "t {} vector {c}: |fd| {nfd:e}, error {err:e}, spread of the differences {spread:e}",
+                start.t
+            );
+        }
+    }
+}
+
+fn impact(forcing: f64, omega: f64) -> Target {
+    system(
+        &format!(
+            "kind = \"impact\", damping = 0.1, stiffness = 1.0, forcing = {forcing}, omega = {omega}, stop = 1.0, restitution = 0.8, initial = [0.0, 0.0], solver = {{ integrator = \"dopri5\", rtol = 1e-11, atol = 1e-12 }}"
+        ),
+        None,
+    )
+}
+
+/// The Newton impact oscillator: each impact's saltation matrix has determinant e^2, so the sum
+/// of the exponents is -c + 2 ln(e) times the impacts per unit time, exactly for the finite
+/// run (the integration error of the tangent equations aside: 1e-8 relative at rtol 1e-11).
+#[test]
+fn impact_oscillator_spectrum_sums_to_damping_and_restitution() {
+    for (forcing, omega) in [(0.2, 1.0), (0.7, 0.8)] {
+        let sp = run(&impact(forcing, omega), &spec(2, 300, 4), 50);
+        let rate = sp.events as f64 / sp.time;
+        let expected = -0.1 + 2.0 * 0.8f64.ln() * rate;
+        let sum = sp.exponents[0] + sp.exponents[1];
+        eprintln!(
+            "A {forcing} w {omega}: {:?} +- {:?}, impacts per unit time {rate}, sum {sum}, expected {expected}",
+            sp.exponents, sp.stderr
+        );
+        assert!(sp.events > 0, "the oscillator hits the stop");
+        assert!(
+            ((sum - expected) / expected).abs() < 1e-8,
+            "sum {sum}, expected {expected}"
+        );
+    }
+}
+
+/// Through impacts the tangent map (with the saltation matrix) is the derivative of the flow map:
+/// central differences of runs from perturbed states over windows with impacts agree to 1e-6
+/// (the runs are at rtol 1e-11 and the differences of step 1e-6 have O(1e-12) truncation; the
+/// impact times are located to round-off on the dense output, whose own error, about rtol,
+/// divided by the increment, sets the floor).
+#[test]
+fn impact_tangent_map_matches_finite_differences() {
+    let target = impact(0.7, 0.8);
+    let mut flow = target.flow();
+    let method = target.method();
+    let mut start = flow.initial_state(None).unwrap();
+    let (_, r) = advance(
+        &mut flow,
+        method,
+        &mut start,
+        30.0,
+        &[],
+        |_, _, _| Step::Continue,
+        None,
+    );
+    r.unwrap();
+    // The windows contain impacts: the mass reaches the stop (x = 1) within them.
+    let samples: Vec<f64> = (1..20_000).map(|i| start.t + i as f64 * 1e-3).collect();
+    let mut reach = Vec::new();
+    let mut probe = start.clone();
+    let (_, r) = advance(
+        &mut flow,
+        method,
+        &mut probe,
+        start.t + 20.0,
+        &samples,
+        |_, t, y| {
+            if y[0] > 1.0 - 1e-3 {
+                reach.push(t);
+            }
+            Step::Continue
+        },
+        None,
+    );
+    r.unwrap();
+    assert!(
+        reach.first().is_some_and(|t| *t < start.t + 5.0),
+        "{reach:?}"
+    );
+    for tau in [5.0, 20.0] {
+        for c in 0..2 {
+            let mut v = vec![0.0; 2];
+            v[c] = 1.0;
+            let (_, tv) =
+                tangent_map(&mut flow, &start, std::slice::from_ref(&v), start.t + tau).unwrap();
+            let mut ends = Vec::new();
+            for sgn in [1.0, -1.0] {
+                let mut s = HybridState::new(start.t, start.y.clone());
+                s.y[c] += sgn * 1e-6;
+                let (_, r) = advance(
+                    &mut flow,
+                    method,
+                    &mut s,
+                    start.t + tau,
+                    &[],
+                    |_, _, _| Step::Continue,
+                    None,
+                );
+                r.unwrap();
+                ends.push(s.y);
+            }
+            let fd = [
+                (ends[0][0] - ends[1][0]) / 2e-6,
+                (ends[0][1] - ends[1][1]) / 2e-6,
+            ];
+            let err = ((tv[0][0] - fd[0]).powi(2) + (tv[0][1] - fd[1]).powi(2)).sqrt();
+            let nfd = (fd[0].powi(2) + fd[1].powi(2)).sqrt();
+            eprintln!("tau {tau} c {c}: tangent {:?} fd {fd:?}", tv[0]);
+            assert!(
+                err < 1e-6 * nfd.max(1.0),
+                "tau {tau} c {c}: {:?} vs {fd:?}",
+                tv[0]
+            );
+        }
+    }
+}
