@@ -51,6 +51,8 @@ use jointplay_solver::ode::OdeSystem;
 pub struct AnalysisStudy {
     pub study: Header,
     pub analysis: AnalysisSpec,
+    /// Default for a built-in system: its state names (see [`AnalysisStudy::parse_spec`]).
+    #[serde(default)]
     pub observables: Vec<ObservableSpec>,
     #[serde(default)]
     pub sections: Vec<SectionSpec>,
@@ -287,9 +289,24 @@ struct Edit {
 }
 
 impl AnalysisStudy {
-    /// Parses the spec alone (no scene is read): what `plot` needs.
+    /// Parses the spec alone (no scene is read): what `plot` needs. A built-in system without
+    /// `[[observables]]` observes its state, each component under its own name.
     pub fn parse_spec(text: &str, path: &Path) -> Result<AnalysisStudy> {
-        Ok(jointplay_solver::scene::parse_toml(text, path)?)
+        let mut spec: AnalysisStudy = jointplay_solver::scene::parse_toml(text, path)?;
+        if spec.observables.is_empty()
+            && let Some(Ok(sys)) = spec.study.system.as_ref().map(SystemSpec::parse)
+        {
+            spec.observables = sys
+                .builtin
+                .state_names()
+                .iter()
+                .map(|n| ObservableSpec {
+                    name: n.to_string(),
+                    path: n.to_string(),
+                })
+                .collect();
+        }
+        Ok(spec)
     }
 
     /// The observable index of `name`.
@@ -340,7 +357,12 @@ impl Loaded {
             ));
         }
         if spec.observables.is_empty() {
-            return Err(invalid(path, "observables", "name at least one observable"));
+            return Err(invalid(
+                path,
+                "observables",
+                "name at least one observable ([[observables]] with name and path; only a \
+                 built-in system has a default, its state)",
+            ));
         }
         let mut names = BTreeMap::new();
         for (i, o) in spec.observables.iter().enumerate() {
