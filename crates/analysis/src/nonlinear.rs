@@ -9,8 +9,8 @@
 //! **Sweeps.** Each value of the swept parameter is one job. Independent jobs run in parallel on
 //! rayon's pool; with `continuation = true` the jobs run in order up the list and back down, each
 //! starting from the previous job's final state. Every job's results are written into the file as
-//! soon as it finishes (the writer is the calling thread; workers send results through a
-//! channel) and the file is flushed, so an interrupted sweep keeps every finished job: the file's
+//! soon as it finishes (the jobs run on the caller's rayon pool and send their results through a
+//! channel to one writer thread) and the file is flushed, so an interrupted sweep keeps every finished job: the file's
 //! `complete` attribute is 0 until all jobs are done, `/sweep/done` marks each job (0 not run,
 //! 1 done, 2 failed, its message in `/sweep/errors`), and `resume` runs only the jobs not done.
 //! Each job's result depends only on its inputs, so the datasets are bit-identical whatever the
@@ -38,7 +38,7 @@ use crate::h5::{
 };
 use crate::hybrid;
 use crate::observe::Observable;
-use crate::progress::Progress;
+use crate::progress::{Progress, Stop};
 use crate::sections::{Direction, Hyperplane, Plan, Trace, trace_partial};
 use crate::study::{edit, edited_scene, invalid};
 use crate::systems::SystemSpec;
@@ -713,8 +713,9 @@ impl Loaded {
         value: Option<f64>,
         start: Option<&HybridState>,
         progress: &mut dyn FnMut(f64),
+        stop: &Stop,
     ) -> Result<JobResult> {
-        let (r, failure) = self.run_job_partial(value, start, progress)?;
+        let (r, failure) = self.run_job_partial(value, start, progress, stop)?;
         match failure {
             Some(e) => Err(e),
             None => Ok(r),
@@ -734,6 +735,7 @@ impl Loaded {
         value: Option<f64>,
         start: Option<&HybridState>,
         progress: &mut dyn FnMut(f64),
+        stop: &Stop,
     ) -> Result<(JobResult, Option<Error>)> {
         let t0 = Instant::now();
         let target = self.target(value)?;
@@ -744,7 +746,7 @@ impl Loaded {
         }
         flow.prepare(&state)?;
         let plan = self.plan(flow.method(), state.t, flow.period());
-        let (tr, res) = trace_partial(&mut flow, &plan, &mut state, progress);
+        let (tr, res) = trace_partial(&mut flow, &plan, &mut state, progress, stop);
         let r = JobResult {
             warnings: [flow.compile_warnings(), flow.warnings()].concat(),
             trace: tr,
@@ -759,12 +761,12 @@ impl Loaded {
 
     /// Runs the single run of a study without a sweep and returns its result.
     pub fn run_single(&self, progress: &mut dyn FnMut(f64)) -> Result<JobResult> {
-        self.run_job(None, None, progress)
+        self.run_job(None, None, progress, &Stop::new())
     }
 
     /// Runs the job with parameter `value` alone (tests, scripting).
     pub fn run_value(&self, value: f64, progress: &mut dyn FnMut(f64)) -> Result<JobResult> {
-        self.run_job(Some(value), None, progress)
+        self.run_job(Some(value), None, progress, &Stop::new())
     }
 
     /// Runs the job with parameter `value` from `start`, another job's final state, as a
@@ -776,7 +778,7 @@ impl Loaded {
         start: &HybridState,
         progress: &mut dyn FnMut(f64),
     ) -> Result<JobResult> {
-        self.run_job(Some(value), Some(start), progress)
+        self.run_job(Some(value), Some(start), progress, &Stop::new())
     }
 }
 
@@ -797,8 +799,11 @@ pub struct Outcome {
     pub file: PathBuf,
     pub jobs: usize,
     pub ran: usize,
-    /// Every job done (or failed); false when stopped by `max_jobs`.
+    /// Every job done (or failed); false when stopped by `max_jobs` or on request.
     pub complete: bool,
+    /// Stopped on request ([`execute_until`]): a single run written incomplete, or a sweep with
+    /// values left to run.
+    pub interrupted: bool,
     pub failed: Vec<(usize, String)>,
     /// Warnings of a single run (the scene's and the step-size guard's).
     pub warnings: Vec<String>,
@@ -824,6 +829,21 @@ pub fn execute(
     version: &str,
     progress: &(dyn Fn(Progress) + Sync),
 ) -> Result<Outcome> {
+    execute_until(st, dir, opts, version, progress, &Stop::new())
+}
+
+/// [`execute`] that ends early when `stop` is requested. A single run is then written with what
+/// it recorded, marked incomplete with the time it stopped (`stopped_at`); a sweep keeps the
+/// values finished before, leaves the interrupted ones not run (`/sweep/done` 0, for `resume`)
+/// and starts no other. [`Outcome::interrupted`] says so.
+pub fn execute_until(
+    st: &Loaded,
+    dir: &Path,
+    opts: Options,
+    version: &str,
+    progress: &(dyn Fn(Progress) + Sync),
+    user_stop: &Stop,
+) -> Result<Outcome> {
     let start = Instant::now();
     let name = &st.spec.study.name;
     let Some(sw) = &st.spec.sweep else {
@@ -832,7 +852,8 @@ pub fn execute(
             pending: 1,
         });
         // A run that fails keeps what it recorded, in a file marked incomplete.
-        let (r, failure) = st.run_job_partial(None, None, &mut throttled(0, progress))?;
+        let (r, failure) =
+            st.run_job_partial(None, None, &mut throttled(0, progress), user_stop)?;
         progress(Progress::Done {
             job: 0,
             ok: failure.is_none(),
@@ -844,17 +865,23 @@ pub fn execute(
             }
             if let Some(e) = &failure {
                 str_attr(file, "error", &e.to_string())?;
-                if let Error::Solver(jointplay_solver::Error::Diverged { time, .. }) = e {
+                if let Error::Solver(jointplay_solver::Error::Diverged { time, .. })
+                | Error::Interrupted {
+                    time: Some(time), ..
+                } = e
+                {
                     f64_attr(file, "stopped_at", *time)?;
                 }
             }
             write_single(file, st, &r)
         })?;
+        let interrupted = matches!(failure, Some(Error::Interrupted { .. }));
         return Ok(Outcome {
             file,
             jobs: 1,
             ran: 1,
-            complete: true,
+            complete: !interrupted,
+            interrupted,
             failed: failure.map(|e| (0, e.to_string())).into_iter().collect(),
             warnings: r.warnings,
             wall: start.elapsed().as_secs_f64(),
@@ -914,6 +941,8 @@ pub fn execute(
     let stop = AtomicBool::new(limit == 0);
     let mut write = |j: usize, res: Result<JobResult>, done: &mut Vec<u8>| -> Result<()> {
         match res {
+            // An interrupted value is left to run again (done = 0).
+            Err(Error::Interrupted { .. }) => return Ok(()),
             Ok(r) => {
                 rhs += r.trace.stats.rhs_evals;
                 write_job(&file, st, j, &r).map_err(&e)?;
@@ -944,7 +973,7 @@ pub fn execute(
         let mut prev: Option<HybridState> = None;
         let sweep = file.group("sweep").map_err(&e)?;
         for j in 0..n {
-            if stop.load(Ordering::SeqCst) {
+            if stop.load(Ordering::SeqCst) || user_stop.requested() {
                 break;
             }
             if done[j] != 0 {
@@ -959,37 +988,56 @@ pub fn execute(
                 Some(st.jobs[j].0),
                 prev.as_ref(),
                 &mut throttled(j, progress),
+                user_stop,
             );
             prev = res.as_ref().ok().map(|r| r.trace.final_state.clone());
             write(j, res, &mut done)?;
         }
     } else {
+        // The jobs run on the caller's rayon pool (the global one, or one it installed); a
+        // thread of its own writes each result as it comes.
         let (tx, rx) = mpsc::channel::<(usize, Result<JobResult>)>();
-        let mut write_err = None;
-        std::thread::scope(|scope| {
-            let (pending, stop) = (&pending, &stop);
-            scope.spawn(move || {
-                pending.par_iter().for_each_with(tx, |tx, &j| {
-                    if stop.load(Ordering::SeqCst) {
-                        return;
+        let write_err = std::thread::scope(|scope| {
+            let (stop, done) = (&stop, &mut done);
+            let writer = scope.spawn(move || {
+                let mut write_err = None;
+                for (j, r) in rx {
+                    // Jobs that were running when the limit was reached are dropped unwritten.
+                    if write_err.is_none()
+                        && !stop.load(Ordering::SeqCst)
+                        && let Err(err) = write(j, r, done)
+                    {
+                        // Stop the other jobs: their results could not be written.
+                        stop.store(true, Ordering::SeqCst);
+                        write_err = Some(err);
                     }
-                    let r = st.run_job(Some(st.jobs[j].0), None, &mut throttled(j, progress));
-                    // The receiver lives until every sender is gone.
-                    let _ = tx.send((j, r));
-                });
-            });
-            for (j, r) in rx {
-                // Jobs that were running when the limit was reached are dropped unwritten.
-                if write_err.is_none()
-                    && !stop.load(Ordering::SeqCst)
-                    && let Err(err) = write(j, r, &mut done)
-                {
-                    write_err = Some(err);
                 }
-            }
+                write_err
+            });
+            pending.par_iter().for_each_with(tx, |tx, &j| {
+                if stop.load(Ordering::SeqCst) || user_stop.requested() {
+                    return;
+                }
+                let r = st.run_job(
+                    Some(st.jobs[j].0),
+                    None,
+                    &mut throttled(j, progress),
+                    user_stop,
+                );
+                // The writer lives until every sender is gone.
+                let _ = tx.send((j, r));
+            });
+            writer.join()
         });
-        if let Some(err) = write_err {
-            return Err(err);
+        match write_err {
+            Ok(None) => {}
+            Ok(Some(err)) => return Err(err),
+            Err(_) => {
+                return Err(Error::Io {
+                    file: path.clone(),
+                    message: "the thread writing the sweep's results stopped unexpectedly".into(),
+                });
+            }
         }
     }
     let wall = start.elapsed().as_secs_f64();
@@ -1002,6 +1050,7 @@ pub fn execute(
         jobs: n,
         ran: finished,
         complete,
+        interrupted: user_stop.requested() && !complete,
         failed,
         warnings: Vec::new(),
         wall,

@@ -28,8 +28,8 @@ use rayon::prelude::*;
 use serde::Deserialize;
 use toml::{Table, Value};
 
-use crate::progress::Progress;
-use crate::run::{RunResult, simulate};
+use crate::progress::{Progress, Stop};
+use crate::run::{RunResult, simulate_until};
 use crate::{Error, Result};
 
 /// A study file.
@@ -329,6 +329,17 @@ impl Study {
     /// cases compile and [`Progress::Done`] as each case ends, its job being the case's index.
     /// The runs come back in the order of the cases, each failure wrapped with its case's label.
     pub fn run(&self, progress: &(dyn Fn(Progress) + Sync)) -> Result<Vec<Result<CaseRun>>> {
+        self.run_until(progress, &Stop::new())
+    }
+
+    /// [`Study::run`] that ends early when `stop` is requested: a case then running ends with
+    /// [`Error::Interrupted`] (wrapped with its label), and the cases not started end so at once.
+    /// A running case also reports [`Progress::Fraction`].
+    pub fn run_until(
+        &self,
+        progress: &(dyn Fn(Progress) + Sync),
+        stop: &Stop,
+    ) -> Result<Vec<Result<CaseRun>>> {
         let compiled = self
             .cases
             .iter()
@@ -343,7 +354,14 @@ impl Study {
             .into_par_iter()
             .zip(self.cases.par_iter().enumerate())
             .map(|((model, state), (job, c))| {
-                let result = simulate(&model, state, &mut |_| {})
+                let mut last = 0.0;
+                let mut fraction = |f: f64| {
+                    if f - last >= 1e-3 {
+                        last = f;
+                        progress(Progress::Fraction { job, fraction: f });
+                    }
+                };
+                let result = simulate_until(&model, state, &mut fraction, stop)
                     .and_then(RunResult::finished)
                     .map_err(|e| {
                         progress(Progress::Done { job, ok: false });
