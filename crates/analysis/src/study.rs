@@ -443,6 +443,96 @@ pub fn edit(tree: &mut Table, path: &str, value: Option<&Value>) -> Result<(), S
     }
 }
 
+/// The values at `path` in `tree`, selected as [`edit`] selects them (names, positions, `*`, a
+/// vector's components): one value for a path without `*`, every match for one with it. An
+/// error names what is missing.
+pub fn lookup<'t>(tree: &'t Table, path: &str) -> Result<Vec<&'t Value>, String> {
+    let segs: Vec<&str> = path.split('.').collect();
+    if segs.iter().any(|s| s.is_empty()) {
+        return Err("empty path segment".into());
+    }
+    let mut found = Vec::new();
+    find(tree, &segs, segs.contains(&"*"), &mut found)?;
+    if found.is_empty() {
+        return Err("matches nothing".into());
+    }
+    Ok(found)
+}
+
+fn find<'t>(
+    t: &'t Table,
+    segs: &[&str],
+    wild: bool,
+    found: &mut Vec<&'t Value>,
+) -> Result<(), String> {
+    let (head, rest) = (segs[0], &segs[1..]);
+    let v = match t.get(head) {
+        None if wild => return Ok(()),
+        None => {
+            return Err(format!(
+                "no key '{head}' (a field left at its default is not in the scene)"
+            ));
+        }
+        Some(v) => v,
+    };
+    if rest.is_empty() {
+        found.push(v);
+        return Ok(());
+    }
+    match v {
+        Value::Table(sub) => find(sub, rest, wild, found),
+        Value::Array(items) if !items.iter().all(Value::is_table) => {
+            if rest.len() > 1 {
+                return Err(format!(
+                    "'{head}.{}' is a number; nothing lies below it",
+                    rest[0]
+                ));
+            }
+            if rest[0] == "*" {
+                found.extend(items);
+                return Ok(());
+            }
+            match rest[0].parse::<usize>() {
+                Ok(k) if k < items.len() => {
+                    found.push(&items[k]);
+                    Ok(())
+                }
+                Ok(k) => Err(format!(
+                    "index {k} is out of range: '{head}' has {} components",
+                    items.len()
+                )),
+                Err(_) => Err(format!(
+                    "'{head}' is an array of numbers: select a component by index (0, 1, ...) or '*', not '{}'",
+                    rest[0]
+                )),
+            }
+        }
+        Value::Array(items) => {
+            let sel = rest[0];
+            let before = found.len();
+            for (k, item) in items.iter().enumerate() {
+                let Value::Table(it) = item else { continue };
+                let hit = sel == "*"
+                    || sel.parse::<usize>() == Ok(k)
+                    || it.get("name").and_then(Value::as_str) == Some(sel);
+                if hit {
+                    if rest.len() == 1 {
+                        found.push(item);
+                    } else {
+                        find(it, &rest[1..], wild, found)?;
+                    }
+                }
+            }
+            if found.len() == before && !wild {
+                return Err(format!("no element '{sel}' in '{head}'"));
+            }
+            Ok(())
+        }
+        _ if wild => Ok(()),
+        _ => Err(format!("'{head}' is a value, not a table")),
+    }
+}
+
 fn walk(t: &mut Table, segs: &[&str], value: Option<&Value>, wild: bool) -> Result<usize, String> {
     let (head, rest) = (segs[0], &segs[1..]);
     if rest.is_empty() {
