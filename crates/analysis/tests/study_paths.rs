@@ -2,12 +2,15 @@
 //! observables, a sweep over one component of a vector field, and a `*` edit that adds a field
 //! the scene leaves at its default.
 
-mod common;
+use std::path::PathBuf;
 
 use jointplay_analysis::nonlinear::Loaded;
 use jointplay_analysis::study::Study;
 
-use common::scenes;
+/// The bundled scenes, against which the studies' scene paths resolve.
+fn scenes() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../data/scenes")
+}
 
 /// An analysis study of a built-in system without `[[observables]]` observes its state names.
 #[test]

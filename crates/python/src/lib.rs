@@ -1066,9 +1066,9 @@ fn work_precision(
     })
 }
 
-/// Runs a study as ``jointplay run STUDY --out OUT`` does (``jointplay precision`` for
-/// ``precision=True`` or a study with a ``[precision]`` table) and returns a ``StudyResult``
-/// with the HDF5 file loaded.
+/// Runs a study as ``jointplay run STUDY --out OUT`` does (as ``jointplay precision`` with
+/// ``precision=True``: an analysis study with or without a ``[precision]`` table, or a scene)
+/// and returns a ``StudyResult`` with the HDF5 file loaded.
 ///
 /// ``source`` is a study file or its TOML text (scene paths in text are relative to the current
 /// directory). ``threads`` sets the cases or sweep values run at once (default: every core).
@@ -1106,7 +1106,6 @@ fn run_study(
             source.display()
         )));
     };
-    let precision = precision || kind == Input::Precision;
     if kind == Input::Scene && !precision {
         return Err(err(format!(
             "{}: a scene, not a study: use jointplay.load_scene(...).run(), or precision=True",
@@ -1147,13 +1146,19 @@ fn run_study(
                 } else {
                     "values"
                 };
-                s.message = format!("{done} of {total} {what} done");
+                // A single run shows its fraction alone.
+                if total > 1 {
+                    s.message = format!("{done} of {total} {what} done");
+                }
             }
         }
     };
-    let label = path
-        .file_stem()
-        .map(|s| s.to_string_lossy().to_string())
+    // The bar is labelled with the study's name.
+    let label = text
+        .parse::<Table>()
+        .ok()
+        .and_then(|t| t.get("study")?.get("name")?.as_str().map(str::to_string))
+        .or_else(|| path.file_stem().map(|s| s.to_string_lossy().to_string()))
         .unwrap_or_default();
     let opts = Options { resume, max_jobs };
     let (res, signal) = drive(py, progress, &label, Duration::ZERO, &shown, |stop| {

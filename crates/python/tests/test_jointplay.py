@@ -135,6 +135,42 @@ def test_a_sweep_from_python_writes_the_programs_file(program, tmp_path):
     assert "sweep/v" in f.datasets
 
 
+PRECISION = """
+[study]
+name = "wp"
+system = { kind = "duffing", gamma = 0.2, initial = [1.0, 0.0], solver = { integrator = "dopri5", rtol = 1e-8, atol = 1e-10 } }
+
+[analysis]
+periods = 4
+samples_per_period = 50
+
+[precision]
+restarts = 4
+min_time = 0.0
+
+[[precision.methods]]
+integrator = "rk4"
+settings = [0.05235987755982988, 0.02617993877991494, 0.01308996938995747]
+"""
+
+
+def test_work_precision_writes_the_programs_table_and_file(program, tmp_path):
+    study = tmp_path / "wp.toml"
+    study.write_text(PRECISION)
+    program("precision", study, "--out", tmp_path / "cli", "--no-plots", "-q")
+    res = jointplay.run_study(study, out=tmp_path / "py", precision=True, progress=False)
+    assert res.kind == "precision" and res.table.count("| rk4 |") == 3
+    f = jointplay.load(res.file)
+    g = jointplay.load(tmp_path / "cli" / "wp.h5")
+    # RK4's one-period error falls by 2^4 per halving of the step, in both.
+    for h in (f, g):
+        e = h["runs/restart_error"]
+        assert np.all((12 < e[:-1] / e[1:]) & (e[:-1] / e[1:] < 20)), e
+    assert np.array_equal(f["runs/restart_error"], g["runs/restart_error"])
+    # Without precision=True, the study runs as an analysis, as `jointplay run` runs it.
+    assert jointplay.run_study(study, out=tmp_path / "a", progress=False).kind == "analysis"
+
+
 def test_progress_is_drawn_with_tqdm_and_without(tmp_path, capfd, monkeypatch):
     pytest.importorskip("tqdm")
     # Long enough (about a second) for the bar to be drawn.
@@ -142,7 +178,7 @@ def test_progress_is_drawn_with_tqdm_and_without(tmp_path, capfd, monkeypatch):
                                                                    "transient = 2990")
     jointplay.run_study(sweep, out=tmp_path / "a", progress=True, threads=1)
     err = capfd.readouterr().err
-    assert "<study text>: " in err and "5 of 5 values done" in err and "%|" in err
+    assert "duffing-small: 5 of 5 values done" in err and "%|" in err
     # Without tqdm: one line on standard error.
     monkeypatch.setitem(sys.modules, "tqdm.auto", None)
     jointplay.run_study(sweep, out=tmp_path / "b", progress=True, threads=1)

@@ -15,8 +15,8 @@ class Bar:
         except ImportError:
             tqdm = None
         if tqdm is not None:
-            self._tqdm = tqdm(total=1000, desc=label, unit="‰", leave=False,
-                              bar_format="{desc}: {percentage:3.0f}%|{bar}| {postfix} "
+            self._tqdm = tqdm(total=1000, desc=label, leave=False,
+                              bar_format="{desc} {percentage:3.0f}%|{bar}| "
                                          "[{elapsed}<{remaining}]")
         self._last = ""
 
@@ -24,7 +24,8 @@ class Bar:
         n = int(max(0.0, min(1.0, fraction)) * 1000)
         if self._tqdm is not None:
             self._tqdm.n = n
-            self._tqdm.set_postfix_str(message, refresh=False)
+            desc = f"{self._label}: {message}" if message else self._label
+            self._tqdm.set_description_str(desc, refresh=False)
             self._tqdm.refresh()
             return
         line = f"\r{self._label}: {n / 10:5.1f}% {message}"
