@@ -213,7 +213,13 @@ set = { "solver.end_time" = 0.1 }
 "#,
         );
         let seen = Mutex::new(Vec::new());
-        let c = Comparison::run(&st, &|p| seen.lock().unwrap().push(format!("{p:?}"))).unwrap();
+        let c = Comparison::run(&st, &|p| {
+            // The fractions of a running case are not part of the order checked here.
+            if !matches!(p, Progress::Fraction { .. }) {
+                seen.lock().unwrap().push(format!("{p:?}"))
+            }
+        })
+        .unwrap();
         let mut seen = seen.into_inner().unwrap();
         seen[1..].sort();
         assert_eq!(
@@ -272,7 +278,13 @@ remove = ["solver.rtol", "solver.atol"]
 "#,
         );
         let seen = Mutex::new(Vec::new());
-        let c = Comparison::run(&st, &|p| seen.lock().unwrap().push(format!("{p:?}"))).unwrap();
+        let c = Comparison::run(&st, &|p| {
+            // The fractions of a running case are not part of the order checked here.
+            if !matches!(p, Progress::Fraction { .. }) {
+                seen.lock().unwrap().push(format!("{p:?}"))
+            }
+        })
+        .unwrap();
         let mut seen = seen.into_inner().unwrap();
         seen[1..].sort();
         assert_eq!(

@@ -149,7 +149,7 @@ struct Shown {
 /// signal's exception.
 fn drive<T: Send>(
     py: Python<'_>,
-    show: bool,
+    mut show: bool,
     label: &str,
     delay: Duration,
     shown: &Mutex<Shown>,
@@ -170,20 +170,32 @@ fn drive<T: Send>(
                 stop.request();
                 signal = Some(e);
             }
-            if show && bar.is_none() && start.elapsed() >= delay && !finished {
-                let module = py.import("jointplay._progress")?;
-                bar = Some(module.getattr("Bar")?.call1((label,))?);
-            }
-            if let Some(b) = &bar {
-                let s = shown.lock().unwrap_or_else(|e| e.into_inner());
-                b.call_method1("update", (s.fraction, s.message.as_str()))?;
+            // A bar that cannot be drawn is given up (its error printed once); the
+            // computation goes on.
+            let mut draw = || -> PyResult<()> {
+                if show && bar.is_none() && start.elapsed() >= delay && !finished {
+                    let module = py.import("jointplay._progress")?;
+                    bar = Some(module.getattr("Bar")?.call1((label,))?);
+                }
+                if let Some(b) = &bar {
+                    let s = shown.lock().unwrap_or_else(|e| e.into_inner());
+                    b.call_method1("update", (s.fraction, s.message.as_str()))?;
+                }
+                Ok(())
+            };
+            if let Err(e) = draw() {
+                e.display(py);
+                show = false;
+                bar = None;
             }
             if finished {
                 break;
             }
         }
-        if let Some(b) = &bar {
-            b.call_method0("close")?;
+        if let Some(b) = &bar
+            && let Err(e) = b.call_method0("close")
+        {
+            e.display(py);
         }
         py.detach(|| handle.join())
             .map_err(|_| PyRuntimeError::new_err("jointplay: the computation thread panicked"))
