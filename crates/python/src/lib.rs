@@ -35,8 +35,8 @@ use jointplay_analysis::study::{Study, edit, lookup};
 use jointplay_analysis::summary::Summary;
 use jointplay_solver::model::Model;
 use jointplay_solver::scene::{SceneFile, SceneSpec};
+use numpy::PyArray;
 use numpy::ndarray::{ArrayD, ArrayView1, ArrayView2, IxDyn};
-use numpy::{PyArray, PyArrayDyn};
 use pyo3::create_exception;
 use pyo3::exceptions::{PyException, PyKeyError, PyKeyboardInterrupt, PyRuntimeError, PyTypeError};
 use pyo3::prelude::*;
@@ -840,12 +840,8 @@ impl H5 {
         Ok(d)
     }
 
-    /// A dataset as a numpy float64 array of its shape.
-    fn __getitem__<'py>(
-        &self,
-        py: Python<'py>,
-        path: &str,
-    ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+    /// A dataset: numbers as a numpy float64 array of its shape, text as a list of str.
+    fn __getitem__<'py>(&self, py: Python<'py>, path: &str) -> PyResult<Bound<'py, PyAny>> {
         let f = self.open()?;
         let ds = f.dataset(path).map_err(|_| {
             PyKeyError::new_err(format!(
@@ -853,11 +849,19 @@ impl H5 {
                 self.path.display()
             ))
         })?;
-        let a: ArrayD<f64> = ds
-            .read_dyn::<f64>()
-            .map_err(|e| err(format!("{}: {path}: {e}", self.path.display())))?;
-        let a = a.into_shape_with_order(IxDyn(&ds.shape())).map_err(err)?;
-        Ok(PyArray::from_owned_array(py, a))
+        let bad = |e: hdf5::Error| err(format!("{}: {path}: {e}", self.path.display()));
+        match ds.dtype().and_then(|t| t.to_descriptor()).map_err(bad)? {
+            TypeDescriptor::VarLenUnicode => {
+                let v = ds.read_raw::<VarLenUnicode>().map_err(bad)?;
+                let items: Vec<&str> = v.iter().map(|s| s.as_str()).collect();
+                Ok(PyList::new(py, items)?.into_any())
+            }
+            _ => {
+                let a: ArrayD<f64> = ds.read_dyn::<f64>().map_err(bad)?;
+                let a = a.into_shape_with_order(IxDyn(&ds.shape())).map_err(err)?;
+                Ok(PyArray::from_owned_array(py, a).into_any())
+            }
+        }
     }
 
     fn __contains__(&self, path: &str) -> PyResult<bool> {
@@ -905,11 +909,7 @@ struct StudyResult {
 
 #[pymethods]
 impl StudyResult {
-    fn __getitem__<'py>(
-        &self,
-        py: Python<'py>,
-        path: &str,
-    ) -> PyResult<Bound<'py, PyArrayDyn<f64>>> {
+    fn __getitem__<'py>(&self, py: Python<'py>, path: &str) -> PyResult<Bound<'py, PyAny>> {
         self.data.get().__getitem__(py, path)
     }
 

@@ -117,8 +117,8 @@ class H5:
     @property
     def units(self) -> dict[str, str]:
         """The SI unit of every dataset that states one."""
-    def __getitem__(self, path: str) -> npt.NDArray[np.float64]:
-        """A dataset as float64 (flags and counters too)."""
+    def __getitem__(self, path: str) -> Union[npt.NDArray[np.float64], list[str]]:
+        """A dataset: numbers as float64 (flags and counters too), text as a list of str."""
     def __contains__(self, path: str) -> bool: ...
 
 def load(path: StrPath) -> H5:
@@ -140,7 +140,7 @@ class StudyResult:
     table_file: Optional[str]
     figures: list[str]
     warnings: list[str]
-    def __getitem__(self, path: str) -> npt.NDArray[np.float64]: ...
+    def __getitem__(self, path: str) -> Union[npt.NDArray[np.float64], list[str]]: ...
 
 def run_study(
     source: StrPath,
