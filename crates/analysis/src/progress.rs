@@ -131,6 +131,28 @@ parameter = "gamma"
 values = [0.2, 0.3, 0.4]
 "#;
 
+    /// A resumed computation of 4 jobs, 1 done before: finished jobs count whole, running ones
+    /// by their fraction, over the jobs that run now.
+    #[test]
+    fn a_tally_counts_jobs_done_before_and_the_fractions_of_running_ones() {
+        let mut t = Tally::default();
+        t.update(Progress::Start {
+            total: 4,
+            pending: 3,
+        });
+        t.update(Progress::Fraction {
+            job: 1,
+            fraction: 0.5,
+        });
+        t.update(Progress::Fraction {
+            job: 2,
+            fraction: 0.25,
+        });
+        t.update(Progress::Done { job: 2, ok: true });
+        assert_eq!(t.jobs(), (2, 4));
+        assert_eq!(t.fraction(), 0.5);
+    }
+
     /// A sweep says how many values it runs, then reports each value's fraction and its end,
     /// naming the value by its index.
     #[test]

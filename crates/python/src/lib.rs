@@ -936,8 +936,8 @@ struct Done {
     table: Option<(String, PathBuf)>,
     figures: Vec<PathBuf>,
     warnings: Vec<String>,
-    /// Stopped on request.
-    interrupted: bool,
+    /// Stopped on request with values left that `resume` runs.
+    resumable: bool,
 }
 
 fn study_result(py: Python<'_>, d: &Done) -> PyResult<StudyResult> {
@@ -988,7 +988,7 @@ fn comparison(
         table: Some((table, table_file)),
         figures,
         warnings: cases.warnings(),
-        interrupted: stop.requested(),
+        resumable: false,
     })
 }
 
@@ -1035,7 +1035,7 @@ fn analysis(
         table: None,
         figures,
         warnings: o.warnings,
-        interrupted: o.interrupted,
+        resumable: o.interrupted && st.spec.sweep.is_some(),
     })
 }
 
@@ -1074,7 +1074,7 @@ fn work_precision(
         table: Some((table, md)),
         figures,
         warnings: Vec::new(),
-        interrupted: false,
+        resumable: false,
     })
 }
 
@@ -1211,7 +1211,7 @@ fn run_study(
                 "{}: interrupted; {} keeps what was computed{}",
                 path.display(),
                 done.file.display(),
-                if done.interrupted && kind.is_analysis() {
+                if done.resumable {
                     " (resume=True runs the rest)"
                 } else {
                     ""
