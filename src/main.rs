@@ -12,7 +12,6 @@
 //! * `jointplay plot FILE.h5`: redraw an analysis file's figures without simulating.
 //! * `jointplay precision STUDY_OR_SCENE --out DIR`: work-precision of every integrator.
 
-use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::time::Instant;
@@ -28,7 +27,7 @@ use jointplay_analysis::inputs::Input;
 use jointplay_analysis::nonlinear::{Loaded, Options, execute};
 use jointplay_analysis::plot::{Format, figure};
 use jointplay_analysis::precision;
-use jointplay_analysis::progress::Progress;
+use jointplay_analysis::progress::{Progress, Tally};
 use jointplay_analysis::report::{self, markdown};
 use jointplay_analysis::run::{resume, simulate};
 use jointplay_analysis::shards::{Shard, merge};
@@ -545,28 +544,13 @@ fn run_analysis(
         "{spinner} [{elapsed_precise}] {bar:40} {msg} (eta {eta})",
     );
     let start = Instant::now();
-    // Per-job fraction done, the jobs finished, and how many run now.
-    let state = Mutex::new((BTreeMap::<usize, f64>::new(), 0usize, 0usize, 0usize));
+    let tally = Mutex::new(Tally::default());
     let progress = |p: Progress| {
-        let mut s = state.lock().unwrap_or_else(|e| e.into_inner());
-        match p {
-            Progress::Start { total, pending } => {
-                s.2 = pending;
-                s.3 = total - pending;
-            }
-            Progress::Fraction { job, fraction } => {
-                s.0.insert(job, fraction);
-            }
-            Progress::Done { job, .. } => {
-                s.0.remove(&job);
-                s.1 += 1;
-            }
-            Progress::Reference | Progress::Check | Progress::Run { .. } => {}
-        }
-        let running: f64 = s.0.values().sum();
-        let frac = (s.1 as f64 + running) / s.2.max(1) as f64;
-        bar.set_position((frac * 1000.0) as u64);
-        bar.set_message(format!("{} of {} values done", s.1 + s.3, s.2 + s.3));
+        let mut t = tally.lock().unwrap_or_else(|e| e.into_inner());
+        t.update(p);
+        let (done, total) = t.jobs();
+        bar.set_position((t.fraction() * 1000.0) as u64);
+        bar.set_message(format!("{done} of {total} values done"));
         if !quiet && start.elapsed().as_secs_f64() > 1.0 && bar.is_hidden() {
             bar.set_draw_target(ProgressDrawTarget::stderr());
         }

@@ -69,6 +69,10 @@ pub enum Error {
         field: String,
         message: String,
     },
+    /// A computation stopped on request ([`progress::Stop`]), at simulated time `time` (s) when
+    /// it stopped inside a run.
+    #[error("interrupted on request{}", .time.map(|t| format!(" at t = {t} s")).unwrap_or_default())]
+    Interrupted { time: Option<f64> },
     #[error("case '{label}': {inner}")]
     Case { label: String, inner: Box<Error> },
     #[error("{file}: plot: {message}")]

@@ -9,8 +9,8 @@
 //! **Sweeps.** Each value of the swept parameter is one job. Independent jobs run in parallel on
 //! rayon's pool; with `continuation = true` the jobs run in order up the list and back down, each
 //! starting from the previous job's final state. Every job's results are written into the file as
-//! soon as it finishes (the writer is the calling thread; workers send results through a
-//! channel) and the file is flushed, so an interrupted sweep keeps every finished job: the file's
+//! soon as it finishes (the jobs run on the caller's rayon pool and send their results through a
+//! channel to one writer thread) and the file is flushed, so an interrupted sweep keeps every finished job: the file's
 //! `complete` attribute is 0 until all jobs are done, `/sweep/done` marks each job (0 not run,
 //! 1 done, 2 failed, its message in `/sweep/errors`), and `resume` runs only the jobs not done.
 //! Each job's result depends only on its inputs, so the datasets are bit-identical whatever the
@@ -42,7 +42,7 @@ use crate::h5::{
 };
 use crate::hybrid;
 use crate::observe::Observable;
-use crate::progress::Progress;
+use crate::progress::{Progress, Stop};
 use crate::sections::{Direction, Hyperplane, Plan, Trace, trace_partial};
 use crate::shards::Shard;
 use crate::study::{edit, edited_scene, invalid};
@@ -56,6 +56,8 @@ use jointplay_solver::ode::OdeSystem;
 pub struct AnalysisStudy {
     pub study: Header,
     pub analysis: AnalysisSpec,
+    /// Default for a built-in system: its state names (see [`AnalysisStudy::parse_spec`]).
+    #[serde(default)]
     pub observables: Vec<ObservableSpec>,
     #[serde(default)]
     pub sections: Vec<SectionSpec>,
@@ -339,9 +341,24 @@ struct Edit {
 }
 
 impl AnalysisStudy {
-    /// Parses the spec alone (no scene is read): what `plot` needs.
+    /// Parses the spec alone (no scene is read): what `plot` needs. A built-in system without
+    /// `[[observables]]` observes its state, each component under its own name.
     pub fn parse_spec(text: &str, path: &Path) -> Result<AnalysisStudy> {
-        Ok(jointplay_solver::scene::parse_toml(text, path)?)
+        let mut spec: AnalysisStudy = jointplay_solver::scene::parse_toml(text, path)?;
+        if spec.observables.is_empty()
+            && let Some(Ok(sys)) = spec.study.system.as_ref().map(SystemSpec::parse)
+        {
+            spec.observables = sys
+                .builtin
+                .state_names()
+                .iter()
+                .map(|n| ObservableSpec {
+                    name: n.to_string(),
+                    path: n.to_string(),
+                })
+                .collect();
+        }
+        Ok(spec)
     }
 
     /// The observable index of `name`.
@@ -392,7 +409,12 @@ impl Loaded {
             ));
         }
         if spec.observables.is_empty() {
-            return Err(invalid(path, "observables", "name at least one observable"));
+            return Err(invalid(
+                path,
+                "observables",
+                "name at least one observable ([[observables]] with name and path; only a \
+                 built-in system has a default, its state)",
+            ));
         }
         let mut names = BTreeMap::new();
         for (i, o) in spec.observables.iter().enumerate() {
@@ -743,8 +765,9 @@ impl Loaded {
         value: Option<f64>,
         start: Option<&HybridState>,
         progress: &mut dyn FnMut(f64),
+        stop: &Stop,
     ) -> Result<JobResult> {
-        let (r, failure) = self.run_job_partial(value, start, progress)?;
+        let (r, failure) = self.run_job_partial(value, start, progress, stop)?;
         match failure {
             Some(e) => Err(e),
             None => Ok(r),
@@ -764,6 +787,7 @@ impl Loaded {
         value: Option<f64>,
         start: Option<&HybridState>,
         progress: &mut dyn FnMut(f64),
+        stop: &Stop,
     ) -> Result<(JobResult, Option<Error>)> {
         let t0 = Instant::now();
         let target = self.target(value)?;
@@ -774,7 +798,7 @@ impl Loaded {
         }
         flow.prepare(&state)?;
         let plan = self.plan(flow.method(), state.t, flow.period());
-        let (tr, res) = trace_partial(&mut flow, &plan, &mut state, progress);
+        let (tr, res) = trace_partial(&mut flow, &plan, &mut state, progress, stop);
         let chaos = match &res {
             Ok(()) => self.chaos(&target, &mut flow, &tr)?,
             Err(_) => None,
@@ -867,12 +891,12 @@ impl Loaded {
 
     /// Runs the single run of a study without a sweep and returns its result.
     pub fn run_single(&self, progress: &mut dyn FnMut(f64)) -> Result<JobResult> {
-        self.run_job(None, None, progress)
+        self.run_job(None, None, progress, &Stop::new())
     }
 
     /// Runs the job with parameter `value` alone (tests, scripting).
     pub fn run_value(&self, value: f64, progress: &mut dyn FnMut(f64)) -> Result<JobResult> {
-        self.run_job(Some(value), None, progress)
+        self.run_job(Some(value), None, progress, &Stop::new())
     }
 
     /// Runs the job with parameter `value` from `start`, another job's final state, as a
@@ -884,7 +908,7 @@ impl Loaded {
         start: &HybridState,
         progress: &mut dyn FnMut(f64),
     ) -> Result<JobResult> {
-        self.run_job(Some(value), Some(start), progress)
+        self.run_job(Some(value), Some(start), progress, &Stop::new())
     }
 }
 
@@ -906,8 +930,11 @@ pub struct Outcome {
     /// Jobs in the file: every value of the sweep, or a shard's values.
     pub jobs: usize,
     pub ran: usize,
-    /// Every job of the file done (or failed); false when stopped by `max_jobs`.
+    /// Every job of the file done (or failed); false when stopped by `max_jobs` or on request.
     pub complete: bool,
+    /// Stopped on request ([`execute_until`]): a single run written incomplete, or a sweep with
+    /// values left to run.
+    pub interrupted: bool,
     /// Failed jobs: their index in the whole sweep and the message.
     pub failed: Vec<(usize, String)>,
     /// Warnings of a single run (the scene's and the step-size guard's).
@@ -937,6 +964,21 @@ pub fn execute(
     version: &str,
     progress: &(dyn Fn(Progress) + Sync),
 ) -> Result<Outcome> {
+    execute_until(st, dir, opts, version, progress, &Stop::new())
+}
+
+/// [`execute`] that ends early when `stop` is requested. A single run is then written with what
+/// it recorded, marked incomplete with the time it stopped (`stopped_at`); a sweep keeps the
+/// values finished before, leaves the interrupted ones not run (`/sweep/done` 0, for `resume`)
+/// and starts no other. [`Outcome::interrupted`] says so.
+pub fn execute_until(
+    st: &Loaded,
+    dir: &Path,
+    opts: Options,
+    version: &str,
+    progress: &(dyn Fn(Progress) + Sync),
+    user_stop: &Stop,
+) -> Result<Outcome> {
     let start = Instant::now();
     let name = &st.spec.study.name;
     let Some(sw) = &st.spec.sweep else {
@@ -952,7 +994,8 @@ pub fn execute(
             pending: 1,
         });
         // A run that fails keeps what it recorded, in a file marked incomplete.
-        let (r, failure) = st.run_job_partial(None, None, &mut throttled(0, progress))?;
+        let (r, failure) =
+            st.run_job_partial(None, None, &mut throttled(0, progress), user_stop)?;
         progress(Progress::Done {
             job: 0,
             ok: failure.is_none(),
@@ -965,17 +1008,23 @@ pub fn execute(
             }
             if let Some(e) = &failure {
                 str_attr(file, "error", &e.to_string())?;
-                if let Error::Solver(jointplay_solver::Error::Diverged { time, .. }) = e {
+                if let Error::Solver(jointplay_solver::Error::Diverged { time, .. })
+                | Error::Interrupted {
+                    time: Some(time), ..
+                } = e
+                {
                     f64_attr(file, "stopped_at", *time)?;
                 }
             }
             write_single(file, st, &r)
         })?;
+        let interrupted = matches!(failure, Some(Error::Interrupted { .. }));
         return Ok(Outcome {
             file,
             jobs: 1,
             ran: 1,
-            complete: true,
+            complete: !interrupted,
+            interrupted,
             failed: failure.map(|e| (0, e.to_string())).into_iter().collect(),
             warnings: r.warnings,
             wall: start.elapsed().as_secs_f64(),
@@ -1069,6 +1118,8 @@ pub fn execute(
     let mut write = |r: usize, res: Result<JobResult>, done: &mut Vec<u8>| -> Result<()> {
         let j = rows[r];
         match res {
+            // An interrupted value is left to run again (done = 0).
+            Err(Error::Interrupted { .. }) => return Ok(()),
             Ok(res) => {
                 rhs += res.trace.stats.rhs_evals;
                 write_job(&file, st, r, &res).map_err(&e)?;
@@ -1100,7 +1151,7 @@ pub fn execute(
         let mut prev: Option<HybridState> = None;
         let sweep = file.group("sweep").map_err(&e)?;
         for j in 0..n {
-            if stop.load(Ordering::SeqCst) {
+            if stop.load(Ordering::SeqCst) || user_stop.requested() {
                 break;
             }
             if done[j] != 0 {
@@ -1115,38 +1166,57 @@ pub fn execute(
                 Some(st.jobs[j].0),
                 prev.as_ref(),
                 &mut throttled(j, progress),
+                user_stop,
             );
             prev = res.as_ref().ok().map(|r| r.trace.final_state.clone());
             write(j, res, &mut done)?;
         }
     } else {
+        // The jobs run on the caller's rayon pool (the global one, or one it installed); a
+        // thread of its own writes each result as it comes.
         let (tx, rx) = mpsc::channel::<(usize, Result<JobResult>)>();
-        let mut write_err = None;
-        std::thread::scope(|scope| {
-            let (pending, stop, rows) = (&pending, &stop, &rows);
-            scope.spawn(move || {
-                pending.par_iter().for_each_with(tx, |tx, &r| {
-                    if stop.load(Ordering::SeqCst) {
-                        return;
+        let write_err = std::thread::scope(|scope| {
+            let (stop, done) = (&stop, &mut done);
+            let writer = scope.spawn(move || {
+                let mut write_err = None;
+                for (r, res) in rx {
+                    // Jobs that were running when the limit was reached are dropped unwritten.
+                    if write_err.is_none()
+                        && !stop.load(Ordering::SeqCst)
+                        && let Err(err) = write(r, res, done)
+                    {
+                        // Stop the other jobs: their results could not be written.
+                        stop.store(true, Ordering::SeqCst);
+                        write_err = Some(err);
                     }
-                    let j = rows[r];
-                    let res = st.run_job(Some(st.jobs[j].0), None, &mut throttled(j, progress));
-                    // The receiver lives until every sender is gone.
-                    let _ = tx.send((r, res));
-                });
-            });
-            for (r, res) in rx {
-                // Jobs that were running when the limit was reached are dropped unwritten.
-                if write_err.is_none()
-                    && !stop.load(Ordering::SeqCst)
-                    && let Err(err) = write(r, res, &mut done)
-                {
-                    write_err = Some(err);
                 }
-            }
+                write_err
+            });
+            pending.par_iter().for_each_with(tx, |tx, &r| {
+                if stop.load(Ordering::SeqCst) || user_stop.requested() {
+                    return;
+                }
+                let j = rows[r];
+                let res = st.run_job(
+                    Some(st.jobs[j].0),
+                    None,
+                    &mut throttled(j, progress),
+                    user_stop,
+                );
+                // The writer lives until every sender is gone.
+                let _ = tx.send((r, res));
+            });
+            writer.join()
         });
-        if let Some(err) = write_err {
-            return Err(err);
+        match write_err {
+            Ok(None) => {}
+            Ok(Some(err)) => return Err(err),
+            Err(_) => {
+                return Err(Error::Io {
+                    file: path.clone(),
+                    message: "the thread writing the sweep's results stopped unexpectedly".into(),
+                });
+            }
         }
     }
     let wall = start.elapsed().as_secs_f64();
@@ -1159,6 +1229,7 @@ pub fn execute(
         jobs: n,
         ran: finished,
         complete,
+        interrupted: user_stop.requested() && !complete,
         failed,
         warnings: Vec::new(),
         wall,

@@ -47,7 +47,7 @@ use crate::h5::{
 };
 use crate::nonlinear::Loaded;
 use crate::observe::Observable;
-use crate::progress::Progress;
+use crate::progress::{Progress, Stop};
 use crate::sections::Observed;
 use crate::study::invalid;
 use crate::{Error, Result};
@@ -745,8 +745,27 @@ impl Precision {
 
     /// Runs the reference, the check and every tested method.
     pub fn execute(&mut self, progress: &mut dyn FnMut(Progress)) -> Result<Outcome> {
+        self.execute_until(progress, &Stop::new())
+    }
+
+    /// [`Precision::execute`] that ends with [`Error::Interrupted`] when `stop` is requested,
+    /// checked before each run (a run, timed as a whole, is not cut short); nothing is kept.
+    pub fn execute_until(
+        &mut self,
+        progress: &mut dyn FnMut(Progress),
+        stop: &Stop,
+    ) -> Result<Outcome> {
+        let check_stop = || {
+            if stop.requested() {
+                Err(Error::Interrupted { time: None })
+            } else {
+                Ok(())
+            }
+        };
+        check_stop()?;
         progress(Progress::Reference);
         let r = self.reference()?;
+        check_stop()?;
         progress(Progress::Check);
         let check = self.measure(self.check, &r, false);
         if let Some(f) = &check.failure {
@@ -760,6 +779,7 @@ impl Precision {
         let total = self.total_runs();
         for (_, ms) in self.families.clone() {
             for m in ms {
+                check_stop()?;
                 let what = m.describe();
                 progress(Progress::Run {
                     done: runs.len(),

@@ -30,6 +30,7 @@ use jointplay_solver::state::HybridState;
 
 use crate::Result;
 use crate::observe::Observable;
+use crate::progress::Stop;
 
 /// One recorded dataset: the observables of one path (see [`crate::observe`]), one per column,
 /// evaluated at every sample.
@@ -499,11 +500,23 @@ pub struct RunResult {
     pub stopped: Option<Stopped>,
 }
 
+/// The message of a run stopped on request.
+const INTERRUPTED: &str = "interrupted on request; the samples before it are kept";
+
 impl RunResult {
-    /// The run as a `Result`: an error when it stopped before its end time.
+    /// True when the run was stopped on request ([`simulate_until`]) rather than by a failure.
+    pub fn interrupted(&self) -> bool {
+        self.stopped
+            .as_ref()
+            .is_some_and(|s| s.message == INTERRUPTED)
+    }
+
+    /// The run as a `Result`: an error when it stopped before its end time
+    /// ([`crate::Error::Interrupted`] when it was stopped on request).
     pub fn finished(self) -> Result<RunResult> {
         match &self.stopped {
             None => Ok(self),
+            Some(s) if self.interrupted() => Err(crate::Error::Interrupted { time: Some(s.time) }),
             Some(s) => Err(jointplay_solver::Error::Diverged {
                 time: s.time,
                 message: s.message.clone(),
@@ -517,10 +530,18 @@ impl RunResult {
 /// `progress` receives the fraction of the span done after every sample. Errors only when the
 /// initial state cannot be assembled; a failure later returns what was recorded, with
 /// [`RunResult::stopped`] set.
-pub fn simulate(
+pub fn simulate(model: &Model, state: State, progress: &mut dyn FnMut(f64)) -> Result<RunResult> {
+    simulate_until(model, state, progress, &Stop::new())
+}
+
+/// [`simulate`] that also ends when `stop` is requested (checked at every sample): the run then
+/// keeps the samples recorded so far, and [`RunResult::stopped`] says it was interrupted and
+/// when ([`RunResult::interrupted`]).
+pub fn simulate_until(
     model: &Model,
     mut state: State,
     progress: &mut dyn FnMut(f64),
+    stop: &Stop,
 ) -> Result<RunResult> {
     let assembly = model.assemble(&mut state)?;
     record(
@@ -528,6 +549,7 @@ pub fn simulate(
         HybridState::new(state.t, state.y),
         assembly,
         progress,
+        stop,
     )
 }
 
@@ -567,7 +589,7 @@ pub fn resume(
         initial_velocity_residual: v,
         final_velocity_residual: v,
     };
-    record(model, state, assembly, progress)
+    record(model, state, assembly, progress, &Stop::new())
 }
 
 /// Integrates `model` from the hybrid state `state` to the end time and records the outputs at
@@ -577,6 +599,7 @@ fn record(
     mut state: HybridState,
     assembly: AssemblyReport,
     progress: &mut dyn FnMut(f64),
+    stop: &Stop,
 ) -> Result<RunResult> {
     let mut samples = model.sample_times();
     samples.retain(|&t| t >= state.t);
@@ -586,6 +609,9 @@ fn record(
     let mut failure = None;
     // Outputs are evaluated with the system's own workspace, so that they see its contact history.
     let mut observe = |sys: &mut Mechanism, t: f64, y: &[f64]| -> Result<()> {
+        if stop.requested() {
+            return Err(crate::Error::Interrupted { time: Some(t) });
+        }
         model.accelerations(t, y, &mut sys.ws);
         rec.sample(&order, model, &mut sys.ws, t, y)?;
         progress((t - t0) / (t1 - t0));
@@ -614,6 +640,11 @@ fn record(
         ),
     };
     let stopped = match (failure, res) {
+        // Nothing of the sample at `time` was recorded.
+        (Some(crate::Error::Interrupted { time: Some(time) }), _) => Some(Stopped {
+            time,
+            message: INTERRUPTED.into(),
+        }),
         (Some(e), _) => {
             // The failed sample may be partly recorded: keep only the complete ones.
             let t_fail = rec.time.last().copied().unwrap_or(t0);
@@ -799,5 +830,40 @@ mod tests {
         // The failed sample is dropped whole.
         rec.truncate(0);
         assert!(rec.time.is_empty() && rec.channels.iter().all(|c| c.values.is_empty()));
+    }
+
+    /// A stop requested halfway ends the run at the next sample: the samples before it are
+    /// kept whole and equal those of the run to its end, and the run says it was interrupted.
+    #[test]
+    fn a_stopped_run_keeps_the_samples_before_the_stop() {
+        let (m, state) = model("pendulum.toml");
+        let whole = simulate(&m, state.clone(), &mut |_| {}).unwrap();
+        let stop = Stop::new();
+        let part = simulate_until(
+            &m,
+            state,
+            &mut |f| {
+                if f > 0.5 {
+                    stop.request()
+                }
+            },
+            &stop,
+        )
+        .unwrap();
+        assert!(part.interrupted() && whole.stopped.is_none());
+        let n = part.recording.time.len();
+        assert!(n > 100 && n < whole.recording.time.len() / 2 + 10, "{n}");
+        assert_eq!(part.recording.time[..], whole.recording.time[..n]);
+        for (a, b) in part
+            .recording
+            .channels
+            .iter()
+            .zip(&whole.recording.channels)
+        {
+            assert_eq!(a.values.len(), n * a.width());
+            assert_eq!(a.values[..], b.values[..a.values.len()], "{}", a.dataset);
+        }
+        let err = part.finished().unwrap_err().to_string();
+        assert!(err.starts_with("interrupted on request at t = "), "{err}");
     }
 }

@@ -23,6 +23,7 @@ use jointplay_solver::ode::{Flow, Method, OdeSystem, Stats, Step, advance};
 use jointplay_solver::state::HybridState;
 
 use crate::Result;
+use crate::progress::Stop;
 
 /// A flow whose observables can be evaluated at any state.
 pub trait Observed: OdeSystem {
@@ -185,17 +186,19 @@ pub fn trace<S: Observed>(
     state: &mut HybridState,
     progress: &mut dyn FnMut(f64),
 ) -> Result<Trace> {
-    let (tr, res) = trace_partial(sys, plan, state, progress);
+    let (tr, res) = trace_partial(sys, plan, state, progress, &Stop::new());
     res.map(|()| tr)
 }
 
 /// [`trace`] that returns what was recorded also when the run fails (with the error): samples,
-/// strobe points and crossings up to the failure, and the last accepted state.
+/// strobe points and crossings up to the failure, and the last accepted state. It also ends,
+/// with [`crate::Error::Interrupted`], after the first accepted step once `stop` is requested.
 pub fn trace_partial<S: Observed>(
     sys: &mut S,
     plan: &Plan,
     state: &mut HybridState,
     progress: &mut dyn FnMut(f64),
+    stop: &Stop,
 ) -> (Trace, Result<()>) {
     let no = sys.n_obs();
     let samples = plan.samples();
@@ -257,6 +260,10 @@ pub fn trace_partial<S: Observed>(
     let mut step_fail = None;
     let mut on_step = |sys: &mut S, st: &Step| -> Flow {
         progress((st.t1 - plan.start) / span);
+        if stop.requested() {
+            step_fail = Some(crate::Error::Interrupted { time: Some(st.t1) });
+            return Flow::Stop;
+        }
         if planes.is_empty() || st.t1 <= tw {
             return Flow::Continue;
         }

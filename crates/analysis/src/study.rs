@@ -9,9 +9,12 @@
 //! A path is a dot-separated list of keys. Where the tree holds an array of tables (bodies, joints,
 //! drives, springs, loads), a segment selects the element whose `name` equals it, `*` selects every
 //! element, and a number selects by position: `joints.S2.clearance.radial_clearance`,
-//! `drives.*.profile.omega`. A path with `*` edits only the elements where it exists; a path that
-//! edits nothing is an error, so a typo never passes silently. Study-level `set` and `remove` apply
-//! to every case before the case's own.
+//! `drives.*.profile.omega`. In an array of numbers (a vector) a segment selects a component by
+//! index or every component (`*`): `bodies.ball.velocity.0`, `gravity.1`. A path with `*` edits
+//! only the elements where the path up to its last key exists, and `set` adds that key there; a
+//! path that edits nothing is an error, and a key the scene format does not know is refused when
+//! the edited scene is parsed, so a typo never passes silently. Study-level `set` and `remove`
+//! apply to every case before the case's own.
 //!
 //! The edited scene text is stored in the output file with each case, so every run can be repeated
 //! from the file alone.
@@ -25,8 +28,8 @@ use rayon::prelude::*;
 use serde::Deserialize;
 use toml::{Table, Value};
 
-use crate::progress::Progress;
-use crate::run::{RunResult, simulate};
+use crate::progress::{Progress, Stop};
+use crate::run::{RunResult, simulate_until};
 use crate::{Error, Result};
 
 /// A study file.
@@ -326,6 +329,17 @@ impl Study {
     /// cases compile and [`Progress::Done`] as each case ends, its job being the case's index.
     /// The runs come back in the order of the cases, each failure wrapped with its case's label.
     pub fn run(&self, progress: &(dyn Fn(Progress) + Sync)) -> Result<Vec<Result<CaseRun>>> {
+        self.run_until(progress, &Stop::new())
+    }
+
+    /// [`Study::run`] that ends early when `stop` is requested: a case then running ends with
+    /// [`Error::Interrupted`] (wrapped with its label), and the cases not started end so at once.
+    /// A running case also reports [`Progress::Fraction`].
+    pub fn run_until(
+        &self,
+        progress: &(dyn Fn(Progress) + Sync),
+        stop: &Stop,
+    ) -> Result<Vec<Result<CaseRun>>> {
         let compiled = self
             .cases
             .iter()
@@ -340,7 +354,14 @@ impl Study {
             .into_par_iter()
             .zip(self.cases.par_iter().enumerate())
             .map(|((model, state), (job, c))| {
-                let result = simulate(&model, state, &mut |_| {})
+                let mut last = 0.0;
+                let mut fraction = |f: f64| {
+                    if f - last >= 1e-3 {
+                        last = f;
+                        progress(Progress::Fraction { job, fraction: f });
+                    }
+                };
+                let result = simulate_until(&model, state, &mut fraction, stop)
                     .and_then(RunResult::finished)
                     .map_err(|e| {
                         progress(Progress::Done { job, ok: false });
@@ -422,17 +443,105 @@ pub fn edit(tree: &mut Table, path: &str, value: Option<&Value>) -> Result<(), S
     }
 }
 
+/// The values at `path` in `tree`, selected as [`edit`] selects them (names, positions, `*`, a
+/// vector's components): one value for a path without `*`, every match for one with it. An
+/// error names what is missing.
+pub fn lookup<'t>(tree: &'t Table, path: &str) -> Result<Vec<&'t Value>, String> {
+    let segs: Vec<&str> = path.split('.').collect();
+    if segs.iter().any(|s| s.is_empty()) {
+        return Err("empty path segment".into());
+    }
+    let mut found = Vec::new();
+    find(tree, &segs, segs.contains(&"*"), &mut found)?;
+    if found.is_empty() {
+        return Err("matches nothing".into());
+    }
+    Ok(found)
+}
+
+fn find<'t>(
+    t: &'t Table,
+    segs: &[&str],
+    wild: bool,
+    found: &mut Vec<&'t Value>,
+) -> Result<(), String> {
+    let (head, rest) = (segs[0], &segs[1..]);
+    let v = match t.get(head) {
+        None if wild => return Ok(()),
+        None => {
+            return Err(format!(
+                "no key '{head}' (a field left at its default is not in the scene)"
+            ));
+        }
+        Some(v) => v,
+    };
+    if rest.is_empty() {
+        found.push(v);
+        return Ok(());
+    }
+    match v {
+        Value::Table(sub) => find(sub, rest, wild, found),
+        Value::Array(items) if !items.iter().all(Value::is_table) => {
+            if rest.len() > 1 {
+                return Err(format!(
+                    "'{head}.{}' is a number; nothing lies below it",
+                    rest[0]
+                ));
+            }
+            if rest[0] == "*" {
+                found.extend(items);
+                return Ok(());
+            }
+            match rest[0].parse::<usize>() {
+                Ok(k) if k < items.len() => {
+                    found.push(&items[k]);
+                    Ok(())
+                }
+                Ok(k) => Err(format!(
+                    "index {k} is out of range: '{head}' has {} components",
+                    items.len()
+                )),
+                Err(_) => Err(format!(
+                    "'{head}' is an array of numbers: select a component by index (0, 1, ...) or '*', not '{}'",
+                    rest[0]
+                )),
+            }
+        }
+        Value::Array(items) => {
+            let sel = rest[0];
+            let before = found.len();
+            for (k, item) in items.iter().enumerate() {
+                let Value::Table(it) = item else { continue };
+                let hit = sel == "*"
+                    || sel.parse::<usize>() == Ok(k)
+                    || it.get("name").and_then(Value::as_str) == Some(sel);
+                if hit {
+                    if rest.len() == 1 {
+                        found.push(item);
+                    } else {
+                        find(it, &rest[1..], wild, found)?;
+                    }
+                }
+            }
+            if found.len() == before && !wild {
+                return Err(format!("no element '{sel}' in '{head}'"));
+            }
+            Ok(())
+        }
+        _ if wild => Ok(()),
+        _ => Err(format!("'{head}' is a value, not a table")),
+    }
+}
+
 fn walk(t: &mut Table, segs: &[&str], value: Option<&Value>, wild: bool) -> Result<usize, String> {
     let (head, rest) = (segs[0], &segs[1..]);
     if rest.is_empty() {
+        // A wildcard path adds the key wherever its parent table exists; the scene's schema
+        // refuses a key it does not know when the edited scene is parsed.
         return Ok(match value {
             Some(v) => {
-                if wild && !t.contains_key(head) {
-                    0
-                } else {
-                    t.insert(head.to_string(), v.clone());
-                    1
-                }
+                t.insert(head.to_string(), v.clone());
+                1
             }
             None => usize::from(t.remove(head).is_some()),
         });
@@ -441,6 +550,9 @@ fn walk(t: &mut Table, segs: &[&str], value: Option<&Value>, wild: bool) -> Resu
         None if wild => Ok(0),
         None => Err(format!("no key '{head}'")),
         Some(Value::Table(sub)) => walk(sub, rest, value, wild),
+        Some(Value::Array(items)) if !items.iter().all(Value::is_table) => {
+            component(head, items, rest, value)
+        }
         Some(Value::Array(items)) => {
             let sel = rest[0];
             let after = &rest[1..];
@@ -452,7 +564,7 @@ fn walk(t: &mut Table, segs: &[&str], value: Option<&Value>, wild: bool) -> Resu
             let mut n = 0;
             for (k, item) in items.iter_mut().enumerate() {
                 let Value::Table(it) = item else {
-                    return Err(format!("'{head}' is not an array of tables"));
+                    continue;
                 };
                 let hit = sel == "*"
                     || sel.parse::<usize>() == Ok(k)
@@ -468,6 +580,58 @@ fn walk(t: &mut Table, segs: &[&str], value: Option<&Value>, wild: bool) -> Resu
         }
         Some(_) if wild => Ok(0),
         Some(_) => Err(format!("'{head}' is a value, not a table")),
+    }
+}
+
+/// Sets component `rest[0]` (an index, or `*` for every component) of the numeric array `head`
+/// (`velocity.0`, `gravity.1`, `points.B.2`): a number replaces a number, so the array keeps its
+/// length and type. Components cannot be removed.
+fn component(
+    head: &str,
+    items: &mut [Value],
+    rest: &[&str],
+    value: Option<&Value>,
+) -> Result<usize, String> {
+    let sel = rest[0];
+    if rest.len() > 1 {
+        return Err(format!(
+            "'{head}.{sel}' is a number; nothing lies below it ('{}')",
+            rest[1..].join(".")
+        ));
+    }
+    if !items.iter().all(|v| v.is_integer() || v.is_float()) {
+        return Err(format!(
+            "'{head}' is not an array of numbers; only a number's component can be set"
+        ));
+    }
+    let Some(v) = value else {
+        return Err(format!(
+            "'{head}.{sel}': a component cannot be removed (set it instead)"
+        ));
+    };
+    if !(v.is_integer() || v.is_float()) {
+        return Err(format!(
+            "'{head}.{sel}': a component of a numeric array takes a number, not {}",
+            v.type_str()
+        ));
+    }
+    let n = items.len();
+    if sel == "*" {
+        items.iter_mut().for_each(|x| *x = v.clone());
+        return Ok(n);
+    }
+    match sel.parse::<usize>() {
+        Ok(k) if k < n => {
+            items[k] = v.clone();
+            Ok(1)
+        }
+        Ok(k) => Err(format!(
+            "index {k} is out of range: '{head}' has {n} components (0 to {})",
+            n.saturating_sub(1)
+        )),
+        Err(_) => Err(format!(
+            "'{head}' is an array of numbers: select a component by index (0, 1, ...) or '*', not '{sel}'"
+        )),
     }
 }
 
@@ -548,7 +712,7 @@ profile = { omega = 3.14 }
         assert!(
             edit(
                 &mut t,
-                "joints.*.clearance.stiffness",
+                "joints.*.clearnce.stiffness",
                 Some(&Value::Float(1.0))
             )
             .is_err()
@@ -556,5 +720,69 @@ profile = { omega = 3.14 }
         assert!(edit(&mut t, "joints.B.clearance", None).is_err());
         assert!(edit(&mut t, "solver..step", None).is_err());
         assert!(edit(&mut t, "joints.A", None).is_err());
+    }
+
+    /// `*` adds a key under every element where its parent table exists (A has a clearance, B
+    /// none); the scene's schema judges the key when the scene is parsed.
+    #[test]
+    fn a_wildcard_adds_a_key_where_the_parent_table_exists() {
+        let mut t: Table = SCENE.parse().unwrap();
+        edit(
+            &mut t,
+            "joints.*.clearance.onset_velocity_floor",
+            Some(&Value::Float(1e-4)),
+        )
+        .unwrap();
+        let j = t["joints"].as_array().unwrap();
+        assert_eq!(
+            j[0]["clearance"]["onset_velocity_floor"].as_float(),
+            Some(1e-4)
+        );
+        assert!(j[1].get("clearance").is_none());
+    }
+
+    /// A component of a numeric array is set by index or `*`; a component is never removed, an
+    /// index out of range names the length, and a non-number is refused.
+    #[test]
+    fn a_component_of_a_numeric_array_is_set_by_index() {
+        let mut t: Table = "gravity = [0.0, -9.81, 0.0]\n[[bodies]]\nname = \"b\"\nvelocity = [1.0, 2.0, 3.0]\npoints = { B = [0.1, 0.2, 0.3] }\n"
+            .parse()
+            .unwrap();
+        edit(&mut t, "bodies.b.velocity.0", Some(&Value::Float(5.0))).unwrap();
+        edit(&mut t, "gravity.1", Some(&Value::Integer(-10))).unwrap();
+        edit(&mut t, "bodies.*.points.B.2", Some(&Value::Float(0.5))).unwrap();
+        let b = &t["bodies"].as_array().unwrap()[0];
+        assert_eq!(b["velocity"].as_array().unwrap()[0].as_float(), Some(5.0));
+        assert_eq!(
+            b["points"]["B"].as_array().unwrap()[2].as_float(),
+            Some(0.5)
+        );
+        assert_eq!(t["gravity"].as_array().unwrap()[1].as_integer(), Some(-10));
+        edit(&mut t, "gravity.*", Some(&Value::Float(0.0))).unwrap();
+        assert!(
+            t["gravity"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .all(|g| g.as_float() == Some(0.0))
+        );
+        let err = |t: &mut Table, p: &str, v: Option<&Value>| edit(t, p, v).unwrap_err();
+        assert_eq!(
+            err(&mut t, "bodies.b.velocity.3", Some(&Value::Float(1.0))),
+            "index 3 is out of range: 'velocity' has 3 components (0 to 2)"
+        );
+        assert!(err(&mut t, "bodies.b.velocity.0", None).contains("cannot be removed"));
+        assert!(err(&mut t, "bodies.b.velocity.x", Some(&Value::Float(1.0))).contains("by index"));
+        assert!(
+            err(
+                &mut t,
+                "bodies.b.velocity.0",
+                Some(&Value::String("fast".into()))
+            )
+            .contains("takes a number")
+        );
+        assert!(
+            err(&mut t, "bodies.b.velocity.0.1", Some(&Value::Float(1.0))).contains("is a number")
+        );
     }
 }

@@ -1,0 +1,1247 @@
+//! jointplay for Python: the `jointplay._jointplay` extension module, built by maturin
+//! (`pip install ./crates/python`) and re-exported by the `jointplay` package.
+//!
+//! It calls the Rust crates directly: a [`Scene`] is a scene's TOML tree, read and edited by the
+//! study paths of [`jointplay_analysis::study`] and checked against the scene format on every
+//! edit; [`Scene::run`] compiles and simulates it ([`jointplay_analysis::run::simulate_until`])
+//! and hands its recording over as numpy arrays that view the run's own memory (no copy);
+//! [`run_study`] runs a comparison, analysis (sweep) or work-precision study as `jointplay run`
+//! and `jointplay precision` do, writes the same files and loads the result ([`H5`]).
+//!
+//! Long computations run on a thread of their own with the GIL released, while the calling
+//! thread draws the progress bar (`jointplay._progress`, tqdm when installed) and checks for
+//! signals every 50 ms: Ctrl-C requests a [`Stop`], the computation ends as it does on any
+//! interruption (a run keeps its samples, a sweep its finished values), and
+//! `jointplay.Interrupted`, a `KeyboardInterrupt`, is raised carrying what was kept.
+//!
+//! Every error of the program comes back as `jointplay.JointplayError` with the program's own
+//! message (file, field or path, value, time).
+
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::time::{Duration, Instant};
+
+use hdf5::types::{TypeDescriptor, VarLenUnicode};
+use jointplay_analysis::comparison::Comparison;
+use jointplay_analysis::figures::redraw;
+use jointplay_analysis::h5::{Meta, write_run};
+use jointplay_analysis::inputs::Input;
+use jointplay_analysis::nonlinear::{Loaded, Options, execute_until};
+use jointplay_analysis::plot::Format;
+use jointplay_analysis::precision;
+use jointplay_analysis::progress::{Progress, Stop, Tally};
+use jointplay_analysis::run::{RunResult, simulate_until};
+use jointplay_analysis::study::{Study, edit, lookup};
+use jointplay_analysis::summary::Summary;
+use jointplay_solver::model::Model;
+use jointplay_solver::scene::{SceneFile, SceneSpec};
+use numpy::PyArray;
+use numpy::ndarray::{ArrayD, ArrayView1, ArrayView2, IxDyn};
+use pyo3::create_exception;
+use pyo3::exceptions::{PyException, PyKeyError, PyKeyboardInterrupt, PyRuntimeError, PyTypeError};
+use pyo3::prelude::*;
+use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString};
+use toml::{Table, Value};
+
+/// The program version written into every output file.
+const VERSION: &str = env!("CARGO_PKG_VERSION");
+
+create_exception!(
+    _jointplay,
+    JointplayError,
+    PyException,
+    "An error of jointplay: the message names the file, the field or path, the value and the time."
+);
+create_exception!(
+    _jointplay,
+    Interrupted,
+    PyKeyboardInterrupt,
+    "Ctrl-C stopped a computation cleanly. `partial` holds what was kept (a Run, or a StudyResult \
+     whose file is marked incomplete), or None."
+);
+
+fn err(e: impl std::fmt::Display) -> PyErr {
+    JointplayError::new_err(e.to_string())
+}
+
+// ---------------------------------------------------------------------------------------------
+// TOML values <-> Python objects
+
+fn to_py<'py>(py: Python<'py>, v: &Value) -> PyResult<Bound<'py, PyAny>> {
+    Ok(match v {
+        Value::String(s) => PyString::new(py, s).into_any(),
+        Value::Integer(i) => i.into_pyobject(py)?.into_any(),
+        Value::Float(f) => PyFloat::new(py, *f).into_any(),
+        Value::Boolean(b) => PyBool::new(py, *b).to_owned().into_any(),
+        Value::Datetime(d) => PyString::new(py, &d.to_string()).into_any(),
+        Value::Array(a) => {
+            let items = a
+                .iter()
+                .map(|x| to_py(py, x))
+                .collect::<PyResult<Vec<_>>>()?;
+            PyList::new(py, items)?.into_any()
+        }
+        Value::Table(t) => table_to_py(py, t)?.into_any(),
+    })
+}
+
+fn table_to_py<'py>(py: Python<'py>, t: &Table) -> PyResult<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    for (k, v) in t {
+        d.set_item(k, to_py(py, v)?)?;
+    }
+    Ok(d)
+}
+
+/// A Python value as TOML: numbers (numpy scalars too), booleans, strings, sequences and dicts.
+fn from_py(v: &Bound<'_, PyAny>, at: &str) -> PyResult<Value> {
+    if v.is_instance_of::<PyBool>() {
+        return Ok(Value::Boolean(v.extract()?));
+    }
+    if v.is_instance_of::<PyInt>() {
+        return Ok(Value::Integer(v.extract::<i64>().map_err(|_| {
+            err(format!("{at}: the integer {v} does not fit in 64 bits"))
+        })?));
+    }
+    if let Ok(s) = v.cast::<PyString>() {
+        return Ok(Value::String(s.extract::<String>()?));
+    }
+    if let Ok(d) = v.cast::<PyDict>() {
+        let mut t = Table::new();
+        for (k, x) in d.iter() {
+            let k: String = k
+                .extract()
+                .map_err(|_| PyTypeError::new_err(format!("{at}: table keys must be strings")))?;
+            let field = format!("{at}.{k}");
+            t.insert(k, from_py(&x, &field)?);
+        }
+        return Ok(Value::Table(t));
+    }
+    if let Ok(f) = v.extract::<f64>() {
+        return Ok(Value::Float(f));
+    }
+    if let Ok(items) = v.try_iter() {
+        let mut a = Vec::new();
+        for (i, x) in items.enumerate() {
+            a.push(from_py(&x?, &format!("{at}.{i}"))?);
+        }
+        return Ok(Value::Array(a));
+    }
+    Err(PyTypeError::new_err(format!(
+        "{at}: cannot store a {} in a scene (use a number, a string, a bool, a list or a dict)",
+        v.get_type().name()?
+    )))
+}
+
+// ---------------------------------------------------------------------------------------------
+// Long computations: a worker thread without the GIL, a progress bar and Ctrl-C
+
+/// What a computation reports to its progress bar: the fraction done and a short message.
+#[derive(Default)]
+struct Shown {
+    fraction: f64,
+    message: String,
+}
+
+/// Runs `work` on a thread of its own with the GIL released, drawing a progress bar from
+/// `shown` (after `delay`, when `show`) and checking for signals every 50 ms. A signal requests
+/// the stop; the work ends as it does on any interruption and its result is returned with the
+/// signal's exception.
+fn drive<T: Send>(
+    py: Python<'_>,
+    mut show: bool,
+    label: &str,
+    delay: Duration,
+    shown: &Mutex<Shown>,
+    work: impl FnOnce(&Stop) -> T + Send,
+) -> PyResult<(T, Option<PyErr>)> {
+    let stop = Stop::new();
+    let start = Instant::now();
+    let mut bar: Option<Bound<'_, PyAny>> = None;
+    let mut signal = None;
+    let result = std::thread::scope(|scope| -> PyResult<T> {
+        let handle = scope.spawn(|| work(&stop));
+        loop {
+            py.detach(|| std::thread::sleep(Duration::from_millis(50)));
+            let finished = handle.is_finished();
+            if signal.is_none()
+                && let Err(e) = py.check_signals()
+            {
+                stop.request();
+                signal = Some(e);
+            }
+            // A bar that cannot be drawn is given up (its error printed once); the
+            // computation goes on.
+            let mut draw = || -> PyResult<()> {
+                if show && bar.is_none() && start.elapsed() >= delay && !finished {
+                    let module = py.import("jointplay._progress")?;
+                    bar = Some(module.getattr("Bar")?.call1((label,))?);
+                }
+                if let Some(b) = &bar {
+                    let s = shown.lock().unwrap_or_else(|e| e.into_inner());
+                    b.call_method1("update", (s.fraction, s.message.as_str()))?;
+                }
+                Ok(())
+            };
+            if let Err(e) = draw() {
+                e.display(py);
+                show = false;
+                bar = None;
+            }
+            if finished {
+                break;
+            }
+        }
+        if let Some(b) = &bar
+            && let Err(e) = b.call_method0("close")
+        {
+            e.display(py);
+        }
+        py.detach(|| handle.join())
+            .map_err(|_| PyRuntimeError::new_err("jointplay: the computation thread panicked"))
+    })?;
+    Ok((result, signal))
+}
+
+/// The exception of a signal that stopped a computation: `jointplay.Interrupted` carrying
+/// `partial` for Ctrl-C, the signal handler's own exception otherwise.
+fn interrupted(py: Python<'_>, signal: PyErr, message: &str, partial: Py<PyAny>) -> PyErr {
+    if !signal.is_instance_of::<PyKeyboardInterrupt>(py) {
+        return signal;
+    }
+    let e = Interrupted::new_err(message.to_string());
+    if let Err(x) = e.value(py).setattr("partial", partial) {
+        return x;
+    }
+    e
+}
+
+fn pool(threads: Option<usize>) -> PyResult<Option<rayon::ThreadPool>> {
+    match threads {
+        None => Ok(None),
+        Some(0) => Err(err("threads: must be at least 1")),
+        Some(n) => rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build()
+            .map(Some)
+            .map_err(|e| err(format!("threads: {e}"))),
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// Scene
+
+/// A mechanism scene: the TOML tree of a scene file, read and edited by the paths of studies.
+///
+/// ``scene["joints.S2.clearance.radial_clearance"] = 4e-4`` edits it as a study's ``set`` does
+/// (every quantity in SI units: m, kg, s, rad, N, N m); the edited scene is checked against the
+/// scene format at once, and a bad path or value raises ``JointplayError`` naming the path.
+/// ``del scene[path]`` removes a key as a study's ``remove`` does (removing a joint's
+/// ``clearance`` makes it ideal).
+#[pyclass(module = "jointplay")]
+struct Scene {
+    /// The file the scene was read from (or the path that names it); names it in messages.
+    path: PathBuf,
+    /// The text as read, and whether the tree was edited since.
+    text: String,
+    edited: bool,
+    tree: Table,
+}
+
+impl Scene {
+    fn new(text: String, path: PathBuf) -> PyResult<Scene> {
+        SceneSpec::parse(&text, &path).map_err(err)?;
+        let tree: Table = text.parse().map_err(|e: toml::de::Error| {
+            err(format!("{}: {}", path.display(), e.to_string().trim_end()))
+        })?;
+        Ok(Scene {
+            path,
+            text,
+            edited: false,
+            tree,
+        })
+    }
+
+    fn current_text(&self) -> PyResult<String> {
+        if self.edited {
+            toml::to_string(&self.tree).map_err(|e| err(format!("{}: {e}", self.path.display())))
+        } else {
+            Ok(self.text.clone())
+        }
+    }
+
+    fn file(&self) -> PyResult<SceneFile> {
+        let text = self.current_text()?;
+        let spec = SceneSpec::parse(&text, &self.path).map_err(err)?;
+        Ok(SceneFile {
+            path: self.path.clone(),
+            text,
+            spec,
+        })
+    }
+
+    /// Applies `value` at `path` (None: remove) to a copy of the tree and keeps it only when the
+    /// edited scene is still valid.
+    fn apply(&mut self, path: &str, value: Option<&Value>) -> PyResult<()> {
+        let mut tree = self.tree.clone();
+        edit(&mut tree, path, value)
+            .map_err(|m| err(format!("{path}: {m} in {}", self.path.display())))?;
+        let text = toml::to_string(&tree)
+            .map_err(|e| err(format!("{path}: {e} in {}", self.path.display())))?;
+        SceneSpec::parse(&text, &self.path).map_err(|e| err(format!("{path}: {e}")))?;
+        self.tree = tree;
+        self.edited = true;
+        Ok(())
+    }
+}
+
+#[pymethods]
+impl Scene {
+    /// A scene from TOML text. ``path`` names it in messages and gives its default name (the
+    /// file stem); no file is read.
+    #[staticmethod]
+    #[pyo3(signature = (text, path = "scene.toml"))]
+    fn from_toml(text: String, path: &str) -> PyResult<Scene> {
+        Scene::new(text, PathBuf::from(path))
+    }
+
+    /// The value at a study path (a list for a path with ``*``); ``KeyError`` naming the path
+    /// when nothing is there (a field left at its default is not in the scene).
+    fn __getitem__<'py>(&self, py: Python<'py>, path: &str) -> PyResult<Bound<'py, PyAny>> {
+        let found = lookup(&self.tree, path)
+            .map_err(|m| PyKeyError::new_err(format!("{path}: {m} in {}", self.path.display())))?;
+        if path.split('.').any(|s| s == "*") {
+            let items = found
+                .iter()
+                .map(|v| to_py(py, v))
+                .collect::<PyResult<Vec<_>>>()?;
+            Ok(PyList::new(py, items)?.into_any())
+        } else {
+            to_py(py, found[0])
+        }
+    }
+
+    fn __setitem__(&mut self, path: &str, value: &Bound<'_, PyAny>) -> PyResult<()> {
+        let v = from_py(value, path)?;
+        self.apply(path, Some(&v))
+    }
+
+    fn __delitem__(&mut self, path: &str) -> PyResult<()> {
+        self.apply(path, None)
+    }
+
+    fn __contains__(&self, path: &str) -> bool {
+        lookup(&self.tree, path).is_ok()
+    }
+
+    /// The scene's name (its ``name`` field, or the file stem): names its output file.
+    #[getter]
+    fn name(&self) -> PyResult<String> {
+        Ok(self.file()?.name())
+    }
+
+    /// The file the scene was read from, or the path given to ``from_toml``.
+    #[getter]
+    fn path(&self) -> String {
+        self.path.display().to_string()
+    }
+
+    /// The scene as TOML text: the file as read until it is edited, the edited tree after.
+    fn to_toml(&self) -> PyResult<String> {
+        self.current_text()
+    }
+
+    /// The scene as a dict (a copy: edit the scene by path).
+    fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        table_to_py(py, &self.tree)
+    }
+
+    fn copy(&self) -> Scene {
+        Scene {
+            path: self.path.clone(),
+            text: self.text.clone(),
+            edited: self.edited,
+            tree: self.tree.clone(),
+        }
+    }
+
+    fn __repr__(&self) -> String {
+        format!("<jointplay.Scene {}>", self.path.display())
+    }
+
+    /// Compiles the scene and assembles its initial state: what ``jointplay check`` prints, as a
+    /// dict (degrees of freedom, ranks and redundancy, effects, solver, span in s, outputs,
+    /// warnings; ``lines`` holds the printed text).
+    fn check<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let file = self.file()?;
+        let (model, mut state) = Model::compile(&file).map_err(err)?;
+        let s = Summary::new(&self.path, &model, &mut state).map_err(err)?;
+        let d = PyDict::new(py);
+        d.set_item("name", &s.name)?;
+        d.set_item("file", s.file.display().to_string())?;
+        d.set_item("description", &s.description)?;
+        let bodies = PyList::empty(py);
+        for b in &s.bodies {
+            let x = PyDict::new(py);
+            x.set_item("name", &b.name)?;
+            x.set_item("mass", b.mass)?;
+            x.set_item("inertia_diagonal", b.inertia_diagonal.to_vec())?;
+            bodies.append(x)?;
+        }
+        d.set_item("bodies", bodies)?;
+        let joints = PyList::empty(py);
+        for j in &s.joints {
+            let x = PyDict::new(py);
+            x.set_item("name", &j.name)?;
+            x.set_item("kind", j.kind)?;
+            x.set_item("body_a", &j.body_a)?;
+            x.set_item("body_b", &j.body_b)?;
+            x.set_item("rows", j.rows)?;
+            joints.append(x)?;
+        }
+        d.set_item("joints", joints)?;
+        let drives = PyList::empty(py);
+        for dr in &s.drives {
+            let x = PyDict::new(py);
+            x.set_item("name", &dr.name)?;
+            x.set_item("joint", &dr.joint)?;
+            x.set_item("coordinate", format!("{:?}", dr.coordinate).to_lowercase())?;
+            x.set_item("profile", &dr.profile)?;
+            x.set_item("period", dr.period)?;
+            drives.append(x)?;
+        }
+        d.set_item("drives", drives)?;
+        let st = &s.structure;
+        d.set_item("coordinates", st.n_coords)?;
+        d.set_item("joint_rows", st.joint_rows)?;
+        d.set_item("drive_rows", st.drive_rows)?;
+        d.set_item("joint_rank", st.joint_rank)?;
+        d.set_item("rank", st.rank)?;
+        d.set_item("dof", st.dof)?;
+        d.set_item("redundant_joint_rows", st.redundant_joint_rows)?;
+        d.set_item("redundant_drives", st.redundant_drives)?;
+        d.set_item("remaining_dof", st.remaining_dof)?;
+        let a = PyDict::new(py);
+        a.set_item("iterations", s.assembly.iterations)?;
+        a.set_item("initial_residual", s.assembly.initial_residual)?;
+        a.set_item("final_residual", s.assembly.final_residual)?;
+        a.set_item(
+            "initial_velocity_residual",
+            s.assembly.initial_velocity_residual,
+        )?;
+        a.set_item(
+            "final_velocity_residual",
+            s.assembly.final_velocity_residual,
+        )?;
+        d.set_item("assembly", a)?;
+        d.set_item("effects", &s.effects)?;
+        d.set_item("disabled", &s.disabled)?;
+        d.set_item("solver", &s.solver)?;
+        d.set_item("baumgarte_alpha", s.alpha)?;
+        d.set_item("baumgarte_beta", s.beta)?;
+        d.set_item("start_time", s.start_time)?;
+        d.set_item("end_time", s.end_time)?;
+        d.set_item("period", s.period)?;
+        let o = PyDict::new(py);
+        o.set_item("interval", s.output.interval)?;
+        o.set_item("bodies", s.output.bodies)?;
+        o.set_item("joints", s.output.joints)?;
+        o.set_item("drives", s.output.drives)?;
+        o.set_item("accelerations", s.output.accelerations)?;
+        o.set_item("diagnostics", s.output.diagnostics)?;
+        d.set_item("output", o)?;
+        d.set_item("warnings", &model.warnings)?;
+        d.set_item("lines", s.lines())?;
+        Ok(d)
+    }
+
+    /// Compiles and simulates the scene from its start to its end time (s) and returns the
+    /// ``Run``. The GIL is released while it runs; ``progress`` shows a bar after a second.
+    /// A run that diverges comes back with ``complete`` False and ``stopped`` set, keeping every
+    /// sample before the failure (as the program's file does). Ctrl-C raises
+    /// ``jointplay.Interrupted`` whose ``partial`` is the run up to the interruption.
+    #[pyo3(signature = (progress = true))]
+    fn run(&self, py: Python<'_>, progress: bool) -> PyResult<Run> {
+        let file = self.file()?;
+        let (model, state) = Model::compile(&file).map_err(err)?;
+        let shown = Mutex::new(Shown::default());
+        let (res, signal) = drive(
+            py,
+            progress,
+            &model.name,
+            Duration::from_secs(1),
+            &shown,
+            |stop| {
+                simulate_until(
+                    &model,
+                    state,
+                    &mut |f| {
+                        if let Ok(mut s) = shown.lock() {
+                            s.fraction = f;
+                        }
+                    },
+                    stop,
+                )
+            },
+        )?;
+        let result = res.map_err(|e| err(format!("simulating {}: {e}", self.path.display())))?;
+        let run = Run {
+            model,
+            path: file.path,
+            text: file.text,
+            result,
+        };
+        match signal {
+            None => Ok(run),
+            Some(s) => {
+                let t = run
+                    .result
+                    .stopped
+                    .as_ref()
+                    .map(|s| s.time)
+                    .unwrap_or(f64::NAN);
+                let message = format!(
+                    "{}: interrupted at t = {t} s; the run up to then is in the exception's `partial`",
+                    self.path.display()
+                );
+                let partial = Py::new(py, run)?.into_any();
+                Err(interrupted(py, s, &message, partial))
+            }
+        }
+    }
+}
+
+/// Reads a scene file (TOML); errors name the file and the field.
+#[pyfunction]
+fn load_scene(path: PathBuf) -> PyResult<Scene> {
+    let text = std::fs::read_to_string(&path)
+        .map_err(|e| err(format!("{}: cannot read: {e}", path.display())))?;
+    Scene::new(text, path)
+}
+
+// ---------------------------------------------------------------------------------------------
+// Run
+
+/// One simulated run: its recorded quantities as numpy arrays that view the run's memory
+/// (read-only, no copy), with their units.
+///
+/// ``run["bodies/bob/position"]`` is a dataset of the run file: one row per sample, one column
+/// per component (``run.columns[...]`` names them); ``run.observable("bodies.bob.position.x")``
+/// is one column by its study path. ``run.time`` is in s; ``run.units`` gives every dataset's
+/// SI unit. ``run.write(out)`` writes the file ``jointplay run`` writes.
+#[pyclass(module = "jointplay", frozen)]
+struct Run {
+    model: Model,
+    path: PathBuf,
+    text: String,
+    result: RunResult,
+}
+
+impl Run {
+    fn channel(&self, dataset: &str) -> PyResult<&jointplay_analysis::run::Channel> {
+        self.result.recording.channel(dataset).ok_or_else(|| {
+            PyKeyError::new_err(format!(
+                "{dataset}: not a dataset of this run (see Run.datasets)"
+            ))
+        })
+    }
+}
+
+/// A read-only numpy array viewing `view`, whose memory `owner` (a frozen `Run`) keeps alive.
+fn borrowed<'py, D: numpy::ndarray::Dimension>(
+    view: numpy::ndarray::ArrayView<'_, f64, D>,
+    owner: Bound<'py, PyAny>,
+) -> PyResult<Bound<'py, PyAny>> {
+    // SAFETY: the view points into a `Run`, which is frozen (never mutated) and kept alive by the
+    // array's base object; the array is made read-only before it is handed out.
+    let a = unsafe { PyArray::borrow_from_array(&view, owner) }.into_any();
+    let kw = PyDict::new(a.py());
+    kw.set_item("write", false)?;
+    a.call_method("setflags", (), Some(&kw))?;
+    Ok(a)
+}
+
+#[pymethods]
+impl Run {
+    /// Sample times (s).
+    #[getter]
+    fn time<'py>(slf: Bound<'py, Self>) -> PyResult<Bound<'py, PyAny>> {
+        let r = slf.get();
+        let view = ArrayView1::from(&r.result.recording.time[..]);
+        borrowed(view, slf.clone().into_any())
+    }
+
+    /// A dataset of the run file by its path (``bodies/bob/position``): samples x components,
+    /// or one value per sample for a scalar (``drives/motor/force``).
+    fn __getitem__<'py>(slf: Bound<'py, Self>, dataset: &str) -> PyResult<Bound<'py, PyAny>> {
+        let r = slf.get();
+        let ch = r.channel(dataset)?;
+        let n = r.result.recording.time.len();
+        if ch.scalar {
+            borrowed(ArrayView1::from(&ch.values[..]), slf.clone().into_any())
+        } else {
+            let view = ArrayView2::from_shape((n, ch.width()), &ch.values[..]).map_err(err)?;
+            borrowed(view, slf.clone().into_any())
+        }
+    }
+
+    /// One recorded column by its observable path (``bodies.bob.position.x``), one value per
+    /// sample, in the unit ``run.units`` gives its dataset.
+    fn observable<'py>(slf: Bound<'py, Self>, path: &str) -> PyResult<Bound<'py, PyAny>> {
+        let r = slf.get();
+        let n = r.result.recording.time.len();
+        for ch in &r.result.recording.channels {
+            if let Some(k) = ch.columns.iter().position(|o| o.path == path) {
+                let all = ArrayView2::from_shape((n, ch.width()), &ch.values[..]).map_err(err)?;
+                return borrowed(all.column(k), slf.clone().into_any());
+            }
+        }
+        Err(PyKeyError::new_err(format!(
+            "{path}: not recorded in this run (see Run.columns)"
+        )))
+    }
+
+    /// The recorded datasets, in the order of the run file.
+    #[getter]
+    fn datasets(&self) -> Vec<String> {
+        self.result
+            .recording
+            .channels
+            .iter()
+            .map(|c| c.dataset.clone())
+            .collect()
+    }
+
+    /// The SI unit of every dataset (``"m"``, ``"m/s"``, ``"N"``, ...; ``"s"`` for ``time``).
+    #[getter]
+    fn units<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        d.set_item("time", "s")?;
+        for c in &self.result.recording.channels {
+            d.set_item(&c.dataset, &c.unit)?;
+        }
+        Ok(d)
+    }
+
+    /// The observable path of each column of every dataset.
+    #[getter]
+    fn columns<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let d = PyDict::new(py);
+        for c in &self.result.recording.channels {
+            let paths: Vec<&str> = c.columns.iter().map(|o| o.path.as_str()).collect();
+            d.set_item(&c.dataset, paths)?;
+        }
+        Ok(d)
+    }
+
+    /// The scene's name.
+    #[getter]
+    fn name(&self) -> String {
+        self.model.name.clone()
+    }
+
+    /// True when the run reached its end time.
+    #[getter]
+    fn complete(&self) -> bool {
+        self.result.stopped.is_none()
+    }
+
+    /// Where and why the run stopped early (``{"time": s, "message": ...}``), or None.
+    #[getter]
+    fn stopped<'py>(&self, py: Python<'py>) -> PyResult<Option<Bound<'py, PyDict>>> {
+        let Some(s) = &self.result.stopped else {
+            return Ok(None);
+        };
+        let d = PyDict::new(py);
+        d.set_item("time", s.time)?;
+        d.set_item("message", &s.message)?;
+        d.set_item("interrupted", self.result.interrupted())?;
+        Ok(Some(d))
+    }
+
+    /// Steps and right-hand-side evaluations, and the wall time of the integration (s).
+    #[getter]
+    fn stats<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let s = &self.result.stats;
+        let d = PyDict::new(py);
+        d.set_item("accepted_steps", s.accepted)?;
+        d.set_item("rejected_steps", s.rejected)?;
+        d.set_item("rhs_evaluations", s.rhs_evals)?;
+        d.set_item("wall_time", s.wall.as_secs_f64())?;
+        Ok(d)
+    }
+
+    /// Warnings of the scene and of the step-size guard, one line each.
+    #[getter]
+    fn warnings(&self) -> Vec<String> {
+        let mut w = self.model.warnings.clone();
+        w.extend(self.result.warnings.iter().map(|x| x.message.clone()));
+        w
+    }
+
+    /// Writes the run file ``jointplay run`` writes, ``OUT/<scene name>.h5`` (marked incomplete
+    /// when the run stopped early), and returns its path. The file appears only once complete.
+    #[pyo3(signature = (out = PathBuf::from("out")))]
+    fn write(&self, py: Python<'_>, out: PathBuf) -> PyResult<String> {
+        py.detach(|| {
+            let meta = Meta::of(&self.model, &self.path, &self.text, VERSION);
+            write_run(&out, &meta, &self.result)
+        })
+        .map(|p| p.display().to_string())
+        .map_err(err)
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "<jointplay.Run {}: {} samples, {}>",
+            self.model.name,
+            self.result.recording.time.len(),
+            if self.result.stopped.is_none() {
+                "complete"
+            } else {
+                "stopped early"
+            }
+        )
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// HDF5 files
+
+/// An HDF5 file written by jointplay, read on demand: ``f["sweep/x"]`` is a numpy array (every
+/// number as float64), ``f.datasets`` lists the datasets, ``f.attrs`` the root attributes and
+/// ``f.units`` each dataset's SI unit.
+#[pyclass(module = "jointplay", frozen)]
+struct H5 {
+    path: PathBuf,
+}
+
+fn h5e(path: &Path) -> impl Fn(hdf5::Error) -> PyErr + '_ {
+    move |e| err(format!("{}: HDF5: {e}", path.display()))
+}
+
+fn attr_value<'py>(
+    py: Python<'py>,
+    a: &hdf5::Attribute,
+) -> hdf5::Result<Option<Bound<'py, PyAny>>> {
+    if !a.is_scalar() {
+        return Ok(None);
+    }
+    Ok(match a.dtype()?.to_descriptor()? {
+        TypeDescriptor::VarLenUnicode => {
+            Some(PyString::new(py, a.read_scalar::<VarLenUnicode>()?.as_str()).into_any())
+        }
+        TypeDescriptor::Float(_) => Some(PyFloat::new(py, a.read_scalar::<f64>()?).into_any()),
+        TypeDescriptor::Unsigned(_) | TypeDescriptor::Integer(_) => a
+            .read_scalar::<i64>()?
+            .into_pyobject(py)
+            .ok()
+            .map(|v| v.into_any()),
+        _ => None,
+    })
+}
+
+fn attrs<'py>(py: Python<'py>, loc: &hdf5::Location) -> hdf5::Result<Bound<'py, PyDict>> {
+    let d = PyDict::new(py);
+    for n in loc.attr_names()? {
+        if let Some(v) = attr_value(py, &loc.attr(&n)?)? {
+            let _ = d.set_item(n, v);
+        }
+    }
+    Ok(d)
+}
+
+fn walk_datasets(
+    g: &hdf5::Group,
+    prefix: &str,
+    out: &mut Vec<(String, hdf5::Dataset)>,
+) -> hdf5::Result<()> {
+    for ds in g.datasets()? {
+        let name = ds.name();
+        let short = name.rsplit('/').next().unwrap_or(&name).to_string();
+        out.push((format!("{prefix}{short}"), ds));
+    }
+    for sub in g.groups()? {
+        let name = sub.name();
+        let short = name.rsplit('/').next().unwrap_or(&name).to_string();
+        walk_datasets(&sub, &format!("{prefix}{short}/"), out)?;
+    }
+    Ok(())
+}
+
+impl H5 {
+    fn open(&self) -> PyResult<hdf5::File> {
+        hdf5::File::open(&self.path).map_err(h5e(&self.path))
+    }
+}
+
+#[pymethods]
+impl H5 {
+    #[new]
+    fn py_new(path: PathBuf) -> PyResult<H5> {
+        let f = H5 { path };
+        f.open()?;
+        Ok(f)
+    }
+
+    /// The file's path.
+    #[getter]
+    fn path(&self) -> String {
+        self.path.display().to_string()
+    }
+
+    /// Every dataset's path, groups first to last (``cases/ideal/bodies/platform/position``).
+    #[getter]
+    fn datasets(&self) -> PyResult<Vec<String>> {
+        let f = self.open()?;
+        let mut out = Vec::new();
+        walk_datasets(&f, "", &mut out).map_err(h5e(&self.path))?;
+        Ok(out.into_iter().map(|d| d.0).collect())
+    }
+
+    /// The root attributes (program, units, study, complete, ...).
+    #[getter]
+    fn attrs<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let f = self.open()?;
+        attrs(py, &f).map_err(h5e(&self.path))
+    }
+
+    /// The attributes of a group or dataset by its path.
+    fn attributes<'py>(&self, py: Python<'py>, path: &str) -> PyResult<Bound<'py, PyDict>> {
+        let f = self.open()?;
+        let e = h5e(&self.path);
+        if let Ok(d) = f.dataset(path) {
+            return attrs(py, &d).map_err(e);
+        }
+        let g = f.group(path).map_err(|_| {
+            PyKeyError::new_err(format!(
+                "{path}: no group or dataset in {}",
+                self.path.display()
+            ))
+        })?;
+        attrs(py, &g).map_err(e)
+    }
+
+    /// The SI unit of every dataset that states one.
+    #[getter]
+    fn units<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
+        let f = self.open()?;
+        let e = h5e(&self.path);
+        let mut all = Vec::new();
+        walk_datasets(&f, "", &mut all).map_err(&e)?;
+        let d = PyDict::new(py);
+        for (p, ds) in all {
+            if let Ok(a) = ds.attr("unit")
+                && let Ok(u) = a.read_scalar::<VarLenUnicode>()
+            {
+                d.set_item(p, u.as_str())?;
+            }
+        }
+        Ok(d)
+    }
+
+    /// A dataset: numbers as a numpy float64 array of its shape, text as a list of str.
+    fn __getitem__<'py>(&self, py: Python<'py>, path: &str) -> PyResult<Bound<'py, PyAny>> {
+        let f = self.open()?;
+        let ds = f.dataset(path).map_err(|_| {
+            PyKeyError::new_err(format!(
+                "{path}: no dataset in {} (see .datasets)",
+                self.path.display()
+            ))
+        })?;
+        let bad = |e: hdf5::Error| err(format!("{}: {path}: {e}", self.path.display()));
+        match ds.dtype().and_then(|t| t.to_descriptor()).map_err(bad)? {
+            TypeDescriptor::VarLenUnicode => {
+                let v = ds.read_raw::<VarLenUnicode>().map_err(bad)?;
+                let items: Vec<&str> = v.iter().map(|s| s.as_str()).collect();
+                Ok(PyList::new(py, items)?.into_any())
+            }
+            _ => {
+                let a: ArrayD<f64> = ds.read_dyn::<f64>().map_err(bad)?;
+                let a = a.into_shape_with_order(IxDyn(&ds.shape())).map_err(err)?;
+                Ok(PyArray::from_owned_array(py, a).into_any())
+            }
+        }
+    }
+
+    fn __contains__(&self, path: &str) -> PyResult<bool> {
+        Ok(self.open()?.dataset(path).is_ok())
+    }
+
+    fn __repr__(&self) -> String {
+        format!("<jointplay.H5 {}>", self.path.display())
+    }
+}
+
+/// Opens an HDF5 file written by jointplay (a run, a study, an analysis or a work-precision
+/// file).
+#[pyfunction]
+fn load(path: PathBuf) -> PyResult<H5> {
+    H5::py_new(path)
+}
+
+// ---------------------------------------------------------------------------------------------
+// Studies
+
+/// What ``run_study`` wrote: the HDF5 file, loaded (``result.data``), with the study's kind,
+/// whether it is complete, the failures, the table and the figures.
+#[pyclass(module = "jointplay", frozen, get_all)]
+struct StudyResult {
+    /// ``comparison``, ``analysis`` or ``precision``.
+    kind: String,
+    /// The HDF5 file's path.
+    file: String,
+    /// The file, loaded on demand.
+    data: Py<H5>,
+    /// Every case or sweep value done (False: a sweep stopped early; ``resume=True`` runs the
+    /// rest).
+    complete: bool,
+    /// The failed cases or sweep values: (label or value index, message).
+    failed: Vec<(String, String)>,
+    /// The comparison or work-precision table (markdown), and its file.
+    table: Option<String>,
+    table_file: Option<String>,
+    /// The figures written (PNG and SVG).
+    figures: Vec<String>,
+    /// Warnings, one line each.
+    warnings: Vec<String>,
+}
+
+#[pymethods]
+impl StudyResult {
+    fn __getitem__<'py>(&self, py: Python<'py>, path: &str) -> PyResult<Bound<'py, PyAny>> {
+        self.data.get().__getitem__(py, path)
+    }
+
+    fn __repr__(&self) -> String {
+        format!(
+            "<jointplay.StudyResult {} {} ({})>",
+            self.kind,
+            self.file,
+            if self.complete {
+                "complete"
+            } else {
+                "incomplete"
+            }
+        )
+    }
+}
+
+/// What a study computation returns before it becomes a ``StudyResult``.
+struct Done {
+    kind: &'static str,
+    file: PathBuf,
+    complete: bool,
+    failed: Vec<(String, String)>,
+    table: Option<(String, PathBuf)>,
+    figures: Vec<PathBuf>,
+    warnings: Vec<String>,
+    /// Stopped on request with values left that `resume` runs.
+    resumable: bool,
+}
+
+fn study_result(py: Python<'_>, d: &Done) -> PyResult<StudyResult> {
+    Ok(StudyResult {
+        kind: d.kind.to_string(),
+        file: d.file.display().to_string(),
+        data: Py::new(
+            py,
+            H5 {
+                path: d.file.clone(),
+            },
+        )?,
+        complete: d.complete,
+        failed: d.failed.clone(),
+        table: d.table.as_ref().map(|t| t.0.clone()),
+        table_file: d.table.as_ref().map(|t| t.1.display().to_string()),
+        figures: d.figures.iter().map(|p| p.display().to_string()).collect(),
+        warnings: d.warnings.clone(),
+    })
+}
+
+type AnyResult<T> = Result<T, String>;
+
+fn comparison(
+    path: &Path,
+    text: &str,
+    out: &Path,
+    plots: bool,
+    progress: &(dyn Fn(Progress) + Sync),
+    stop: &Stop,
+) -> AnyResult<Done> {
+    let study = Study::parse(text, path).map_err(|e| e.to_string())?;
+    let cases = Comparison::run_until(&study, progress, stop).map_err(|e| e.to_string())?;
+    let file = cases.write(out, VERSION).map_err(|e| e.to_string())?;
+    let table_file = cases.write_table(&file, out).map_err(|e| e.to_string())?;
+    let table = std::fs::read_to_string(&table_file)
+        .map_err(|e| format!("{}: {e}", table_file.display()))?;
+    let figures = if plots {
+        cases.figures(out).map_err(|e| e.to_string())?
+    } else {
+        Vec::new()
+    };
+    Ok(Done {
+        kind: "comparison",
+        file,
+        complete: cases.failed.is_empty(),
+        failed: cases.failed.clone(),
+        table: Some((table, table_file)),
+        figures,
+        warnings: cases.warnings(),
+        resumable: false,
+    })
+}
+
+#[allow(clippy::too_many_arguments)]
+fn analysis(
+    path: &Path,
+    text: &str,
+    out: &Path,
+    plots: bool,
+    opts: Options,
+    progress: &(dyn Fn(Progress) + Sync),
+    stop: &Stop,
+) -> AnyResult<Done> {
+    let st = Loaded::parse(text, path).map_err(|e| e.to_string())?;
+    if st.spec.sweep.is_none() && (opts.resume || opts.max_jobs.is_some()) {
+        return Err(format!(
+            "{}: resume and max_jobs apply to studies with a [sweep]",
+            path.display()
+        ));
+    }
+    let o = execute_until(&st, out, opts, VERSION, progress, stop)
+        .map_err(|e| format!("running {}: {e}", path.display()))?;
+    let figures = if plots {
+        redraw(&o.file, out, &[Format::Png, Format::Svg]).map_err(|e| e.to_string())?
+    } else {
+        Vec::new()
+    };
+    let failed = o
+        .failed
+        .iter()
+        .map(|(j, m)| {
+            let label = match st.jobs.get(*j) {
+                Some(v) if st.spec.sweep.is_some() => format!("{j} ({})", v.0),
+                _ => j.to_string(),
+            };
+            (label, m.clone())
+        })
+        .collect();
+    Ok(Done {
+        kind: "analysis",
+        file: o.file,
+        complete: o.complete && o.failed.is_empty(),
+        failed,
+        table: None,
+        figures,
+        warnings: o.warnings,
+        resumable: o.interrupted && st.spec.sweep.is_some(),
+    })
+}
+
+fn work_precision(
+    path: &Path,
+    text: &str,
+    kind: Input,
+    out: &Path,
+    plots: bool,
+    progress: &(dyn Fn(Progress) + Sync),
+    stop: &Stop,
+) -> AnyResult<Done> {
+    let study = match kind {
+        Input::Scene => precision::scene_study(path),
+        _ => Loaded::parse(text, path),
+    }
+    .map_err(|e| e.to_string())?;
+    let mut p = precision::Precision::new(study).map_err(|e| e.to_string())?;
+    let o = p
+        .execute_until(&mut |pr| progress(pr), stop)
+        .map_err(|e| format!("work-precision of {}: {e}", path.display()))?;
+    let file = o.write(out, p.study()).map_err(|e| e.to_string())?;
+    let md = out.join(format!("{}.md", o.name));
+    let table = o.markdown();
+    std::fs::write(&md, &table).map_err(|e| format!("writing {}: {e}", md.display()))?;
+    let figures = if plots {
+        redraw(&file, out, &[Format::Png, Format::Svg]).map_err(|e| e.to_string())?
+    } else {
+        Vec::new()
+    };
+    Ok(Done {
+        kind: "precision",
+        file,
+        complete: true,
+        failed: Vec::new(),
+        table: Some((table, md)),
+        figures,
+        warnings: Vec::new(),
+        resumable: false,
+    })
+}
+
+/// Runs a study as ``jointplay run STUDY --out OUT`` does (as ``jointplay precision`` with
+/// ``precision=True``: an analysis study with or without a ``[precision]`` table, or a scene)
+/// and returns a ``StudyResult`` with the HDF5 file loaded.
+///
+/// ``source`` is a study file or its TOML text (scene paths in text are relative to the current
+/// directory). ``threads`` sets the cases or sweep values run at once (default: every core).
+/// ``resume`` keeps a sweep's finished values in an existing file and ``max_jobs`` stops after
+/// that many. ``plots`` draws the figures as the program does. Ctrl-C stops cleanly: a sweep
+/// keeps its finished values (``resume=True`` later runs the rest) and a single run is written
+/// with what it computed, marked incomplete; ``jointplay.Interrupted`` then carries the result.
+#[pyfunction]
+#[pyo3(signature = (source, out = PathBuf::from("out"), threads = None, progress = true, resume = false, max_jobs = None, plots = false, precision = false))]
+#[allow(clippy::too_many_arguments)]
+fn run_study(
+    py: Python<'_>,
+    source: PathBuf,
+    out: PathBuf,
+    threads: Option<usize>,
+    progress: bool,
+    resume: bool,
+    max_jobs: Option<usize>,
+    plots: bool,
+    precision: bool,
+) -> PyResult<StudyResult> {
+    let as_text = source.to_string_lossy().to_string();
+    let (path, kind, text) = if source.is_file() {
+        let (kind, text) = Input::read(&source).map_err(err)?;
+        (source.clone(), kind, text)
+    } else if as_text.contains('\n') || as_text.contains('[') {
+        (
+            PathBuf::from("<study text>"),
+            Input::of_text(&as_text),
+            as_text.clone(),
+        )
+    } else {
+        return Err(err(format!(
+            "{}: cannot read: no such file",
+            source.display()
+        )));
+    };
+    if kind == Input::Scene && !precision {
+        return Err(err(format!(
+            "{}: a scene, not a study: use jointplay.load_scene(...).run(), or precision=True",
+            path.display()
+        )));
+    }
+    if kind == Input::Comparison && precision {
+        return Err(err(format!(
+            "{}: a comparison study has several cases; give one scene or an analysis study",
+            path.display()
+        )));
+    }
+    if (resume || max_jobs.is_some()) && !kind.is_analysis() {
+        return Err(err(format!(
+            "{}: resume and max_jobs apply to analysis studies with a [sweep]",
+            path.display()
+        )));
+    }
+    let pool = pool(threads)?;
+    let tally = Mutex::new(Tally::default());
+    let shown = Mutex::new(Shown::default());
+    let report = |p: Progress| {
+        let mut t = tally.lock().unwrap_or_else(|e| e.into_inner());
+        t.update(p);
+        let mut s = shown.lock().unwrap_or_else(|e| e.into_inner());
+        match p {
+            Progress::Reference => s.message = "reference".into(),
+            Progress::Check => s.message = "check of the reference".into(),
+            Progress::Run { done, total, what } => {
+                s.fraction = done as f64 / total.max(1) as f64;
+                s.message = format!("run {}/{total}: {what}", done + 1);
+            }
+            _ => {
+                let (done, total) = t.jobs();
+                s.fraction = t.fraction();
+                let what = if kind == Input::Comparison {
+                    "cases"
+                } else {
+                    "values"
+                };
+                // A single run shows its fraction alone.
+                if total > 1 {
+                    s.message = format!("{done} of {total} {what} done");
+                }
+            }
+        }
+    };
+    // The bar is labelled with the study's name.
+    let label = text
+        .parse::<Table>()
+        .ok()
+        .and_then(|t| t.get("study")?.get("name")?.as_str().map(str::to_string))
+        .or_else(|| path.file_stem().map(|s| s.to_string_lossy().to_string()))
+        .unwrap_or_default();
+    let opts = Options { resume, max_jobs };
+    let (res, signal) = drive(py, progress, &label, Duration::ZERO, &shown, |stop| {
+        let work = || {
+            if precision {
+                work_precision(&path, &text, kind, &out, plots, &report, stop)
+            } else if kind == Input::Comparison {
+                comparison(&path, &text, &out, plots, &report, stop)
+            } else {
+                analysis(&path, &text, &out, plots, opts, &report, stop)
+            }
+        };
+        match &pool {
+            Some(p) => p.install(work),
+            None => work(),
+        }
+    })?;
+    match (res, signal) {
+        (Ok(done), None) => {
+            if !done.failed.is_empty() {
+                let lines: Vec<String> = done
+                    .failed
+                    .iter()
+                    .map(|(l, m)| format!("{l}: {m}"))
+                    .collect();
+                return Err(err(format!(
+                    "{} of the study {} failed (the others are in {}):\n  {}",
+                    done.failed.len(),
+                    path.display(),
+                    done.file.display(),
+                    lines.join("\n  ")
+                )));
+            }
+            study_result(py, &done)
+        }
+        (Ok(done), Some(s)) => {
+            let message = format!(
+                "{}: interrupted; {} keeps what was computed{}",
+                path.display(),
+                done.file.display(),
+                if done.resumable {
+                    " (resume=True runs the rest)"
+                } else {
+                    ""
+                }
+            );
+            let partial = Py::new(py, study_result(py, &done)?)?.into_any();
+            Err(interrupted(py, s, &message, partial))
+        }
+        (Err(m), Some(s)) => Err(interrupted(
+            py,
+            s,
+            &format!("{}: interrupted: {m}", path.display()),
+            py.None(),
+        )),
+        (Err(m), None) => Err(err(m)),
+    }
+}
+
+/// jointplay: nonlinear dynamics of mechanisms whose joints have clearance.
+#[pymodule]
+fn _jointplay(m: &Bound<'_, PyModule>) -> PyResult<()> {
+    m.add("__version__", VERSION)?;
+    m.add("JointplayError", m.py().get_type::<JointplayError>())?;
+    m.add("Interrupted", m.py().get_type::<Interrupted>())?;
+    m.add_class::<Scene>()?;
+    m.add_class::<Run>()?;
+    m.add_class::<H5>()?;
+    m.add_class::<StudyResult>()?;
+    m.add_function(wrap_pyfunction!(load_scene, m)?)?;
+    m.add_function(wrap_pyfunction!(load, m)?)?;
+    m.add_function(wrap_pyfunction!(run_study, m)?)?;
+    Ok(())
+}

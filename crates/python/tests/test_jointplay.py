@@ -1,0 +1,233 @@
+"""The Python package against the program: the same numbers, the same files, the same errors,
+and its own paths (progress, Ctrl-C)."""
+
+import _thread
+import pathlib
+import sys
+import threading
+
+import numpy as np
+import pytest
+
+import jointplay
+from conftest import ROOT, SCENES
+
+sys.path.insert(0, str(ROOT / "analyses"))
+import pendulum_period  # noqa: E402
+
+SWEEP = """
+[study]
+name = "duffing-small"
+system = { kind = "duffing", gamma = 0.2, initial = [1.0, 0.0], solver = { integrator = "dopri5", rtol = 1e-9, atol = 1e-11 } }
+
+[analysis]
+periods = 30
+transient = 20
+samples_per_period = 20
+
+[[sections]]
+name = "v0"
+terms = { v = 1.0 }
+direction = "down"
+
+[sweep]
+parameter = "gamma"
+from = 0.2
+to = 0.3
+count = 5
+"""
+
+
+def same_file(a, b, skip=("wall_time", "wall_time_s")):
+    """Every dataset and root attribute of two jointplay files equal bit for bit (but `skip`)."""
+    fa, fb = jointplay.load(a), jointplay.load(b)
+    # Groups written as jobs finish may come in another order.
+    assert sorted(fa.datasets) == sorted(fb.datasets)
+    for d in fa.datasets:
+        if d.rsplit("/", 1)[-1] in skip:
+            continue
+        x, y = fa[d], fb[d]
+        if isinstance(x, list):  # text
+            assert x == y, d
+            continue
+        assert x.shape == y.shape, d
+        assert np.array_equal(x.view(np.uint64), y.view(np.uint64)), d
+    aa, ab = fa.attrs, fb.attrs
+    assert {k: v for k, v in aa.items() if k not in skip} == \
+        {k: v for k, v in ab.items() if k not in skip}
+    return fa
+
+
+def test_the_pendulum_period_equals_the_programs_to_the_last_digit(program, tmp_path):
+    program("run", SCENES / "pendulum.toml", "--out", tmp_path, "--no-plots", "-q")
+    f = jointplay.load(tmp_path / "pendulum.h5")
+    cli = pendulum_period.measure(f["time"], f["bodies/bob/position"][:, 0],
+                                  f["bodies/bob/velocity"][:, 0])
+    run = jointplay.load_scene(SCENES / "pendulum.toml").run(progress=False)
+    assert run.complete and run.units["bodies/bob/position"] == "m"
+    py = pendulum_period.measure(run.time, run.observable("bodies.bob.position.x"),
+                                 run["bodies/bob/velocity"][:, 0])
+    assert repr(py) == repr(cli)
+    assert abs(py - pendulum_period.exact_period()) < 1e-9
+    # The run's file is the program's file.
+    out = tmp_path / "py"
+    same_file(run.write(out), tmp_path / "pendulum.h5",
+              skip=("wall_time", "wall_time_s", "scene_file"))
+
+
+def test_an_edit_in_python_runs_as_the_same_edit_in_a_study(tmp_path):
+    scene = jointplay.load_scene(SCENES / "slider-crank-clearance.toml")
+    scene["solver.periods"] = 0.4
+    scene["joints.piston_pin.clearance.bushing_radius"] = 0.00975
+    scene["joints.*.clearance.normal.onset_velocity_floor"] = 1e-4
+    assert scene["joints.piston_pin.clearance.bushing_radius"] == 0.00975
+    run = scene.run(progress=False)
+    study = tmp_path / "edit.toml"
+    study.write_text(f"""
+[study]
+name = "edit"
+scene = "{SCENES / 'slider-crank-clearance.toml'}"
+set = {{ "solver.periods" = 0.4, "joints.piston_pin.clearance.bushing_radius" = 0.00975,
+         "joints.*.clearance.normal.onset_velocity_floor" = 1e-4 }}
+
+[[cases]]
+label = "edited"
+""")
+    res = jointplay.run_study(study, out=tmp_path / "out", progress=False)
+    assert res.kind == "comparison" and res.complete and "edited" in res.table
+    for d in run.datasets:
+        assert np.array_equal(run[d], res[f"cases/edited/{d}"]), d
+    assert np.array_equal(run.time, res["cases/edited/time"])
+
+
+def test_errors_name_the_path():
+    scene = jointplay.load_scene(SCENES / "pendulum.toml")
+    with pytest.raises(KeyError, match="joints.nope.kind: no element 'nope'"):
+        scene["joints.nope.kind"]
+    with pytest.raises(jointplay.JointplayError, match=r"bodies.bob.mass: .*bodies\[0\].mass"):
+        scene["bodies.bob.mass"] = "heavy"
+    with pytest.raises(jointplay.JointplayError,
+                       match="gravity.3: index 3 is out of range: 'gravity' has 3 components"):
+        scene["gravity.3"] = 1.0
+    with pytest.raises(jointplay.JointplayError, match="(?s)solver.integratr: .*unknown field `integratr`"):
+        scene["solver.integratr"] = "rk4"
+    # A refused edit leaves the scene as it was.
+    assert scene["bodies.bob.mass"] == 1.0 and "solver.integratr" not in scene
+    # A value out of range is refused where the program refuses it: when the scene compiles.
+    scene["bodies.bob.mass"] = -1.0
+    with pytest.raises(jointplay.JointplayError, match=r"bodies\[0\].mass: .*-1"):
+        scene.check()
+    with pytest.raises(jointplay.JointplayError, match=r"bodies\[0\].mass: .*-1"):
+        scene.run(progress=False)
+    with pytest.raises(jointplay.JointplayError, match="pendulum.toml: cannot read"):
+        jointplay.load_scene(SCENES / "no" / "pendulum.toml")
+    with pytest.raises(jointplay.JointplayError, match=r"<study text>: analysis.transient"):
+        jointplay.run_study(SWEEP.replace("transient = 20", "transient = 40"), progress=False)
+
+
+def test_a_sweep_from_python_writes_the_programs_file(program, tmp_path):
+    study = tmp_path / "duffing-small.toml"
+    study.write_text(SWEEP)
+    program("run", study, "--out", tmp_path / "cli", "--no-plots", "-q")
+    res = jointplay.run_study(study, out=tmp_path / "py", threads=2, progress=False)
+    assert res.kind == "analysis" and res.complete and res.failed == []
+    f = same_file(res.file, tmp_path / "cli" / "duffing-small.h5")
+    assert f["sweep/x"].shape == (5, 10) and f.units["sweep/x"] == "1"
+    assert res.data.attrs["complete"] == 1
+    # The built-in system observes its state by default.
+    assert "sweep/v" in f.datasets
+
+
+PRECISION = """
+[study]
+name = "wp"
+system = { kind = "duffing", gamma = 0.2, initial = [1.0, 0.0], solver = { integrator = "dopri5", rtol = 1e-8, atol = 1e-10 } }
+
+[analysis]
+periods = 4
+samples_per_period = 50
+
+[precision]
+restarts = 4
+min_time = 0.0
+
+[[precision.methods]]
+integrator = "rk4"
+settings = [0.05235987755982988, 0.02617993877991494, 0.01308996938995747]
+"""
+
+
+def test_work_precision_writes_the_programs_table_and_file(program, tmp_path):
+    study = tmp_path / "wp.toml"
+    study.write_text(PRECISION)
+    program("precision", study, "--out", tmp_path / "cli", "--no-plots", "-q")
+    res = jointplay.run_study(study, out=tmp_path / "py", precision=True, progress=False)
+    assert res.kind == "precision" and res.table.count("| rk4 |") == 3
+    f = jointplay.load(res.file)
+    g = jointplay.load(tmp_path / "cli" / "wp.h5")
+    # RK4's one-period error falls by 2^4 per halving of the step, in both.
+    for h in (f, g):
+        e = h["runs/restart_error"]
+        assert np.all((12 < e[:-1] / e[1:]) & (e[:-1] / e[1:] < 20)), e
+    assert np.array_equal(f["runs/restart_error"], g["runs/restart_error"])
+    names = f["runs/integrator"]
+    assert names == g["runs/integrator"] and len(names) == 3
+    assert all(n.startswith("rk4, fixed step ") for n in names), names
+    # Without precision=True, the study runs as an analysis, as `jointplay run` runs it.
+    assert jointplay.run_study(study, out=tmp_path / "a", progress=False).kind == "analysis"
+
+
+def test_progress_is_drawn_with_tqdm_and_without(tmp_path, capfd, monkeypatch):
+    pytest.importorskip("tqdm")
+    # Long enough (about a second) for the bar to be drawn.
+    sweep = SWEEP.replace("periods = 30", "periods = 3000").replace("transient = 20",
+                                                                   "transient = 2990")
+    jointplay.run_study(sweep, out=tmp_path / "a", progress=True, threads=1)
+    err = capfd.readouterr().err
+    assert "duffing-small: 5 of 5 values done" in err and "%|" in err
+    # Without tqdm: one line on standard error.
+    monkeypatch.setitem(sys.modules, "tqdm.auto", None)
+    jointplay.run_study(sweep, out=tmp_path / "b", progress=True, threads=1)
+    err = capfd.readouterr().err
+    assert "values done" in err and "%" in err
+    # No bar when asked.
+    jointplay.run_study(SWEEP, out=tmp_path / "c", progress=False)
+    assert capfd.readouterr().err == ""
+
+
+def interrupt_after(seconds):
+    timer = threading.Timer(seconds, _thread.interrupt_main)
+    timer.start()
+    return timer
+
+
+def test_ctrl_c_stops_a_run_and_keeps_its_samples(tmp_path):
+    scene = jointplay.load_scene(SCENES / "pendulum.toml")
+    scene["solver.end_time"] = 1e4  # a few seconds of simulation
+    scene["output.interval"] = 0.1
+    timer = interrupt_after(0.5)
+    with pytest.raises(jointplay.Interrupted) as e:
+        scene.run(progress=False)
+    timer.join()
+    assert isinstance(e.value, KeyboardInterrupt)
+    run = e.value.partial
+    assert not run.complete and run.stopped["interrupted"]
+    n = len(run.time)
+    assert 0 < n < 1e8 and np.all(np.isfinite(run["bodies/bob/position"]))
+    f = jointplay.load(run.write(tmp_path))
+    assert f.attrs["complete"] == 0 and len(f["time"]) == n
+
+
+def test_ctrl_c_stops_a_sweep_and_resume_finishes_it(tmp_path):
+    long = SWEEP.replace("periods = 30", "periods = 20000").replace("count = 5", "count = 8")
+    timer = interrupt_after(0.5)
+    with pytest.raises(jointplay.Interrupted, match="resume=True runs the rest") as e:
+        jointplay.run_study(long, out=tmp_path, threads=2, progress=False)
+    timer.join()
+    part = e.value.partial
+    assert not part.complete and part.data.attrs["complete"] == 0
+    done = part["sweep/done"]
+    assert np.all(done != 2) and np.any(done == 0)
+    res = jointplay.run_study(long, out=tmp_path, threads=2, progress=False, resume=True)
+    assert res.complete and np.all(res["sweep/done"] == 1)
+    assert pathlib.Path(res.file) == pathlib.Path(part.file)
