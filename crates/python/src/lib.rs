@@ -1172,7 +1172,11 @@ fn run_study(
         .and_then(|t| t.get("study")?.get("name")?.as_str().map(str::to_string))
         .or_else(|| path.file_stem().map(|s| s.to_string_lossy().to_string()))
         .unwrap_or_default();
-    let opts = Options { resume, max_jobs };
+    let opts = Options {
+        resume,
+        max_jobs,
+        shard: None,
+    };
     let (res, signal) = drive(py, progress, &label, Duration::ZERO, &shown, |stop| {
         let work = || {
             if precision {
