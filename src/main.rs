@@ -601,6 +601,9 @@ fn run_analysis(
         o.rhs_evals as f64 / o.wall.max(1e-9)
     );
     println!("wall time    {:.3} s", o.wall);
+    for line in jointplay_analysis::chaos::summary(&o.file)? {
+        println!("{line}");
+    }
     println!("wrote        {}", o.file.display());
     if opts.shard.is_some() {
         // Shards may run side by side into one directory: the figures come from the merge.

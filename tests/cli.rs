@@ -1283,3 +1283,77 @@ fn run_from_a_file_continues_the_run_bit_for_bit() {
         text(&o)
     );
 }
+
+/// The chaos measures of a single run, as a user gets them: the summary lines, the `/chaos`
+/// group and the convergence figure; and the errors of bad settings, naming the field.
+#[test]
+fn a_single_run_reports_its_lyapunov_exponents_k_and_class() {
+    let dir = tempfile::tempdir().unwrap();
+    let study = |extra: &str, periods: usize| {
+        format!(
+            "[study]\nname = \"duffing-chaos\"\nsystem = {{ kind = \"duffing\", delta = 0.3, alpha = -1.0, beta = 1.0, gamma = 0.5, omega = 1.2, initial = [1.0, 0.0], solver = {{ rtol = 1e-9, atol = 1e-11 }} }}\n[analysis]\nperiods = {periods}\ntransient = 20\nsamples_per_period = 0\n{extra}"
+        )
+    };
+    let path = dir.path().join("chaos.toml");
+    std::fs::write(
+        &path,
+        study(
+            "[lyapunov]\nexponents = 2\nperiods = 200\nper_period = 2\ntwo_trajectory = true\n[zero_one]\nobservable = \"x\"\n",
+            540,
+        ),
+    )
+    .unwrap();
+    let o = bin()
+        .args(["run", "-q"])
+        .arg(&path)
+        .arg("--out")
+        .arg(dir.path().join("out"))
+        .output()
+        .unwrap();
+    let (so, se) = text(&o);
+    assert!(o.status.success(), "{so}\n{se}");
+    assert!(
+        so.contains("lyapunov     0.") && so.contains("class        chaotic"),
+        "{so}"
+    );
+    assert!(dir.path().join("out/duffing-chaos-lyapunov.png").exists());
+    let f = hdf5::File::open(dir.path().join("out/duffing-chaos.h5")).unwrap();
+    let ex: Vec<f64> = f
+        .dataset("chaos/lyapunov/exponents")
+        .unwrap()
+        .read_raw()
+        .unwrap();
+    // The stroboscopic map contracts areas by exp(-0.3 T): the exponents sum to -0.3.
+    assert!((ex[0] + ex[1] + 0.3).abs() < 1e-7, "{ex:?}");
+    assert!(ex[0] > 0.05, "{ex:?}");
+    // Bad settings, each named.
+    for (extra, periods, field) in [
+        (
+            "[lyapunov]\nexponents = 3\nperiods = 200\n",
+            40,
+            "lyapunov.exponents",
+        ),
+        ("[lyapunov]\nperiods = 5\n", 40, "lyapunov.periods"),
+        ("[zero_one]\nobservable = \"x\"\n", 40, "zero_one"),
+        (
+            "[zero_one]\nobservable = \"y\"\n",
+            540,
+            "zero_one.observable",
+        ),
+    ] {
+        std::fs::write(&path, study(extra, periods)).unwrap();
+        let o = bin()
+            .args(["run", "-q", "--no-plots"])
+            .arg(&path)
+            .arg("--out")
+            .arg(dir.path().join("bad"))
+            .output()
+            .unwrap();
+        let (so, se) = text(&o);
+        assert!(!o.status.success(), "{extra}: {so}");
+        assert!(
+            se.contains(field) && se.contains("chaos.toml"),
+            "{extra}: {se}"
+        );
+    }
+}

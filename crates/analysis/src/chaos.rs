@@ -309,6 +309,80 @@ pub(crate) fn write_row(g: &hdf5::Group, j: usize, c: &Chaos) -> hdf5::Result<()
     Ok(())
 }
 
+/// Lines for the program's summary of the chaos measures in the analysis file `path` (none when
+/// it has none).
+pub fn summary(path: &std::path::Path) -> crate::Result<Vec<String>> {
+    let e = crate::h5::h5err(path);
+    let file = hdf5::File::open(path).map_err(&e)?;
+    let mut out = Vec::new();
+    let list = |v: &[f64], digits: usize| {
+        v.iter()
+            .map(|x| format!("{x:.digits$}"))
+            .collect::<Vec<_>>()
+            .join(", ")
+    };
+    if let Ok(c) = file.group("chaos") {
+        if let Ok(l) = c.group("lyapunov") {
+            let ex = l
+                .dataset("exponents")
+                .and_then(|d| d.read_raw::<f64>())
+                .map_err(&e)?;
+            let se = l
+                .dataset("stderr")
+                .and_then(|d| d.read_raw::<f64>())
+                .map_err(&e)?;
+            let mu = l
+                .dataset("map_exponents")
+                .and_then(|d| d.read_raw::<f64>())
+                .map_err(&e)?;
+            out.push(format!(
+                "lyapunov     {} 1/s (+- {})",
+                list(&ex, 4),
+                list(&se, 4)
+            ));
+            out.push(format!("map          {} per period", list(&mu, 4)));
+            if let (Ok(v), Ok(s)) = (
+                crate::h5::read_attr::<f64>(&l, "two_trajectory"),
+                crate::h5::read_attr::<f64>(&l, "two_trajectory_stderr"),
+            ) {
+                out.push(format!("two traj.    {v:.4} +- {s:.4} 1/s"));
+            }
+        }
+        if let Ok(z) = c.group("zero_one") {
+            let k = crate::h5::read_attr::<f64>(&z, "k").map_err(&e)?;
+            out.push(if k.is_nan() {
+                "0-1 test     constant series (no K)".to_string()
+            } else {
+                format!("0-1 test     K = {k:.3}")
+            });
+        }
+        out.push(format!(
+            "class        {}",
+            crate::h5::read_str(&c, "class").map_err(&e)?
+        ));
+    } else if let Ok(c) = file.group("sweep/chaos") {
+        let class = c
+            .dataset("class")
+            .and_then(|d| d.read_raw::<u8>())
+            .map_err(&e)?;
+        let done = file
+            .dataset("sweep/done")
+            .and_then(|d| d.read_raw::<u8>())
+            .map_err(&e)?;
+        let mut counts = [0usize; 4];
+        for (c, d) in class.iter().zip(&done) {
+            if *d == 1 {
+                counts[(*c as usize).min(3)] += 1;
+            }
+        }
+        out.push(format!(
+            "classes      {} periodic, {} quasi-periodic, {} chaotic, {} undetermined",
+            counts[1], counts[2], counts[3], counts[0]
+        ));
+    }
+    Ok(out)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
