@@ -338,6 +338,7 @@ macro_rules! either {
         }
     };
 }
+pub(crate) use either;
 
 impl OdeSystem for AnyFlow<'_> {
     fn dim(&self) -> usize {

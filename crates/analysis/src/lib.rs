@@ -15,6 +15,9 @@
 //! [`shards`] splits a sweep over processes or machines and merges the shard files exactly, and
 //! [`slurm`] writes the batch scripts that run the shards as a Slurm job array;
 //! [`hybrid`] saves and loads the hybrid state of a run (continue a run as if it never stopped);
+//! [`tangent`], [`lyapunov`], [`zero_one`] and [`chaos`] say whether a motion is chaotic: Lyapunov
+//! spectra through contacts and impacts, the 0-1 test, and a classification of each run or sweep
+//! value;
 //! [`precision`] measures what accuracy costs: every integrator against a tight reference.
 //!
 //! Around them: [`summary`] is the compiled summary of a scene (what `jointplay check` prints);

@@ -798,9 +798,26 @@ impl Loaded {
         }
         flow.prepare(&state)?;
         let plan = self.plan(flow.method(), state.t, flow.period());
-        let (tr, res) = trace_partial(&mut flow, &plan, &mut state, progress, stop);
+        // The job's progress: the analysis run, then the Lyapunov run, in proportion to their
+        // periods.
+        let share = match &self.spec.lyapunov {
+            Some(l) => {
+                let a = self.spec.analysis.periods as f64;
+                a / (a + l.periods as f64)
+            }
+            None => 1.0,
+        };
+        let (tr, res) = trace_partial(
+            &mut flow,
+            &plan,
+            &mut state,
+            &mut |x| progress(x * share),
+            stop,
+        );
         let chaos = match &res {
-            Ok(()) => self.chaos(&target, &mut flow, &tr)?,
+            Ok(()) => self.chaos(&target, &mut flow, &tr, &mut |x| {
+                progress(share + x * (1.0 - share))
+            })?,
             Err(_) => None,
         };
         let r = JobResult {
@@ -824,6 +841,7 @@ impl Loaded {
         target: &'t Target,
         flow: &mut crate::flow::AnyFlow<'t>,
         tr: &Trace,
+        progress: &mut dyn FnMut(f64),
     ) -> Result<Option<crate::chaos::Chaos>> {
         use crate::tangent::Tangent;
         let spec = &self.spec;
@@ -841,7 +859,7 @@ impl Loaded {
                     &tr.final_state,
                     l,
                     0,
-                    &mut |_| {},
+                    progress,
                 )?;
                 Some(s)
             }

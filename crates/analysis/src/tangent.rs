@@ -51,7 +51,7 @@ use jointplay_solver::ode::OdeSystem;
 use jointplay_solver::workspace::Workspace;
 use nalgebra::DMatrix;
 
-use crate::flow::{AnyFlow, Flow, MechFlow, SysFlow};
+use crate::flow::{AnyFlow, Flow, MechFlow, SysFlow, either};
 use crate::systems::Builtin;
 
 /// What the Lyapunov analysis needs of a flow beyond [`Flow`].
@@ -396,34 +396,19 @@ impl Tangent for MechFlow<'_> {
 
 impl Tangent for AnyFlow<'_> {
     fn memory_len(&self) -> usize {
-        match self {
-            AnyFlow::Mechanism(f) => f.memory_len(),
-            AnyFlow::System(f) => f.memory_len(),
-        }
+        either!(self, f => f.memory_len())
     }
     fn memory(&self) -> Vec<f64> {
-        match self {
-            AnyFlow::Mechanism(f) => f.memory(),
-            AnyFlow::System(f) => f.memory(),
-        }
+        either!(self, f => f.memory())
     }
     fn set_memory(&mut self, memory: &[f64]) {
-        match self {
-            AnyFlow::Mechanism(f) => f.set_memory(memory),
-            AnyFlow::System(f) => f.set_memory(memory),
-        }
+        either!(self, f => f.set_memory(memory))
     }
     fn jvp(&mut self, t: f64, y: &[f64], f0: &[f64], v: &[f64], w: &[f64], out: &mut [f64]) {
-        match self {
-            AnyFlow::Mechanism(f) => f.jvp(t, y, f0, v, w, out),
-            AnyFlow::System(f) => f.jvp(t, y, f0, v, w, out),
-        }
+        either!(self, f => f.jvp(t, y, f0, v, w, out))
     }
     fn before_accept(&mut self, t0: f64, y0: &[f64], t1: f64, y1: &[f64]) {
-        match self {
-            AnyFlow::Mechanism(f) => f.before_accept(t0, y0, t1, y1),
-            AnyFlow::System(f) => f.before_accept(t0, y0, t1, y1),
-        }
+        either!(self, f => f.before_accept(t0, y0, t1, y1))
     }
     fn memory_tangent(
         &mut self,
@@ -436,39 +421,21 @@ impl Tangent for AnyFlow<'_> {
         before: &[f64],
         w: &mut [f64],
     ) {
-        match self {
-            AnyFlow::Mechanism(f) => f.memory_tangent(t0, y0, v0, t1, y1, v1, before, w),
-            AnyFlow::System(f) => f.memory_tangent(t0, y0, v0, t1, y1, v1, before, w),
-        }
+        either!(self, f => f.memory_tangent(t0, y0, v0, t1, y1, v1, before, w))
     }
     fn manifold_basis(&mut self, t: f64, y: &[f64]) -> crate::Result<Option<DMatrix<f64>>> {
-        match self {
-            AnyFlow::Mechanism(f) => f.manifold_basis(t, y),
-            AnyFlow::System(f) => f.manifold_basis(t, y),
-        }
+        either!(self, f => f.manifold_basis(t, y))
     }
     fn phase_dim(&self) -> usize {
-        match self {
-            AnyFlow::Mechanism(f) => f.phase_dim(),
-            AnyFlow::System(f) => f.phase_dim(),
-        }
+        either!(self, f => f.phase_dim())
     }
     fn divergence(&self, t: f64, y: &[f64]) -> Option<f64> {
-        match self {
-            AnyFlow::Mechanism(f) => f.divergence(t, y),
-            AnyFlow::System(f) => f.divergence(t, y),
-        }
+        either!(self, f => f.divergence(t, y))
     }
     fn reset_jvp(&self, i: usize, t: f64, y: &[f64], v: &[f64], out: &mut [f64]) {
-        match self {
-            AnyFlow::Mechanism(f) => f.reset_jvp(i, t, y, v, out),
-            AnyFlow::System(f) => f.reset_jvp(i, t, y, v, out),
-        }
+        either!(self, f => f.reset_jvp(i, t, y, v, out))
     }
     fn event_gradient(&self, i: usize, t: f64, y: &[f64], out: &mut [f64]) {
-        match self {
-            AnyFlow::Mechanism(f) => f.event_gradient(i, t, y, out),
-            AnyFlow::System(f) => f.event_gradient(i, t, y, out),
-        }
+        either!(self, f => f.event_gradient(i, t, y, out))
     }
 }

@@ -498,7 +498,10 @@ fn redundant_rows_give_the_same_manifold_and_spectrum() {
 fn a_linear_mechanism_has_exponents_minus_half_its_damping_rate() {
     let text = "[study]\nname = \"l\"\nscene = \"../../../data/scenes/impact-oscillator-soft.toml\"\nset = { \"drives.base_motion.profile.amplitude\" = 0.049752 }\n[analysis]\nperiods = 2\nsamples_per_period = 0\n[[observables]]\nname = \"x\"\npath = \"bodies.mass.position.x\"\n";
     let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/lyapunov.toml");
-    let target = Loaded::parse(text, &file).unwrap().target_with(&[]).unwrap();
+    let target = Loaded::parse(text, &file)
+        .unwrap()
+        .target_with(&[])
+        .unwrap();
     let sp = run(&target, &spec(2, 50, 4), 20);
     assert_eq!(sp.phase_dim, 2);
     for l in &sp.exponents {
