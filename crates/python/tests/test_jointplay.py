@@ -138,6 +138,21 @@ def test_a_sweep_from_python_writes_the_programs_file(program, tmp_path):
     assert "sweep/v" in f.datasets
 
 
+def test_a_sweep_with_chaos_measures_from_python(tmp_path):
+    """The chaos measures come back as arrays: each value's Lyapunov exponents (summing to the
+    Duffing oscillator's -delta = -0.3), K and class."""
+    text = SWEEP.replace("periods = 30", "periods = 520").replace(
+        "[sweep]",
+        "[lyapunov]\nexponents = 2\nperiods = 40\nper_period = 2\n[zero_one]\nobservable = \"x\"\n[sweep]",
+    ).replace("to = 0.3", "to = 0.5")
+    res = jointplay.run_study(text, out=tmp_path, progress=False)
+    ex = res["sweep/chaos/exponents"]
+    assert ex.shape == (5, 2)
+    assert np.allclose(ex.sum(axis=1), -0.3, atol=1e-6)
+    assert res["sweep/chaos/class"][-1] == 3  # gamma = 0.5: chaotic
+    assert res["sweep/chaos/k"][-1] > 0.8
+
+
 PRECISION = """
 [study]
 name = "wp"
