@@ -253,8 +253,11 @@ impl Tangent for MechFlow<'_> {
             return;
         }
         let model = self.mech.model;
-        let onset = self.mech.ws.onset.clone();
-        let tg = self.tangent_scratch();
+        self.tangent_scratch();
+        // Disjoint fields: the run's onset history is read, the scratch workspace written (no
+        // copy of the history per evaluation).
+        let onset = &self.mech.ws.onset;
+        let tg = self.tangent.as_mut().expect("made above");
         let mut yp = std::mem::take(&mut tg.y);
         let mut minus = std::mem::take(&mut tg.minus);
         for (sign, dest) in [(1.0, &mut *out), (-1.0, &mut minus[..])] {
