@@ -204,6 +204,7 @@ pub(crate) fn write_single(file: &hdf5::File, c: &Chaos) -> hdf5::Result<()> {
         f64_attr(&l, "period", s.period)?;
         u64_attr(&l, "phase_dim", s.phase_dim as u64)?;
         u64_attr(&l, "rhs_evals", s.rhs_evals)?;
+        str_attr(&l, "jvp", s.jvp)?;
         if let Some(d) = s.mean_divergence {
             f64_attr(&l, "mean_divergence", d)?;
         }
@@ -399,6 +400,7 @@ mod tests {
             history: vec![],
             two_trajectory: None,
             mean_divergence: None,
+            jvp: "analytic",
             rhs_evals: 0,
             stopped_early: false,
             events: 0,

@@ -40,7 +40,7 @@ use nalgebra::DMatrix;
 use serde::Deserialize;
 
 use crate::Result;
-use crate::tangent::Tangent;
+use crate::tangent::{Difference, Tangent};
 
 /// Settings of a Lyapunov computation (the `[lyapunov]` table of an analysis study).
 #[derive(Debug, Clone, PartialEq, Deserialize)]
@@ -69,6 +69,10 @@ pub struct LyapunovSpec {
     /// Initial separation of the two trajectories (2-norm of the state difference, SI units).
     #[serde(default = "default_separation")]
     pub separation: f64,
+    /// The difference quotient of a mechanism's Jacobian-vector products ("central" or
+    /// "forward"; built-in systems have analytic ones).
+    #[serde(default)]
+    pub difference: Difference,
 }
 
 fn one() -> usize {
@@ -162,6 +166,8 @@ pub struct Spectrum {
     /// of the full spectrum equals it.
     pub mean_divergence: Option<f64>,
     /// Right-hand-side evaluations of the extended run (each one the state and k tangents).
+    /// How the Jacobian-vector products were computed ("analytic", "central", "forward").
+    pub jvp: &'static str,
     pub rhs_evals: u64,
     /// The standard-error target was met before the requested periods.
     pub stopped_early: bool,
@@ -488,6 +494,7 @@ pub fn spectrum<F: Tangent>(
     let t0 = start.t;
     let mut state = start.clone();
     flow.prepare(&state)?;
+    flow.set_difference(spec.difference);
     // The transient, plain.
     let t_start = t0 + transient as f64 * period;
     if transient > 0 {
@@ -666,6 +673,7 @@ pub fn spectrum<F: Tangent>(
             .is_some()
             .then(|| (sum2 / time, batch_stderr(&batches2), history2)),
         mean_divergence: div_known.then(|| div_sum / time),
+        jvp: flow.jvp_kind(),
         rhs_evals,
         stopped_early,
         events,

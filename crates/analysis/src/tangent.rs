@@ -112,6 +112,34 @@ pub trait Tangent: Flow {
     fn divergence(&self, _t: f64, _y: &[f64]) -> Option<f64> {
         None
     }
+    /// Chooses the difference quotient of a finite-difference [`Tangent::jvp`]; flows with an
+    /// analytic one ignore it.
+    fn set_difference(&mut self, _difference: Difference) {}
+    /// How [`Tangent::jvp`] is computed: "analytic" or the difference quotient's name.
+    fn jvp_kind(&self) -> &'static str {
+        "analytic"
+    }
+}
+
+/// The difference quotient of a mechanism's Jacobian-vector product (see the module overview).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Deserialize, serde::Serialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Difference {
+    /// `(f(y + e v) - f(y - e v)) / 2e`: two right-hand sides per vector, error `(e / delta)^2`.
+    #[default]
+    Central,
+    /// `(f(y + e v) - f(y)) / e` with the step's own `f(y)`: one right-hand side per vector,
+    /// error `e / delta`.
+    Forward,
+}
+
+impl Difference {
+    pub fn name(self) -> &'static str {
+        match self {
+            Difference::Central => "central",
+            Difference::Forward => "forward",
+        }
+    }
 }
 
 impl Tangent for SysFlow<'_> {
@@ -186,6 +214,7 @@ pub struct MechTangent {
     rates0: Vec<(f64, f64, bool)>,
     rates1: Vec<(f64, f64, bool)>,
     scratch: Vec<(f64, f64, bool)>,
+    difference: Difference,
 }
 
 impl MechTangent {
@@ -197,6 +226,7 @@ impl MechTangent {
             rates0: Vec::new(),
             rates1: Vec::new(),
             scratch: Vec::new(),
+            difference: Difference::Central,
         }
     }
 }
@@ -246,7 +276,7 @@ impl Tangent for MechFlow<'_> {
     fn set_memory(&mut self, memory: &[f64]) {
         self.mech.ws.onset.copy_from_slice(memory);
     }
-    fn jvp(&mut self, t: f64, y: &[f64], _f0: &[f64], v: &[f64], w: &[f64], out: &mut [f64]) {
+    fn jvp(&mut self, t: f64, y: &[f64], f0: &[f64], v: &[f64], w: &[f64], out: &mut [f64]) {
         let e = increment(y, v);
         if e == 0.0 {
             out.fill(0.0);
@@ -260,20 +290,47 @@ impl Tangent for MechFlow<'_> {
         let tg = self.tangent.as_mut().expect("made above");
         let mut yp = std::mem::take(&mut tg.y);
         let mut minus = std::mem::take(&mut tg.minus);
-        for (sign, dest) in [(1.0, &mut *out), (-1.0, &mut minus[..])] {
+        let signs: &[f64] = match tg.difference {
+            Difference::Central => &[1.0, -1.0],
+            Difference::Forward => &[1.0],
+        };
+        for &sign in signs {
             for (i, x) in yp.iter_mut().enumerate() {
                 *x = y[i] + sign * e * v[i];
             }
             for (s, o) in tg.ws.onset.iter_mut().enumerate() {
                 *o = onset[s] + sign * e * w.get(s).copied().unwrap_or(0.0);
             }
+            let dest = if sign > 0.0 {
+                &mut *out
+            } else {
+                &mut minus[..]
+            };
             model.rhs(t, &yp, &mut tg.ws, dest);
         }
-        for (o, m) in out.iter_mut().zip(&minus) {
-            *o = (*o - m) / (2.0 * e);
+        match tg.difference {
+            Difference::Central => {
+                for (o, m) in out.iter_mut().zip(&minus) {
+                    *o = (*o - m) / (2.0 * e);
+                }
+            }
+            Difference::Forward => {
+                for (o, b) in out.iter_mut().zip(f0) {
+                    *o = (*o - b) / e;
+                }
+            }
         }
         tg.y = yp;
         tg.minus = minus;
+    }
+    fn set_difference(&mut self, difference: Difference) {
+        self.tangent_scratch().difference = difference;
+    }
+    fn jvp_kind(&self) -> &'static str {
+        self.tangent
+            .as_ref()
+            .map_or(Difference::Central, |t| t.difference)
+            .name()
     }
     fn before_accept(&mut self, _t0: f64, y0: &[f64], _t1: f64, y1: &[f64]) {
         let model = self.mech.model;
@@ -440,5 +497,11 @@ impl Tangent for AnyFlow<'_> {
     }
     fn event_gradient(&self, i: usize, t: f64, y: &[f64], out: &mut [f64]) {
         either!(self, f => f.event_gradient(i, t, y, out))
+    }
+    fn set_difference(&mut self, difference: Difference) {
+        either!(self, f => f.set_difference(difference))
+    }
+    fn jvp_kind(&self) -> &'static str {
+        either!(self, f => f.jvp_kind())
     }
 }

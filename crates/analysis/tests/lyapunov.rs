@@ -7,7 +7,7 @@ use std::path::Path;
 use jointplay_analysis::flow::{Flow, Target};
 use jointplay_analysis::lyapunov::{LyapunovSpec, Spectrum, spectrum, tangent_map};
 use jointplay_analysis::nonlinear::Loaded;
-use jointplay_analysis::tangent::Tangent;
+use jointplay_analysis::tangent::{Difference, Tangent};
 use jointplay_solver::ode::{Flow as Step, advance};
 use jointplay_solver::state::HybridState;
 
@@ -215,7 +215,8 @@ fn stroboscopic_map_exponents_are_the_flow_exponents_times_the_period() {
 /// difference quotient itself is uncertain by about 1e-2 (it changes by that much between
 /// increments 1e-6 and 1e-7), so the tangent must agree within three times that spread plus
 /// 2e-3. Without the saltation term the error is 0.15 of the vector (measured; the onset
-/// velocity then does not follow the perturbation), far outside the bound.
+/// velocity then does not follow the perturbation), far outside the bound. Both difference
+/// quotients of the Jacobian-vector products are checked.
 #[test]
 fn tangent_map_through_contact_onsets_matches_finite_differences() {
     let target = slider_crank("");
@@ -256,8 +257,13 @@ fn tangent_map_through_contact_onsets_matches_finite_differences() {
         assert_eq!(basis.ncols(), 4, "twice the 2 free degrees of freedom");
         for c in 0..basis.ncols() {
             let v: Vec<f64> = basis.column(c).iter().copied().collect();
-            let (_, tv) =
-                tangent_map(&mut flow, start, std::slice::from_ref(&v), start.t + tau).unwrap();
+            let mut carried = Vec::new();
+            for difference in [Difference::Central, Difference::Forward] {
+                flow.set_difference(difference);
+                let (_, tv) =
+                    tangent_map(&mut flow, start, std::slice::from_ref(&v), start.t + tau).unwrap();
+                carried.push(tv);
+            }
             // Central differences at two increments: their spread measures the difference
             // quotient's own error through the stiff contact (about 1e-2 here).
             let fd_at = |eps: f64, flow: &mut _| -> Vec<f64> {
@@ -297,12 +303,18 @@ fn tangent_map_through_contact_onsets_matches_finite_differences() {
             };
             let nfd = dist(&fd, &vec![0.0; fd.len()]);
             let spread = dist(&fd, &fd_coarse);
-            let err = dist(&tv[0], &fd);
-            assert!(
-                err < 3.0 * spread + 2e-3 * nfd,
-                "t {} vector {c}: |fd| {nfd:e}, error {err:e}, spread of the differences {spread:e}",
-                start.t
-            );
+            // The forward quotient takes the one-sided derivative at the contact's kink: measured
+            // 5.7e-3 of the vector off through these windows (6e-4 for the central one), and
+            // not reduced by a smaller increment (1.5e-9 and 1.5e-10 gave 7e-3 and 4e-2: round-off
+            // takes over), so its bound is 1e-2 of the vector instead of 2e-3.
+            for (tv, (name, rel)) in carried.iter().zip([("central", 2e-3), ("forward", 1e-2)]) {
+                let err = dist(&tv[0], &fd);
+                assert!(
+                    err < 3.0 * spread + rel * nfd,
+                    "{name} t {} vector {c}: |fd| {nfd:e}, error {err:e}, spread of the differences {spread:e}",
+                    start.t
+                );
+            }
         }
     }
 }
