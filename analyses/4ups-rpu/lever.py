@@ -7,9 +7,9 @@ and legs 3 and 4 at their driven lengths. Legs 2 and 5 restrain it only through 
 contacts. Every moving body moves in that mode: the platform, and the swing and telescopic rods
 of all five limbs, which turn about their base joints as the platform moves.
 
-For each reconstructed geometry this script prints, per 1 mm change of the leg-2 length (the most
-the ball can move along the leg is the clearance), how far the mode takes the platform in X and Y
-and how much it turns; then the load that each of the two balls (S2, S5) carries along its leg
+For each reconstructed geometry this script prints, per metre of leg-2 length (a ball moves at
+most its clearance along the leg), how far the mode takes the platform in X and Y and how much
+it turns; then the load that each of the two balls (S2, S5) carries along its leg
 when the mode is held still, by virtual work: P = Q / 2, Q = sum over bodies of
 m (g - a) . dr/dl - I (u x u'') . (u x du/dl) (a rod's turning inertia; the platform does not
 turn in the driven motion). Q is the generalised force of weight and inertia on the mode per
@@ -24,7 +24,7 @@ the ball then rests against the side of its socket that stops the leg from lengt
     one side of their clearance (the contact can settle); a range that crosses zero means the
     load reverses and the balls cross their clearance twice a period (rattling).
   * the drift: the side the balls sit on gives the sign of the platform's settled Y offset,
-    dY/dl times the ball's travel along the leg.
+    sign(P) sign(dY/dl) (the mode moves the way the load pulls it, until the balls touch).
 
 Rod masses and inertias are the paper's Table 1; centres of mass at mid-length (swing rod 0.38 m
 from the base joint, telescopic rod 0.42 m from the platform joint), as in the scene generator.
