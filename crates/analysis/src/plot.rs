@@ -158,7 +158,9 @@ fn tick(v: f64, span: f64) -> String {
     if v == 0.0 || v.abs() < 1e-9 * span.abs() {
         "0".into()
     } else if !(1e-3..1e5).contains(&mag) {
-        format!("{v:.2e}")
+        // Enough mantissa digits that ticks a span apart differ (a zoomed inset).
+        let digits = ((mag / span.abs().max(1e-300)).log10().ceil() + 1.0).clamp(2.0, 8.0) as usize;
+        format!("{v:.digits$e}")
     } else {
         let digits = (-(span.abs().max(1e-300)).log10().floor() + 1.0).clamp(0.0, 8.0) as usize;
         format!("{v:.digits$}")
@@ -712,6 +714,20 @@ mod tests {
         let panel = Panel::new("", "", "", vec![corner, rising]);
         let pos = legend_corner(&panel, frame, &["c", "second"]);
         assert!(matches!(pos, SeriesLabelPosition::UpperLeft), "{pos:?}");
+    }
+
+    #[test]
+    fn scientific_ticks_of_a_narrow_axis_differ() {
+        // An inset 1e-9 wide about -2.56e-5: five ticks, five different labels.
+        let span = 1e-9;
+        let labels: Vec<String> = (0..5)
+            .map(|k| tick(-2.56e-5 + k as f64 * 0.25 * span, span))
+            .collect();
+        let mut unique = labels.clone();
+        unique.dedup();
+        assert_eq!(unique.len(), 5, "{labels:?}");
+        // A wide axis keeps two decimals.
+        assert_eq!(tick(2.0e-5, 4.0e-5), "2.00e-5");
     }
 
     #[test]

@@ -133,7 +133,12 @@ fn read(path: &Path) -> Result<Data> {
                 label: format!(
                     "{} = {}{}",
                     short(&pname),
-                    crate::report::num(*p),
+                    // In the unit the parameter axis is drawn in (mm for a clearance).
+                    match display_scale(&punit, params.iter().copied()) {
+                        Some((k, u)) => format!("{} {u}", crate::report::num(*p * k)),
+                        None if punit.is_empty() => crate::report::num(*p),
+                        None => format!("{} {punit}", crate::report::num(*p)),
+                    },
                     if dirs[j] < 0 { " (down)" } else { "" }
                 ),
                 parameter: *p,
