@@ -19,7 +19,7 @@ if [[ -z "${JOINTPLAY:-}" ]]; then
   JOINTPLAY=target/release/jointplay
 fi
 export JOINTPLAY
-tables=(clearance-type clearance-size drive-speed friction geometry step-size gravity-screen stiffness-gap)
+tables=(clearance-type clearance-size drive-speed friction geometry step-size gravity-screen stiffness-gap section2-converged)
 for s in "${tables[@]}" section3-quick; do
   start=$SECONDS
   "$JOINTPLAY" run "analyses/4ups-rpu/$s.toml" --out "$out" -q
