@@ -20,7 +20,7 @@ if [[ -z "${JOINTPLAY:-}" ]]; then
 fi
 export JOINTPLAY
 tables=(clearance-type clearance-size drive-speed friction geometry step-size gravity-screen stiffness-gap section2-converged)
-for s in "${tables[@]}" section3-quick; do
+for s in "${tables[@]}" section3-quick section3-updown; do
   start=$SECONDS
   "$JOINTPLAY" run "analyses/4ups-rpu/$s.toml" --out "$out" -q
   echo "$s: $((SECONDS - start)) s wall"
@@ -28,6 +28,6 @@ done
 python3 analyses/4ups-rpu/splice_report.py docs/reproduction.md "$out" "${tables[@]}"
 for f in section3-quick-bifurcation-S2_vy section3-quick-bifurcation-R1_vy \
   section3-quick-bifurcation-platform_vy section3-quick-poincare-S2_ey-S2_vy \
-  section3-quick-phase-platform_y-platform_vy; do
+  section3-quick-phase-platform_y-platform_vy section3-updown-bifurcation-platform_vy; do
   cp "$out/$f.png" docs/figures/
 done
