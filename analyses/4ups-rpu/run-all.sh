@@ -1,17 +1,33 @@
 #!/usr/bin/env bash
-# Runs every 4-UPS/RPU study (sections 2.2-2.5 of Chen et al. 2023, the geometry variants and the
-# step-size check) and regenerates the tables of docs/reproduction.md from their HDF5 files.
+# Runs every 4-UPS/RPU study of docs/reproduction.md that takes minutes, not hours: sections
+# 2.2-2.5 of Chen et al. 2023, the geometry variants, the step-size check, the gravity-sign screen
+# and the short section-3 analysis; then regenerates the document's tables from their HDF5 files
+# and copies the figures the document shows into docs/figures.
 #
 #   analyses/4ups-rpu/run-all.sh [OUT_DIR]      (default out/4ups-rpu)
+#
+# JOINTPLAY=target/debug/jointplay uses the dev build instead of building the release one.
+# tests/reproduction_tables.rs checks that the committed tables of the cheap studies still match
+# what the program computes. The 50-period section-3 studies (section3-portraits,
+# section3-bifurcation, section3-chaos) take much longer and are run on their own (see the
+# document).
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/../.."
 out=${1:-out/4ups-rpu}
-cargo build --release --quiet
-jp=target/release/jointplay
-studies=(clearance-type clearance-size drive-speed friction geometry step-size)
-for s in "${studies[@]}"; do
+if [[ -z "${JOINTPLAY:-}" ]]; then
+  cargo build --release --quiet
+  JOINTPLAY=target/release/jointplay
+fi
+export JOINTPLAY
+tables=(clearance-type clearance-size drive-speed friction geometry step-size gravity-screen stiffness-gap section2-converged)
+for s in "${tables[@]}" section3-quick section3-updown; do
   start=$SECONDS
-  "$jp" run "analyses/4ups-rpu/$s.toml" --out "$out" -q
+  "$JOINTPLAY" run "analyses/4ups-rpu/$s.toml" --out "$out" -q
   echo "$s: $((SECONDS - start)) s wall"
 done
-python3 analyses/4ups-rpu/splice_report.py docs/reproduction.md "$out" "${studies[@]}"
+python3 analyses/4ups-rpu/splice_report.py docs/reproduction.md "$out" "${tables[@]}"
+for f in section3-quick-bifurcation-S2_vy section3-quick-bifurcation-R1_vy \
+  section3-quick-bifurcation-platform_vy section3-quick-poincare-S2_ey-S2_vy \
+  section3-quick-phase-platform_y-platform_vy section3-updown-bifurcation-platform_vy; do
+  cp "$out/$f.png" docs/figures/
+done

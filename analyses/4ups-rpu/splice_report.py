@@ -5,8 +5,10 @@
 
 For each STUDY, runs `jointplay report OUT_DIR/STUDY.h5` and puts its output between the lines
 `<!-- begin generated: STUDY -->` and `<!-- end generated: STUDY -->` of DOC (appending the block
-when the markers are missing). Nothing in the tables is typed by hand.
+when the markers are missing). Nothing in the tables is typed by hand. The program is
+$JOINTPLAY, default target/release/jointplay.
 """
+import os
 import subprocess
 import sys
 
@@ -16,7 +18,7 @@ def main():
     text = open(doc).read()
     for s in studies:
         table = subprocess.run(
-            ["target/release/jointplay", "report", f"{out}/{s}.h5"],
+            [os.environ.get("JOINTPLAY", "target/release/jointplay"), "report", f"{out}/{s}.h5"],
             check=True, capture_output=True, text=True,
         ).stdout
         begin, end = f"<!-- begin generated: {s} -->", f"<!-- end generated: {s} -->"

@@ -52,6 +52,9 @@ pub struct Panel {
     /// Line width and dot radius (px).
     pub line_width: u32,
     pub point_size: u32,
+    /// One unit of x as long on the page as one unit of y (orbits: a circle stays a circle).
+    /// The plotting area is narrowed or shortened, centred in the panel's area, to fit.
+    pub equal_aspect: bool,
 }
 
 impl Default for Panel {
@@ -71,6 +74,7 @@ impl Default for Panel {
             inset_corner: (true, true),
             line_width: 2,
             point_size: 2,
+            equal_aspect: false,
         }
     }
 }
@@ -154,7 +158,9 @@ fn tick(v: f64, span: f64) -> String {
     if v == 0.0 || v.abs() < 1e-9 * span.abs() {
         "0".into()
     } else if !(1e-3..1e5).contains(&mag) {
-        format!("{v:.2e}")
+        // Enough mantissa digits that ticks a span apart differ (a zoomed inset).
+        let digits = ((mag / span.abs().max(1e-300)).log10().ceil() + 1.0).clamp(2.0, 8.0) as usize;
+        format!("{v:.digits$e}")
     } else {
         let digits = (-(span.abs().max(1e-300)).log10().floor() + 1.0).clamp(0.0, 8.0) as usize;
         format!("{v:.digits$}")
@@ -170,7 +176,7 @@ fn fill_chart<'a, DB, X, Y>(
     y_fmt: &dyn Fn(&f64) -> String,
     keep: fn(f64) -> bool,
     small: bool,
-) -> Result<(), String>
+) -> Result<Drawn, String>
 where
     DB: DrawingBackend + 'a,
     DB::ErrorType: 'static,
@@ -189,19 +195,30 @@ where
         .axis_desc_style(("sans-serif", if small { 11 } else { 15 }))
         .draw()
         .map_err(|e| e.to_string())?;
+    let (xr, yr) = (chart.x_range(), chart.y_range());
+    let frame = (xr.start, xr.end, yr.start, yr.end);
     for (i, s) in panel.series.iter().enumerate() {
         let c = COLORS[i % COLORS.len()];
-        chart
-            .draw_series(LineSeries::new(
-                s.x.iter()
-                    .zip(&s.y)
-                    .filter(|(x, y)| keep(**y) && (!panel.log_x || **x > 0.0))
-                    .map(|(x, y)| (*x, *y)),
-                c.stroke_width(panel.line_width),
-            ))
-            .map_err(|e| e.to_string())?
-            .label(&s.label)
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));
+        let kept: Vec<(f64, f64)> =
+            s.x.iter()
+                .zip(&s.y)
+                .filter(|(x, y)| keep(**y) && (!panel.log_x || **x > 0.0))
+                .map(|(x, y)| (*x, *y))
+                .collect();
+        // Lines end at the frame: each piece inside it is drawn on its own.
+        let pieces = clip_polyline(&kept, frame, panel.log_x, panel.log_y);
+        let mut legend_done = false;
+        for piece in pieces {
+            let drawn = chart
+                .draw_series(LineSeries::new(piece, c.stroke_width(panel.line_width)))
+                .map_err(|e| e.to_string())?;
+            if !legend_done {
+                drawn.label(&s.label).legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2))
+                });
+                legend_done = true;
+            }
+        }
     }
     for (i, s) in panel.points.iter().enumerate() {
         let c = POINT_COLORS[i % POINT_COLORS.len()];
@@ -211,6 +228,7 @@ where
                 s.x.iter()
                     .zip(&s.y)
                     .filter(|(x, y)| keep(**y) && (!panel.log_x || **x > 0.0))
+                    .filter(|(x, y)| inside(**x, **y, frame))
                     .map(move |(x, y)| Circle::new((*x, *y), r, c.filled())),
             )
             .map_err(|e| e.to_string())?
@@ -218,22 +236,165 @@ where
             .legend(move |(x, y)| Circle::new((x + 10, y), 3, c.filled()));
     }
     if panel.series.len() + panel.points.len() > 1 && !small {
+        let labels: Vec<&str> = panel
+            .series
+            .iter()
+            .chain(&panel.points)
+            .map(|s| s.label.as_str())
+            .collect();
         chart
             .configure_series_labels()
-            // Log-log work-precision lines fall from upper left to lower right: the lower left
-            // (fast and accurate) stays empty.
-            .position(if panel.log_x {
-                SeriesLabelPosition::LowerLeft
-            } else {
-                SeriesLabelPosition::MiddleRight
-            })
+            .position(legend_corner(panel, frame, &labels))
             .background_style(WHITE.mix(0.8))
             .border_style(BLACK)
             .label_font(("sans-serif", 13))
             .draw()
             .map_err(|e| e.to_string())?;
     }
-    Ok(())
+    let (w, h) = chart.plotting_area().dim_in_pixel();
+    Ok(Drawn {
+        x: (frame.0, frame.1),
+        y: (frame.2, frame.3),
+        pixels: (w, h),
+    })
+}
+
+/// Whether (x, y) lies in the frame (x0, x1, y0, y1) (either bound order).
+fn inside(x: f64, y: f64, (x0, x1, y0, y1): (f64, f64, f64, f64)) -> bool {
+    let within = |v: f64, a: f64, b: f64| v >= a.min(b) && v <= a.max(b);
+    within(x, x0, x1) && within(y, y0, y1)
+}
+
+/// The pieces of the polyline `pts` inside the frame (x0, x1, y0, y1): a segment that leaves the
+/// frame ends on its edge, one that comes back starts a new piece there (Liang-Barsky clipping,
+/// in the axes' own scale: logarithmic axes clip in log coordinates). Non-finite points break
+/// the line.
+pub fn clip_polyline(
+    pts: &[(f64, f64)],
+    frame: (f64, f64, f64, f64),
+    log_x: bool,
+    log_y: bool,
+) -> Vec<Vec<(f64, f64)>> {
+    let fx = |v: f64| if log_x { v.ln() } else { v };
+    let fy = |v: f64| if log_y { v.ln() } else { v };
+    let gx = |v: f64| if log_x { v.exp() } else { v };
+    let gy = |v: f64| if log_y { v.exp() } else { v };
+    let (x0, x1) = (fx(frame.0.min(frame.1)), fx(frame.0.max(frame.1)));
+    let (y0, y1) = (fy(frame.2.min(frame.3)), fy(frame.2.max(frame.3)));
+    let mut out: Vec<Vec<(f64, f64)>> = Vec::new();
+    let mut cur: Vec<(f64, f64)> = Vec::new();
+    let flush = |cur: &mut Vec<(f64, f64)>, out: &mut Vec<Vec<(f64, f64)>>| {
+        if !cur.is_empty() {
+            out.push(std::mem::take(cur));
+        }
+    };
+    let tx = |p: (f64, f64)| (fx(p.0), fy(p.1));
+    for (k, &p) in pts.iter().enumerate() {
+        let (ax, ay) = tx(p);
+        if !(ax.is_finite() && ay.is_finite()) {
+            flush(&mut cur, &mut out);
+            continue;
+        }
+        let prev = if k > 0 { Some(tx(pts[k - 1])) } else { None };
+        let Some((bx, by)) = prev.filter(|(a, b)| a.is_finite() && b.is_finite()) else {
+            // First point of a line: kept when inside.
+            if ax >= x0 && ax <= x1 && ay >= y0 && ay <= y1 {
+                cur.push(p);
+            }
+            continue;
+        };
+        // Segment from (bx, by) to (ax, ay), clipped: t in [t0, t1].
+        let (dx, dy) = (ax - bx, ay - by);
+        let (mut t0, mut t1) = (0.0f64, 1.0f64);
+        let mut visible = true;
+        for (q, r) in [(-dx, bx - x0), (dx, x1 - bx), (-dy, by - y0), (dy, y1 - by)] {
+            if q == 0.0 {
+                if r < 0.0 {
+                    visible = false;
+                }
+            } else {
+                let t = r / q;
+                if q < 0.0 {
+                    t0 = t0.max(t);
+                } else {
+                    t1 = t1.min(t);
+                }
+            }
+        }
+        if !visible || t0 >= t1 {
+            flush(&mut cur, &mut out);
+            continue;
+        }
+        let at = |t: f64| (gx(bx + t * dx), gy(by + t * dy));
+        if t0 > 0.0 {
+            // Entering the frame: a new piece starts on its edge.
+            flush(&mut cur, &mut out);
+            cur.push(at(t0));
+        } else if cur.is_empty() {
+            cur.push(pts[k - 1]);
+        }
+        if t1 < 1.0 {
+            cur.push(at(t1));
+            flush(&mut cur, &mut out);
+        } else {
+            cur.push(p);
+        }
+    }
+    flush(&mut cur, &mut out);
+    out
+}
+
+/// The corner of the plotting area for the legend that covers the fewest data points: the
+/// legend box (about 11 px of text per character of the longest label, 20 px per entry, as
+/// fractions of a 470 x 300 px plotting area) is tried at each corner and on the right
+/// middle, and the emptiest wins (ties: upper right, upper left, lower right, lower left, middle
+/// right). Fractions are taken in the axes' own scale.
+fn legend_corner(
+    panel: &Panel,
+    frame: (f64, f64, f64, f64),
+    labels: &[&str],
+) -> SeriesLabelPosition {
+    let longest = labels.iter().map(|l| l.chars().count()).max().unwrap_or(0);
+    let w = ((40.0 + 7.5 * longest as f64) / 470.0).min(0.9);
+    let h = ((10.0 + 20.0 * labels.len() as f64) / 300.0).min(0.9);
+    let frac = |v: f64, a: f64, b: f64, log: bool| {
+        if log {
+            if v <= 0.0 || a <= 0.0 || b <= 0.0 {
+                return f64::NAN;
+            }
+            (v.ln() - a.ln()) / (b.ln() - a.ln())
+        } else {
+            (v - a) / (b - a)
+        }
+    };
+    let (x0, x1, y0, y1) = frame;
+    let mut counts = [0usize; 5];
+    let boxes = [
+        (1.0 - w, 1.0, 1.0 - h, 1.0),
+        (0.0, w, 1.0 - h, 1.0),
+        (1.0 - w, 1.0, 0.0, h),
+        (0.0, w, 0.0, h),
+        (1.0 - w, 1.0, 0.5 - h / 2.0, 0.5 + h / 2.0),
+    ];
+    for s in panel.series.iter().chain(&panel.points) {
+        for (x, y) in s.x.iter().zip(&s.y) {
+            let (u, v) = (frac(*x, x0, x1, panel.log_x), frac(*y, y0, y1, panel.log_y));
+            for (k, b) in boxes.iter().enumerate() {
+                if u >= b.0 && u <= b.1 && v >= b.2 && v <= b.3 {
+                    counts[k] += 1;
+                }
+            }
+        }
+    }
+    let best = (0..5).min_by_key(|k| (counts[*k], *k)).unwrap_or(0);
+    [
+        SeriesLabelPosition::UpperRight,
+        SeriesLabelPosition::UpperLeft,
+        SeriesLabelPosition::LowerRight,
+        SeriesLabelPosition::LowerLeft,
+        SeriesLabelPosition::MiddleRight,
+    ][best]
+        .clone()
 }
 
 /// A logarithmic axis range from `lo` to `hi` (positive data): widened to whole decades, at least
@@ -250,17 +411,46 @@ fn decades(lo: f64, hi: f64) -> (f64, f64) {
     (10f64.powf(a), 10f64.powf(b))
 }
 
+/// Widens the x or the y range, about its middle, so that one unit takes as many pixels along
+/// x as along y in a plotting area of `pixels` (width, height).
+pub fn equal_aspect_ranges(
+    x: (f64, f64),
+    y: (f64, f64),
+    pixels: (u32, u32),
+) -> ((f64, f64), (f64, f64)) {
+    let (pw, ph) = (pixels.0.max(1) as f64, pixels.1.max(1) as f64);
+    let (ux, uy) = ((x.1 - x.0) / pw, (y.1 - y.0) / ph);
+    let widen = |r: (f64, f64), span: f64| {
+        let m = 0.5 * (r.0 + r.1);
+        (m - 0.5 * span, m + 0.5 * span)
+    };
+    if ux > uy {
+        (x, widen(y, ux * ph))
+    } else {
+        (widen(x, uy * pw), y)
+    }
+}
+
+/// What a drawn panel shows: its axis ranges and the plotting area in pixels.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Drawn {
+    pub x: (f64, f64),
+    pub y: (f64, f64),
+    pub pixels: (u32, u32),
+}
+
 /// One panel in `area`; `small` for an inset (smaller fonts, no legend).
-fn draw_panel<DB: DrawingBackend>(
+pub fn draw_panel<DB: DrawingBackend>(
     area: &DrawingArea<DB, Shift>,
     panel: &Panel,
     small: bool,
-) -> Result<(), String>
+) -> Result<Drawn, String>
 where
     DB::ErrorType: 'static,
 {
+    register_font();
     let all = || panel.series.iter().chain(&panel.points);
-    let (x0, x1) = panel
+    let (mut x0, mut x1) = panel
         .x_range
         .unwrap_or_else(|| range(all().flat_map(|s| s.x.iter().copied())));
     let ys = || {
@@ -268,13 +458,29 @@ where
             .flat_map(|s| s.y.iter().copied())
             .filter(|v| !panel.log_y || *v > 0.0)
     };
-    let (y0, y1) = panel.y_range.unwrap_or_else(|| range(ys()));
-    let mut builder = ChartBuilder::on(area);
+    let (mut y0, mut y1) = panel.y_range.unwrap_or_else(|| range(ys()));
+    // The caption is drawn first, so that the plotting area's size is known before the axes are
+    // chosen (an equal-aspect panel needs it).
+    let area = if panel.title.is_empty() {
+        area.clone()
+    } else {
+        area.titled(&panel.title, ("sans-serif", if small { 12 } else { 20 }))
+            .map_err(|e| e.to_string())?
+    };
+    let (margin, x_lab, y_lab) = if small { (4, 22, 55) } else { (10, 40, 80) };
+    if panel.equal_aspect && !panel.log_x && !panel.log_y {
+        let (w, h) = area.dim_in_pixel();
+        let pixels = (
+            w.saturating_sub(2 * margin + y_lab),
+            h.saturating_sub(2 * margin + x_lab),
+        );
+        ((x0, x1), (y0, y1)) = equal_aspect_ranges((x0, x1), (y0, y1), pixels);
+    }
+    let mut builder = ChartBuilder::on(&area);
     builder
-        .caption(&panel.title, ("sans-serif", if small { 12 } else { 20 }))
-        .margin(if small { 4 } else { 10 })
-        .x_label_area_size(if small { 22 } else { 40 })
-        .y_label_area_size(if small { 55 } else { 80 });
+        .margin(margin)
+        .x_label_area_size(x_lab)
+        .y_label_area_size(y_lab);
     let xs = x1 - x0;
     let x_fmt = |v: &f64| tick(*v, xs);
     let log_fmt = |v: &f64| format!("{v:.0e}");
@@ -292,29 +498,26 @@ where
     let y_lin = y0..y1;
     let yspan = y1 - y0;
     let y_fmt = |v: &f64| tick(*v, yspan);
+    let err = |e: plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
     if panel.log_y {
         let (lo, hi) = decades(ys().fold(f64::INFINITY, f64::min), ys().fold(0.0, f64::max));
         let y_log = (lo..hi).log_scale();
         if panel.log_x {
             let mut chart = builder
                 .build_cartesian_2d((lx0..lx1).log_scale(), y_log)
-                .map_err(|e| e.to_string())?;
+                .map_err(err)?;
             fill_chart(&mut chart, panel, &log_fmt, &log_fmt, |y| y > 0.0, small)
         } else {
-            let mut chart = builder
-                .build_cartesian_2d(x0..x1, y_log)
-                .map_err(|e| e.to_string())?;
+            let mut chart = builder.build_cartesian_2d(x0..x1, y_log).map_err(err)?;
             fill_chart(&mut chart, panel, &x_fmt, &log_fmt, |y| y > 0.0, small)
         }
     } else if panel.log_x {
         let mut chart = builder
             .build_cartesian_2d((lx0..lx1).log_scale(), y_lin)
-            .map_err(|e| e.to_string())?;
+            .map_err(err)?;
         fill_chart(&mut chart, panel, &log_fmt, &y_fmt, |_| true, small)
     } else {
-        let mut chart = builder
-            .build_cartesian_2d(x0..x1, y_lin)
-            .map_err(|e| e.to_string())?;
+        let mut chart = builder.build_cartesian_2d(x0..x1, y_lin).map_err(err)?;
         fill_chart(&mut chart, panel, &x_fmt, &y_fmt, |_| true, small)
     }
 }
@@ -399,5 +602,140 @@ mod tests {
         assert_eq!(Format::list("both"), Some(vec![Format::Png, Format::Svg]));
         assert_eq!(Format::list("pdf"), None);
         assert_eq!(Format::list("PNG"), None);
+    }
+
+    #[test]
+    fn lines_are_cut_at_the_frame() {
+        let frame = (0.0, 1.0, 0.0, 1.0);
+        // Inside, out through the right edge, back in through the top: two pieces, each ending
+        // on the edge it crosses.
+        let pts = [(0.5, 0.5), (1.5, 0.5), (0.5, 1.8), (0.5, 0.8)];
+        let pieces = clip_polyline(&pts, frame, false, false);
+        assert_eq!(pieces.len(), 2, "{pieces:?}");
+        assert_eq!(pieces[0], vec![(0.5, 0.5), (1.0, 0.5)]);
+        assert_eq!(pieces[1], vec![(0.5, 1.0), (0.5, 0.8)]);
+        // A segment that only passes through the frame is drawn between its two crossings.
+        let through = clip_polyline(&[(-1.0, 0.5), (2.0, 0.5)], frame, false, false);
+        assert_eq!(through, vec![vec![(0.0, 0.5), (1.0, 0.5)]]);
+        // Every kept point lies in the frame; a segment outside it leaves nothing.
+        assert!(clip_polyline(&[(2.0, 2.0), (3.0, 2.0)], frame, false, false).is_empty());
+        let wave: Vec<(f64, f64)> = (0..200)
+            .map(|k| (k as f64 / 199.0, 1.5 * (k as f64 * 0.2).sin()))
+            .collect();
+        let pieces = clip_polyline(&wave, frame, false, false);
+        assert!(pieces.len() > 1);
+        for p in pieces.iter().flatten() {
+            assert!(inside(p.0, p.1, frame), "{p:?}");
+        }
+        // A non-finite point breaks the line.
+        let broken = clip_polyline(
+            &[(0.1, 0.1), (f64::NAN, 0.2), (0.3, 0.3), (0.4, 0.4)],
+            frame,
+            false,
+            false,
+        );
+        assert_eq!(broken, vec![vec![(0.1, 0.1)], vec![(0.3, 0.3), (0.4, 0.4)]]);
+        // A logarithmic axis clips in log coordinates: the crossing of y = 10 on the way from
+        // 1 to 100 is halfway in x.
+        let log = clip_polyline(
+            &[(0.0, 1.0), (1.0, 100.0)],
+            (0.0, 1.0, 1.0, 10.0),
+            false,
+            true,
+        );
+        assert!(
+            (log[0][1].0 - 0.5).abs() < 1e-12 && (log[0][1].1 - 10.0).abs() < 1e-9,
+            "{log:?}"
+        );
+    }
+
+    #[test]
+    fn an_equal_aspect_panel_draws_a_circle_round() {
+        // A unit circle on +-1.25 in a panel of the usual 560 x 380 px: the drawn ranges give
+        // one unit the same number of pixels along x as along y.
+        let n = 361;
+        let circle = Series {
+            label: "circle".into(),
+            x: (0..n).map(|k| (k as f64).to_radians().cos()).collect(),
+            y: (0..n).map(|k| (k as f64).to_radians().sin()).collect(),
+        };
+        let mut panel = Panel::new("orbit", "x (mm)", "y (mm)", vec![circle]);
+        panel.x_range = Some((-1.25, 1.25));
+        panel.y_range = Some((-1.25, 1.25));
+        let draw = |panel: &Panel| {
+            let mut buf = vec![0u8; 560 * 380 * 3];
+            let area = BitMapBackend::with_buffer(&mut buf, (560, 380)).into_drawing_area();
+            draw_panel(&area, panel, false).unwrap()
+        };
+        let per_px = |d: &Drawn| {
+            (
+                (d.x.1 - d.x.0) / d.pixels.0 as f64,
+                (d.y.1 - d.y.0) / d.pixels.1 as f64,
+            )
+        };
+        let plain = draw(&panel);
+        let (ux, uy) = per_px(&plain);
+        assert!(
+            ux < 0.8 * uy,
+            "without it the panel is wider than tall: {ux} {uy}"
+        );
+        panel.equal_aspect = true;
+        let round = draw(&panel);
+        let (ux, uy) = per_px(&round);
+        assert!((ux / uy - 1.0).abs() < 0.01, "{ux} {uy} ({round:?})");
+        // The requested range stays in view: only the other axis was widened.
+        assert!(round.x.0 <= -1.25 && round.x.1 >= 1.25 && round.y.0 <= -1.25 && round.y.1 >= 1.25);
+        assert_eq!(round.y, (-1.25, 1.25));
+    }
+
+    #[test]
+    fn the_legend_goes_where_the_data_are_not() {
+        // A line along the top of the frame: the legend moves to the bottom.
+        let top = Series {
+            label: "top".into(),
+            x: (0..100).map(|k| k as f64 / 99.0).collect(),
+            y: vec![0.95; 100],
+        };
+        let rising = Series {
+            label: "second".into(),
+            x: vec![0.0, 0.1],
+            y: vec![0.5, 0.5],
+        };
+        let panel = Panel::new("", "", "", vec![top.clone(), rising.clone()]);
+        let frame = (0.0, 1.0, 0.0, 1.0);
+        let pos = legend_corner(&panel, frame, &["top", "second"]);
+        assert!(matches!(pos, SeriesLabelPosition::LowerRight), "{pos:?}");
+        // Data in the lower right and the upper right: the upper left is free.
+        let corner = Series {
+            label: "c".into(),
+            x: vec![0.95, 0.9, 0.95, 0.9],
+            y: vec![0.05, 0.1, 0.95, 0.9],
+        };
+        let panel = Panel::new("", "", "", vec![corner, rising]);
+        let pos = legend_corner(&panel, frame, &["c", "second"]);
+        assert!(matches!(pos, SeriesLabelPosition::UpperLeft), "{pos:?}");
+    }
+
+    #[test]
+    fn scientific_ticks_of_a_narrow_axis_differ() {
+        // An inset 1e-9 wide about -2.56e-5: five ticks, five different labels.
+        let span = 1e-9;
+        let labels: Vec<String> = (0..5)
+            .map(|k| tick(-2.56e-5 + k as f64 * 0.25 * span, span))
+            .collect();
+        let mut unique = labels.clone();
+        unique.dedup();
+        assert_eq!(unique.len(), 5, "{labels:?}");
+        // A wide axis keeps two decimals.
+        assert_eq!(tick(2.0e-5, 4.0e-5), "2.00e-5");
+    }
+
+    #[test]
+    fn equal_aspect_ranges_widen_the_shorter_unit() {
+        // 400 x 200 px for a 1 x 1 range: x is widened to 2.
+        let (x, y) = equal_aspect_ranges((0.0, 1.0), (0.0, 1.0), (400, 200));
+        assert_eq!((x, y), ((-0.5, 1.5), (0.0, 1.0)));
+        let (x, y) = equal_aspect_ranges((0.0, 1.0), (0.0, 1.0), (200, 400));
+        assert_eq!((x, y), ((0.0, 1.0), (-0.5, 1.5)));
     }
 }

@@ -133,7 +133,12 @@ fn read(path: &Path) -> Result<Data> {
                 label: format!(
                     "{} = {}{}",
                     short(&pname),
-                    crate::report::num(*p),
+                    // In the unit the parameter axis is drawn in (mm for a clearance).
+                    match display_scale(&punit, params.iter().copied()) {
+                        Some((k, u)) => format!("{} {u}", crate::report::num(*p * k)),
+                        None if punit.is_empty() => crate::report::num(*p),
+                        None => format!("{} {punit}", crate::report::num(*p)),
+                    },
                     if dirs[j] < 0 { " (down)" } else { "" }
                 ),
                 parameter: *p,
@@ -252,11 +257,11 @@ fn default_figures(d: &Data) -> Vec<FigureSpec> {
 
 /// The chaos panels under a bifurcation diagram: lambda_1 with its 3-standard-error band and the
 /// two-trajectory estimate, and K; none when the sweep has no chaos measures.
-fn chaos_panels(d: &Data, x_label: &str) -> Vec<Panel> {
+fn chaos_panels(d: &Data, x_label: &str, px: f64) -> Vec<Panel> {
     let mut out = Vec::new();
     let rows: Vec<&[f64; 5]> = d.chaos.iter().filter(|r| r[1].is_finite()).collect();
     if !rows.is_empty() {
-        let x: Vec<f64> = rows.iter().map(|r| r[0]).collect();
+        let x: Vec<f64> = rows.iter().map(|r| r[0] * px).collect();
         let line = |label: &str, f: &dyn Fn(&[f64; 5]) -> f64| Series {
             label: label.into(),
             x: x.clone(),
@@ -290,7 +295,7 @@ fn chaos_panels(d: &Data, x_label: &str) -> Vec<Panel> {
         p.y_range = Some((-0.1, 1.1));
         p.points = vec![Series {
             label: "K".into(),
-            x: krows.iter().map(|r| r[0]).collect(),
+            x: krows.iter().map(|r| r[0] * px).collect(),
             y: krows.iter().map(|r| r[4]).collect(),
         }];
         out.push(p);
@@ -341,15 +346,59 @@ fn bbox(x: &[f64], y: &[f64]) -> Option<(f64, f64, f64, f64)> {
     Some((x0, x1, y0, y1))
 }
 
+/// Lengths recorded in metres that all stay below 0.1 m (clearances, eccentricities, offsets)
+/// are drawn in millimetres, as the literature's figures draw them: the factor and the unit, or
+/// None to draw the values as recorded.
+pub fn display_scale(
+    unit: &str,
+    vals: impl IntoIterator<Item = f64>,
+) -> Option<(f64, &'static str)> {
+    if unit != "m" {
+        return None;
+    }
+    let mut any = false;
+    for v in vals.into_iter().filter(|v| v.is_finite()) {
+        if v.abs() >= 0.1 {
+            return None;
+        }
+        any = true;
+    }
+    any.then_some((1e3, "mm"))
+}
+
+/// Every recorded value of observable `n`: histories and section points of every job.
+fn values_of<'a>(d: &'a Data, n: &'a str) -> impl Iterator<Item = f64> + 'a {
+    d.jobs.iter().flat_map(move |j| {
+        j.history
+            .get(n)
+            .into_iter()
+            .flatten()
+            .chain(j.sections.values().filter_map(move |m| m.get(n)).flatten())
+            .copied()
+    })
+}
+
 fn panels_for(d: &Data, f: &FigureSpec) -> Result<Vec<Panel>> {
     let s = f.scale.unwrap_or(1.0);
+    // Per axis: the figure's own scale and unit when it gives them, else millimetres for small
+    // lengths (display_scale), else as recorded.
+    let auto = |n: &str| -> (f64, Option<String>) {
+        if f.scale.is_some() || f.unit.is_some() {
+            return (s, None);
+        }
+        let u = d.units.get(n).cloned().unwrap_or_default();
+        match display_scale(&u, values_of(d, n)) {
+            Some((k, mm)) => (k, Some(mm.to_string())),
+            None => (1.0, None),
+        }
+    };
     let unit = |n: &str| {
         f.unit
             .clone()
             .unwrap_or_else(|| d.units.get(n).cloned().unwrap_or_default())
     };
-    let label = |n: &str| {
-        let u = unit(n);
+    let label_in = |n: &str, shown: &Option<String>| {
+        let u = shown.clone().unwrap_or_else(|| unit(n));
         if u.is_empty() || u == "1" {
             n.to_string()
         } else {
@@ -358,6 +407,15 @@ fn panels_for(d: &Data, f: &FigureSpec) -> Result<Vec<Panel>> {
     };
     let y = f.y.as_str();
     let x = f.x.as_deref().unwrap_or("");
+    let (sx, ux) = auto(x);
+    let (sy, uy) = auto(y);
+    // An orbit keeps one scale for both axes and its circle.
+    let (sx, ux, sy, uy) = if f.kind == FigureKind::Orbit && (sx != sy || ux != uy) {
+        (s, None, s, None)
+    } else {
+        (sx, ux, sy, uy)
+    };
+    let label = |n: &str| label_in(n, if n == x { &ux } else { &uy });
     let section = f.section.clone().unwrap_or_else(|| "strobe".into());
     let sec_label = if section == "strobe" {
         "strobe points".to_string()
@@ -384,11 +442,16 @@ fn panels_for(d: &Data, f: &FigureSpec) -> Result<Vec<Panel>> {
             x: Vec::new(),
             y: Vec::new(),
         };
+        // A clearance swept in metres is drawn in millimetres.
+        let (px, punit) = match display_scale(&punit, d.jobs.iter().map(|j| j.parameter)) {
+            Some((k, u)) => (k, u.to_string()),
+            None => (1.0, punit),
+        };
         for j in &d.jobs {
             let pts = &j.sections[&section][y];
             let s_ = if j.up { &mut up } else { &mut down };
-            s_.x.extend(std::iter::repeat_n(j.parameter, pts.len()));
-            s_.y.extend(pts.iter().map(|v| v * s));
+            s_.x.extend(std::iter::repeat_n(j.parameter * px, pts.len()));
+            s_.y.extend(pts.iter().map(|v| v * sy));
         }
         let mut p = Panel::new(
             f.title
@@ -410,14 +473,14 @@ fn panels_for(d: &Data, f: &FigureSpec) -> Result<Vec<Panel>> {
             p.points = vec![up, down];
         }
         let mut panels = vec![p];
-        panels.extend(chaos_panels(d, &panels[0].x_label));
+        panels.extend(chaos_panels(d, &panels[0].x_label, px));
         if panels.len() > 1 {
             // One parameter axis for the stacked panels.
             let (lo, hi) = d
                 .jobs
                 .iter()
                 .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), j| {
-                    (a.min(j.parameter), b.max(j.parameter))
+                    (a.min(j.parameter * px), b.max(j.parameter * px))
                 });
             let pad = 0.02 * (hi - lo).max(f64::MIN_POSITIVE);
             for p in &mut panels {
@@ -440,16 +503,16 @@ fn panels_for(d: &Data, f: &FigureSpec) -> Result<Vec<Panel>> {
     };
     let mut panels = Vec::new();
     for j in jobs {
-        let hx = j.history.get(x).map(|v| scaled(v, s)).unwrap_or_default();
-        let hy = j.history.get(y).map(|v| scaled(v, s)).unwrap_or_default();
+        let hx = j.history.get(x).map(|v| scaled(v, sx)).unwrap_or_default();
+        let hy = j.history.get(y).map(|v| scaled(v, sy)).unwrap_or_default();
         let pts = j.sections.get(&section);
         let px = pts
             .and_then(|m| m.get(x))
-            .map(|v| scaled(v, s))
+            .map(|v| scaled(v, sx))
             .unwrap_or_default();
         let py = pts
             .and_then(|m| m.get(y))
-            .map(|v| scaled(v, s))
+            .map(|v| scaled(v, sy))
             .unwrap_or_default();
         let p = match f.kind {
             FigureKind::Time => Panel::new(
@@ -524,9 +587,9 @@ fn panels_for(d: &Data, f: &FigureSpec) -> Result<Vec<Panel>> {
             }
             FigureKind::Orbit => {
                 let r = if f.circle_from_parameter {
-                    Some(j.parameter * s)
+                    Some(j.parameter * sx)
                 } else {
-                    f.circle.map(|c| c * s)
+                    f.circle.map(|c| c * sx)
                 };
                 let mut series = vec![Series {
                     label: "centre".into(),
@@ -554,6 +617,7 @@ fn panels_for(d: &Data, f: &FigureSpec) -> Result<Vec<Panel>> {
                 );
                 p.x_range = Some((-lim, lim));
                 p.y_range = Some((-lim, lim));
+                p.equal_aspect = true;
                 p
             }
             FigureKind::Bifurcation => unreachable!("handled above"),
@@ -614,4 +678,24 @@ pub fn render(path: &Path, out: &Path, formats: &[Format]) -> Result<Vec<PathBuf
         )?);
     }
     Ok(files)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::display_scale;
+
+    #[test]
+    fn small_lengths_are_drawn_in_millimetres() {
+        // A clearance sweep 0 to 0.8 mm and an eccentricity: mm.
+        assert_eq!(display_scale("m", [0.0, 2e-4, 8e-4]), Some((1e3, "mm")));
+        assert_eq!(
+            display_scale("m", [-5.8e-5, f64::NAN, 4.2e-5]),
+            Some((1e3, "mm"))
+        );
+        // The platform's height (1.2 m), a velocity, a friction coefficient: as recorded.
+        assert_eq!(display_scale("m", [1.18, 1.24]), None);
+        assert_eq!(display_scale("m/s", [1e-4]), None);
+        assert_eq!(display_scale("", [0.05]), None);
+        assert_eq!(display_scale("m", []), None);
+    }
 }

@@ -124,6 +124,7 @@ pub fn run_figures(out: &Path, name: &str, run: &RunResult) -> Result<Vec<PathBu
         let orbit = Panel {
             x_range: Some((-lim, lim)),
             y_range: Some((-lim, lim)),
+            equal_aspect: true,
             ..Panel::new(
                 format!("{}: journal-centre orbit", c.name),
                 "eccentricity along u (mm)",

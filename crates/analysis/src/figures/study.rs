@@ -9,6 +9,20 @@ use crate::report::norm;
 use crate::run::{Channel, Recording};
 use crate::study::ReportSpec;
 
+/// The global plane (two axis indices, 0 = X) in which a spherical joint's orbit is drawn: the
+/// first two report axes; with one report axis, that axis and the first other one, in index
+/// order (report axis "y" draws the X-Y plane), so that an axis is never drawn against itself.
+pub fn orbit_plane(axes: &[(usize, &str)]) -> (usize, usize) {
+    match axes {
+        [] => (0, 1),
+        [(a, _)] => {
+            let other = (0..3).find(|i| i != a).unwrap_or(0);
+            (other.min(*a), other.max(*a))
+        }
+        [(a, _), (b, _), ..] => (*a, *b),
+    }
+}
+
 /// Draws the study figures into `out` and returns the files written.
 pub fn study_figures<'a>(
     out: &Path,
@@ -112,10 +126,7 @@ pub fn study_figures<'a>(
             vec![("centre", None)]
         };
         let spherical = with.iter().all(|(_, _, c)| c.spherical);
-        let (p0, p1) = (
-            axes.first().map(|a| a.0).unwrap_or(0),
-            axes.get(1).map(|a| a.0).unwrap_or(1),
-        );
+        let (p0, p1) = orbit_plane(&axes);
         for (end, col) in ends {
             let mut series: Vec<Series> = with
                 .iter()
@@ -152,6 +163,7 @@ pub fn study_figures<'a>(
             orbit_panels.push(Panel {
                 x_range: Some((-lim, lim)),
                 y_range: Some((-lim, lim)),
+                equal_aspect: true,
                 ..Panel::new(format!("{j}: journal {end} orbit"), xl, yl, series)
             });
         }
@@ -171,4 +183,19 @@ pub fn study_figures<'a>(
         &PNG_AND_SVG,
     )?);
     Ok(files)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::orbit_plane;
+
+    #[test]
+    fn an_orbit_plane_never_draws_an_axis_against_itself() {
+        assert_eq!(orbit_plane(&[(1, "y")]), (0, 1));
+        assert_eq!(orbit_plane(&[(0, "x")]), (0, 1));
+        assert_eq!(orbit_plane(&[(2, "z")]), (0, 2));
+        assert_eq!(orbit_plane(&[(0, "x"), (2, "z")]), (0, 2));
+        assert_eq!(orbit_plane(&[(1, "y"), (2, "z"), (0, "x")]), (1, 2));
+        assert_eq!(orbit_plane(&[]), (0, 1));
+    }
 }
