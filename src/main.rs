@@ -597,6 +597,16 @@ fn run_analysis(
         o.rhs_evals as f64 / o.wall.max(1e-9)
     );
     println!("wall time    {:.3} s", o.wall);
+    if o.threads > 1 {
+        println!(
+            "parallel     efficiency {:.0} % on {} threads (jobs {:.1} s of {} x {:.1} s)",
+            100.0 * o.efficiency(),
+            o.threads,
+            o.busy,
+            o.threads,
+            o.wall
+        );
+    }
     for line in jointplay_analysis::chaos::summary(&o.file)? {
         println!("{line}");
     }
