@@ -21,7 +21,7 @@ use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
 use jointplay_analysis::comparison::Comparison;
 use jointplay_analysis::figures::{overlay, redraw, run_figures};
-use jointplay_analysis::h5::{Meta, write_run};
+use jointplay_analysis::h5::Meta;
 use jointplay_analysis::hybrid::read_run_file;
 use jointplay_analysis::inputs::Input;
 use jointplay_analysis::nonlinear::{Loaded, Options, execute};
@@ -29,7 +29,7 @@ use jointplay_analysis::plot::{Format, figure};
 use jointplay_analysis::precision;
 use jointplay_analysis::progress::{Progress, Tally};
 use jointplay_analysis::report::{self, markdown};
-use jointplay_analysis::run::{resume, simulate};
+use jointplay_analysis::run::{resume_to_file, simulate_to_file};
 use jointplay_analysis::shards::{Shard, merge};
 use jointplay_analysis::slurm::Batch;
 use jointplay_analysis::study::Study;
@@ -394,24 +394,25 @@ fn run(
         }
         bar.set_position((f * 1000.0) as u64);
     };
-    let result = match from {
-        None => simulate(&model, state, &mut progress),
-        Some(f) => resume(&model, read_run_file(f)?, &mut progress),
+    // The run goes to its file as it is recorded: memory does not grow with its length.
+    let meta = Meta::of(&model, path, &scene.text, VERSION);
+    let (result, written) = match from {
+        None => simulate_to_file(&model, state, &mut progress, out, &meta),
+        Some(f) => resume_to_file(&model, read_run_file(f)?, &mut progress, out, &meta),
     }
     .with_context(|| format!("simulating {}", path.display()))?;
     bar.finish_and_clear();
     for w in &result.warnings {
         eprintln!("warning: {}: {}", path.display(), w.message);
     }
-    let meta = Meta::of(&model, path, &scene.text, VERSION);
-    let file = write_run(out, &meta, &result)?;
+    let file = &written.path;
     if let Some(s) = &result.stopped {
         anyhow::bail!(
             "simulating {}: {}\nwrote {} with the {} samples recorded before the failure, marked incomplete (attribute complete = 0)",
             path.display(),
             s,
             file.display(),
-            result.recording.time.len()
+            written.samples
         );
     }
     let st = &result.stats;
@@ -419,9 +420,7 @@ fn run(
     println!("scene        {} ({})", model.name, path.display());
     println!(
         "span         {} s to {} s, {} samples",
-        model.settings.start_time,
-        model.settings.end_time,
-        result.recording.time.len()
+        model.settings.start_time, model.settings.end_time, written.samples
     );
     println!("integrator   {}", model.settings.method.describe());
     println!(
@@ -434,20 +433,17 @@ fn run(
         st.rhs_evals as f64 / wall.max(1e-9)
     );
     println!("wall time    {wall:.3} s (integration and recording)");
-    let rec = &result.recording;
-    if let (Some(p), Some(v)) = (
-        rec.channel("diagnostics/constraint_drift"),
-        rec.channel("diagnostics/velocity_drift"),
-    ) {
-        let max = |v: &[f64]| v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
-        println!(
-            "drift        max |Phi| {:.3e} (m, rad), max |Phi'| {:.3e} (m/s, rad/s)",
-            max(&p.values),
-            max(&v.values)
-        );
+    if let Some((p, v)) = written.max_drift {
+        println!("drift        max |Phi| {p:.3e} (m, rad), max |Phi'| {v:.3e} (m/s, rad/s)");
     }
     println!("wrote        {}", file.display());
     if plots {
+        if written.stride > 1 {
+            println!(
+                "figures      drawn from one sample in {} (the file holds them all)",
+                written.stride
+            );
+        }
         for f in run_figures(out, &model.name, &result)? {
             println!("wrote        {}", f.display());
         }
@@ -601,6 +597,16 @@ fn run_analysis(
         o.rhs_evals as f64 / o.wall.max(1e-9)
     );
     println!("wall time    {:.3} s", o.wall);
+    if o.threads > 1 {
+        println!(
+            "parallel     efficiency {:.0} % on {} threads (jobs {:.1} s of {} x {:.1} s)",
+            100.0 * o.efficiency(),
+            o.threads,
+            o.busy,
+            o.threads,
+            o.wall
+        );
+    }
     for line in jointplay_analysis::chaos::summary(&o.file)? {
         println!("{line}");
     }

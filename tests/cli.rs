@@ -835,6 +835,24 @@ fn a_sweep_gives_bit_identical_datasets_on_one_and_two_threads() {
             .output()
             .unwrap();
         assert!(out.status.success(), "{:?}", text(&out));
+        // Two threads report how busy they were: a percentage of at most 100.
+        let (so, _) = text(&out);
+        let line = so
+            .lines()
+            .find(|l| l.starts_with("parallel     efficiency "));
+        assert_eq!(line.is_some(), threads == "2", "{so}");
+        if let Some(l) = line {
+            let pct: f64 = l["parallel     efficiency ".len()..]
+                .split(' ')
+                .next()
+                .unwrap()
+                .parse()
+                .unwrap();
+            assert!(
+                pct > 0.0 && pct <= 100.0 && l.contains("on 2 threads"),
+                "{l}"
+            );
+        }
         files.push(hdf5::File::open(out_dir.join("duffing-small.h5")).unwrap());
     }
     for name in [

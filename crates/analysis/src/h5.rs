@@ -5,6 +5,21 @@
 //! The file is written under a temporary name (`<name>.h5.partial`) and renamed only once it is
 //! complete and closed, so a crash or an error never leaves a file that looks finished.
 //! Every dataset carries a `unit` attribute (SI) and a `description`.
+//!
+//! **Compression.** Every numeric dataset of more than [`SMALL`] values is chunked and
+//! compressed with the shuffle filter followed by deflate ([`DEFLATE`]): the shuffle regroups
+//! the bytes of the values by significance (all sign-and-exponent bytes, then the high mantissa
+//! bytes, ...), and since neighbouring samples of a smooth signal share their exponent and high
+//! mantissa bytes, deflate finds long repeats in the first planes. Values are stored exactly;
+//! only the file's bytes change. Chunks hold about [`CHUNK_BYTES`] (whole rows), small enough
+//! that reading one column of a long recording decompresses little beyond it, large enough that
+//! the per-chunk index and deflate's start-up cost stay negligible. Datasets of strings are not
+//! compressed (their values live on the file's heap, out of the filters' reach).
+//!
+//! **Streaming.** A run file can be written while the run goes ([`RunWriter`]): its datasets
+//! are created empty and extendable, and every [`STREAM_ROWS`] samples are appended as one chunk
+//! each and flushed, so a run's memory does not grow with its length; the attributes known only
+//! at the end (statistics, `complete`, the final state) are written when it ends.
 
 use std::path::{Path, PathBuf};
 
@@ -12,7 +27,7 @@ use hdf5::types::VarLenUnicode;
 use jointplay_solver::model::Model;
 use ndarray::{Array1, Array2, s};
 
-use crate::run::{Attr, Recording, RunResult};
+use crate::run::{Attr, Channel, Recording, RunResult};
 use crate::{Error, Result};
 
 /// Run metadata written as root attributes.
@@ -110,6 +125,48 @@ pub(crate) fn write1(
     write_column(g, name, data, Some(unit), desc)
 }
 
+/// Datasets of at most this many values are stored contiguous and uncompressed (a chunk index
+/// and a filter pipeline would cost more than they save).
+pub const SMALL: usize = 256;
+
+/// Bytes per chunk of a compressed dataset (rounded to whole rows).
+pub const CHUNK_BYTES: usize = 64 * 1024;
+
+/// Deflate level after the shuffle filter: level 4 is within a few per cent of level 9's size on
+/// recorded trajectories at a fraction of its time.
+pub const DEFLATE: u8 = 4;
+
+/// Samples a streamed run file appends at once: one chunk of every dataset whose row is at most
+/// `CHUNK_BYTES / STREAM_ROWS` bytes wide.
+pub const STREAM_ROWS: usize = 2048;
+
+/// The chunk shape of a compressed dataset of `shape` with elements of `size` bytes: whole rows
+/// (every dimension but the first kept whole), about [`CHUNK_BYTES`] of them; `None` for a
+/// dataset of at most [`SMALL`] values, or of strings (`size` 0), stored as it is.
+pub(crate) fn chunk_shape(shape: &[usize], size: usize) -> Option<Vec<usize>> {
+    let n: usize = shape.iter().product();
+    if n <= SMALL || size == 0 || shape.is_empty() {
+        return None;
+    }
+    let row: usize = shape[1..].iter().product::<usize>().max(1) * size;
+    let rows = (CHUNK_BYTES / row).clamp(1, shape[0].max(1));
+    Some(
+        std::iter::once(rows)
+            .chain(shape[1..].iter().copied())
+            .collect(),
+    )
+}
+
+/// The element size of `T` for [`chunk_shape`], 0 for a type the filters do not apply to
+/// (variable-length strings).
+fn filter_size<T: hdf5::H5Type>() -> usize {
+    use hdf5::types::TypeDescriptor as TD;
+    match T::type_descriptor() {
+        d @ (TD::Integer(_) | TD::Unsigned(_) | TD::Float(_) | TD::Boolean) => d.size(),
+        _ => 0,
+    }
+}
+
 /// Writes a one-dimensional dataset with its unit (unless `None`) and description.
 pub(crate) fn write_column<T: hdf5::H5Type + Clone>(
     g: &hdf5::Group,
@@ -118,10 +175,17 @@ pub(crate) fn write_column<T: hdf5::H5Type + Clone>(
     unit: Option<&str>,
     desc: &str,
 ) -> hdf5::Result<()> {
-    let ds = g
-        .new_dataset_builder()
-        .with_data(&Array1::from(data.to_vec()))
-        .create(name)?;
+    let arr = Array1::from(data.to_vec());
+    let ds = match chunk_shape(&[data.len()], filter_size::<T>()) {
+        Some(c) => g
+            .new_dataset_builder()
+            .with_data(&arr)
+            .chunk(c)
+            .shuffle()
+            .deflate(DEFLATE)
+            .create(name)?,
+        None => g.new_dataset_builder().with_data(&arr).create(name)?,
+    };
     describe(&ds, unit, desc)
 }
 
@@ -149,11 +213,15 @@ pub(crate) fn create_nan(
     unit: &str,
     desc: &str,
 ) -> hdf5::Result<()> {
-    let ds = g
-        .new_dataset::<f64>()
-        .shape(shape)
-        .fill_value(f64::NAN)
-        .create(name)?;
+    let b = g.new_dataset::<f64>().shape(shape).fill_value(f64::NAN);
+    let ds = match chunk_shape(shape, 8) {
+        // One row (one job) per chunk: a job's results are written, and compressed, at once.
+        Some(mut c) => {
+            c[0] = 1;
+            b.chunk(c).shuffle().deflate(DEFLATE).create(name)?
+        }
+        None => b.create(name)?,
+    };
     describe(&ds, Some(unit), desc)
 }
 
@@ -225,7 +293,16 @@ pub(crate) fn write_table<T: hdf5::H5Type + Clone>(
     let rows = data.len().checked_div(cols).unwrap_or(0);
     let arr = Array2::from_shape_vec((rows, cols), data.to_vec())
         .map_err(|e| hdf5::Error::from(e.to_string()))?;
-    let ds = g.new_dataset_builder().with_data(&arr).create(name)?;
+    let ds = match chunk_shape(&[rows, cols], filter_size::<T>()) {
+        Some(c) => g
+            .new_dataset_builder()
+            .with_data(&arr)
+            .chunk(c)
+            .shuffle()
+            .deflate(DEFLATE)
+            .create(name)?,
+        None => g.new_dataset_builder().with_data(&arr).create(name)?,
+    };
     describe(&ds, Some(unit), desc)
 }
 
@@ -314,6 +391,13 @@ pub fn write_study(
 
 /// Writes one run (its attributes and datasets, the layout of a run file's root) into `file`.
 fn write_group(file: &hdf5::Group, meta: &Meta, run: &RunResult) -> hdf5::Result<()> {
+    write_meta(file, meta)?;
+    write_recording(file, &run.recording)?;
+    write_outcome(file, meta, run)
+}
+
+/// The attributes of a run known before it starts: the scene and the integrator.
+fn write_meta(file: &hdf5::Group, meta: &Meta) -> hdf5::Result<()> {
     str_attr(file, "scene_name", meta.scene_name)?;
     str_attr(file, "scene_file", &meta.scene_file.display().to_string())?;
     str_attr(file, "scene", meta.scene_text)?;
@@ -323,6 +407,12 @@ fn write_group(file: &hdf5::Group, meta: &Meta, run: &RunResult) -> hdf5::Result
     if let Some(p) = meta.drive_period {
         f64_attr(file, "drive_period", p)?;
     }
+    Ok(())
+}
+
+/// What a run's end decides: its statistics, whether it is complete (and if not, where and why
+/// it stopped), its warnings and its final hybrid state.
+fn write_outcome(file: &hdf5::Group, meta: &Meta, run: &RunResult) -> hdf5::Result<()> {
     u64_attr(file, "steps_accepted", run.stats.accepted)?;
     u64_attr(file, "steps_rejected", run.stats.rejected)?;
     u64_attr(file, "rhs_evaluations", run.stats.rhs_evals)?;
@@ -343,15 +433,12 @@ fn write_group(file: &hdf5::Group, meta: &Meta, run: &RunResult) -> hdf5::Result
     if !warnings.is_empty() {
         str_attr(file, "warnings", &warnings.join("\n"))?;
     }
-    write_recording(file, &run.recording)?;
     // The hybrid state at the end: a later run can continue from it (`run --from`).
     crate::hybrid::write_state(file, &run.final_state)
 }
 
-/// Writes a recording: the sample times, its groups with their attributes and one dataset per
-/// channel (as u8 for a flag, one-dimensional for a scalar).
-fn write_recording(g: &hdf5::Group, rec: &Recording) -> hdf5::Result<()> {
-    write1(g, "time", &rec.time, "s", "sample times")?;
+/// Writes the groups of a recording with their attributes.
+fn write_groups(g: &hdf5::Group, rec: &Recording) -> hdf5::Result<()> {
     for group in &rec.groups {
         let h = g.create_group(&group.path)?;
         for (name, value) in &group.attrs {
@@ -361,6 +448,14 @@ fn write_recording(g: &hdf5::Group, rec: &Recording) -> hdf5::Result<()> {
             }
         }
     }
+    Ok(())
+}
+
+/// Writes a recording: the sample times, its groups with their attributes and one dataset per
+/// channel (as u8 for a flag, one-dimensional for a scalar).
+fn write_recording(g: &hdf5::Group, rec: &Recording) -> hdf5::Result<()> {
+    write1(g, "time", &rec.time, "s", "sample times")?;
+    write_groups(g, rec)?;
     for c in &rec.channels {
         let (name, unit, desc) = (&c.dataset, &c.unit, &c.description);
         if c.flag {
@@ -373,6 +468,187 @@ fn write_recording(g: &hdf5::Group, rec: &Recording) -> hdf5::Result<()> {
         }
     }
     Ok(())
+}
+
+/// A run file written while the run goes (see the module documentation): the layout of
+/// [`write_run`], the same dataset names, shapes, types and values, with every dataset chunked
+/// by [`STREAM_ROWS`] samples and compressed whatever its length. Until [`RunWriter::finish`]
+/// the file lies under its temporary name with `complete = 0`, readable up to the last
+/// appended samples.
+pub struct RunWriter {
+    file: hdf5::File,
+    path: PathBuf,
+    partial: PathBuf,
+    time: hdf5::Dataset,
+    /// One per channel of the recording, in its order.
+    sets: Vec<hdf5::Dataset>,
+    /// Samples written.
+    rows: usize,
+}
+
+/// Creates an empty extendable dataset of `width` columns (one-dimensional when `scalar`).
+fn extendable<T: hdf5::H5Type>(
+    g: &hdf5::Group,
+    name: &str,
+    width: usize,
+    scalar: bool,
+    unit: &str,
+    desc: &str,
+) -> hdf5::Result<hdf5::Dataset> {
+    // No chunk cache: every append writes whole chunks, straight to the file. (HDF5 gives every
+    // open dataset a cache of 1 MiB by default; with the hundreds of datasets of a mechanism's
+    // run held open, the caches alone would hold a few hundred MB.)
+    let b = g.new_dataset::<T>().chunk_cache(0, 0, 1.0);
+    let ds = if scalar {
+        b.shape(0..)
+            .chunk(STREAM_ROWS)
+            .shuffle()
+            .deflate(DEFLATE)
+            .create(name)?
+    } else {
+        b.shape((0.., width))
+            .chunk((STREAM_ROWS, width))
+            .shuffle()
+            .deflate(DEFLATE)
+            .create(name)?
+    };
+    describe(&ds, Some(unit), desc)?;
+    Ok(ds)
+}
+
+/// Appends `rows` samples of `values` (`width` per sample) to `ds` after its first `from` rows.
+fn append<T: hdf5::H5Type>(
+    ds: &hdf5::Dataset,
+    from: usize,
+    rows: usize,
+    width: usize,
+    scalar: bool,
+    values: Vec<T>,
+) -> hdf5::Result<()> {
+    if scalar {
+        ds.resize(from + rows)?;
+        ds.write_slice(&Array1::from(values), s![from..from + rows])
+    } else {
+        ds.resize((from + rows, width))?;
+        let arr = Array2::from_shape_vec((rows, width), values)
+            .map_err(|e| hdf5::Error::from(e.to_string()))?;
+        ds.write_slice(&arr, s![from..from + rows, ..])
+    }
+}
+
+impl RunWriter {
+    /// Creates `dir/<scene_name>.h5.partial` with the run's metadata, the groups and the empty
+    /// datasets of `rec` (a recording declared by [`Recording::of`]), marked incomplete.
+    pub fn create(dir: &Path, meta: &Meta, rec: &Recording) -> Result<RunWriter> {
+        std::fs::create_dir_all(dir).map_err(|e| Error::Io {
+            file: dir.to_path_buf(),
+            message: format!("cannot create output directory: {e}"),
+        })?;
+        let path = dir.join(format!("{}.h5", meta.scene_name));
+        let partial = dir.join(format!("{}.h5.partial", meta.scene_name));
+        let file = hdf5::File::create(&partial).map_err(h5err(&partial))?;
+        let made = (|| -> hdf5::Result<(hdf5::Dataset, Vec<hdf5::Dataset>)> {
+            str_attr(&file, "program", "jointplay")?;
+            str_attr(&file, "program_version", meta.program_version)?;
+            str_attr(&file, "units", "SI: m, kg, s, rad, N, N m, J")?;
+            write_meta(&file, meta)?;
+            u8_attr_set(&file, "complete", 0)?;
+            let time = extendable::<f64>(&file, "time", 1, true, "s", "sample times")?;
+            write_groups(&file, rec)?;
+            let sets = rec
+                .channels
+                .iter()
+                .map(|c: &Channel| {
+                    let (name, unit, desc) = (&c.dataset, &c.unit, &c.description);
+                    if c.flag {
+                        extendable::<u8>(&file, name, c.width(), false, unit, desc)
+                    } else {
+                        extendable::<f64>(&file, name, c.width(), c.scalar, unit, desc)
+                    }
+                })
+                .collect::<hdf5::Result<Vec<_>>>()?;
+            file.flush()?;
+            Ok((time, sets))
+        })();
+        match made {
+            Ok((time, sets)) => Ok(RunWriter {
+                file,
+                path,
+                partial,
+                time,
+                sets,
+                rows: 0,
+            }),
+            Err(err) => {
+                drop(file);
+                let _ = std::fs::remove_file(&partial);
+                Err(h5err(&partial)(err))
+            }
+        }
+    }
+
+    /// Closes and removes the partial file (a run that could not be recorded).
+    pub fn discard(self) {
+        let partial = self.partial.clone();
+        drop(self);
+        let _ = std::fs::remove_file(partial);
+    }
+
+    /// Samples written so far.
+    pub fn rows(&self) -> usize {
+        self.rows
+    }
+
+    /// Appends the samples `rec` holds (all its channels, the same number of samples each) and
+    /// flushes the file.
+    pub fn append(&mut self, rec: &Recording) -> Result<()> {
+        let e = h5err(&self.partial);
+        let n = rec.time.len();
+        if n == 0 {
+            return Ok(());
+        }
+        let from = self.rows;
+        (|| -> hdf5::Result<()> {
+            append(&self.time, from, n, 1, true, rec.time.clone())?;
+            for (c, ds) in rec.channels.iter().zip(&self.sets) {
+                if c.flag {
+                    let v: Vec<u8> = c.values.iter().map(|&x| x as u8).collect();
+                    append(ds, from, n, c.width(), false, v)?;
+                } else {
+                    append(ds, from, n, c.width(), c.scalar, c.values.clone())?;
+                }
+            }
+            self.file.flush()
+        })()
+        .map_err(&e)?;
+        self.rows += n;
+        Ok(())
+    }
+
+    /// Writes what the run's end decides (statistics, `complete`, the error of a run that
+    /// stopped, warnings, the final state; `run.recording` is not written again), closes the
+    /// file and moves it into place; on an error the partial file is removed.
+    pub fn finish(self, meta: &Meta, run: &RunResult) -> Result<PathBuf> {
+        let RunWriter {
+            file,
+            path,
+            partial,
+            time,
+            sets,
+            ..
+        } = self;
+        drop((time, sets));
+        let res = write_outcome(&file, meta, run).and_then(|()| file.close());
+        if let Err(err) = res {
+            let _ = std::fs::remove_file(&partial);
+            return Err(h5err(&partial)(err));
+        }
+        std::fs::rename(&partial, &path).map_err(|e| Error::Io {
+            file: path.clone(),
+            message: format!("cannot move the finished file into place: {e}"),
+        })?;
+        Ok(path)
+    }
 }
 
 /// One component of a recorded dataset with its time axis, for comparing runs.

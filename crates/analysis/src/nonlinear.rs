@@ -22,7 +22,7 @@
 
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc;
 use std::time::Instant;
 
@@ -959,6 +959,20 @@ pub struct Outcome {
     pub warnings: Vec<String>,
     pub wall: f64,
     pub rhs_evals: u64,
+    /// Wall time the jobs of this call took, summed over the threads that ran them (s).
+    pub busy: f64,
+    /// Threads of the pool the jobs ran on (1 for a single run or a continuation).
+    pub threads: usize,
+}
+
+impl Outcome {
+    /// Parallel efficiency: the jobs' summed wall time over the threads' wall time,
+    /// `busy / (threads * wall)`; 1 when every thread ran a job from start to end. What it misses
+    /// is the time threads waited (the last jobs of a sweep running alone) and the time outside
+    /// the jobs (reading the study, writing the file).
+    pub fn efficiency(&self) -> f64 {
+        self.busy / (self.threads.max(1) as f64 * self.wall.max(1e-9))
+    }
 }
 
 /// How [`execute`] treats an existing file and how much it runs.
@@ -1012,6 +1026,7 @@ pub fn execute_until(
             pending: 1,
         });
         // A run that fails keeps what it recorded, in a file marked incomplete.
+        let job_start = Instant::now();
         let (r, failure) =
             st.run_job_partial(None, None, &mut throttled(0, progress), user_stop)?;
         progress(Progress::Done {
@@ -1047,6 +1062,8 @@ pub fn execute_until(
             warnings: r.warnings,
             wall: start.elapsed().as_secs_f64(),
             rhs_evals: r.trace.stats.rhs_evals,
+            busy: job_start.elapsed().as_secs_f64(),
+            threads: 1,
         });
     };
     // The jobs this file holds, by their index in the whole sweep; row r of every dataset is
@@ -1132,6 +1149,9 @@ pub fn execute_until(
     let limit = opts.max_jobs.unwrap_or(usize::MAX);
     let mut finished = 0usize;
     let stop = AtomicBool::new(limit == 0);
+    // Nanoseconds the jobs took, summed over the threads.
+    let busy = AtomicU64::new(0);
+    let mut threads = 1;
     // Writes the result of the job in row `r`.
     let mut write = |r: usize, res: Result<JobResult>, done: &mut Vec<u8>| -> Result<()> {
         let j = rows[r];
@@ -1180,12 +1200,14 @@ pub fn execute_until(
                 };
                 continue;
             }
+            let job_start = Instant::now();
             let res = st.run_job(
                 Some(st.jobs[j].0),
                 prev.as_ref(),
                 &mut throttled(j, progress),
                 user_stop,
             );
+            busy.fetch_add(job_start.elapsed().as_nanos() as u64, Ordering::Relaxed);
             prev = res.as_ref().ok().map(|r| r.trace.final_state.clone());
             write(j, res, &mut done)?;
         }
@@ -1193,6 +1215,8 @@ pub fn execute_until(
         // The jobs run on the caller's rayon pool (the global one, or one it installed); a
         // thread of its own writes each result as it comes.
         let (tx, rx) = mpsc::channel::<(usize, Result<JobResult>)>();
+        threads = rayon::current_num_threads();
+        let busy = &busy;
         let write_err = std::thread::scope(|scope| {
             let (stop, done) = (&stop, &mut done);
             let writer = scope.spawn(move || {
@@ -1215,12 +1239,14 @@ pub fn execute_until(
                     return;
                 }
                 let j = rows[r];
+                let job_start = Instant::now();
                 let res = st.run_job(
                     Some(st.jobs[j].0),
                     None,
                     &mut throttled(j, progress),
                     user_stop,
                 );
+                busy.fetch_add(job_start.elapsed().as_nanos() as u64, Ordering::Relaxed);
                 // The writer lives until every sender is gone.
                 let _ = tx.send((r, res));
             });
@@ -1252,6 +1278,8 @@ pub fn execute_until(
         warnings: Vec::new(),
         wall,
         rhs_evals: rhs,
+        busy: busy.load(Ordering::Relaxed) as f64 * 1e-9,
+        threads,
     })
 }
 

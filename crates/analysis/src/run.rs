@@ -15,6 +15,15 @@
 //! non-finite recorded value) keeps every sample recorded before the failure:
 //! [`RunResult::stopped`] says where and why, and the file written from it is marked incomplete.
 //!
+//! A run can also be written to its file while it goes ([`simulate_to_file`], [`resume_to_file`],
+//! what `jointplay run` does): every [`crate::h5::STREAM_ROWS`] samples are appended to the file
+//! and dropped from memory, so a run's memory does not grow with its length. Of the streamed
+//! samples it keeps only those the run figures draw ([`crate::figures::run::drawn`]), and of
+//! those every `stride`-th: at most [`FIGURE_SAMPLES`] to `2 * FIGURE_SAMPLES` samples, the
+//! stride doubling whenever twice the bound is reached (sample `j` of the kept ones is sample
+//! `j * stride` of the run, so halving keeps exactly those whose index is a multiple of the new
+//! stride). A run of up to [`FIGURE_SAMPLES`] samples draws every sample, as an in-memory run.
+//!
 //! Every run ends with its hybrid state ([`RunResult::final_state`]: the continuous state with
 //! the contact-onset history, the guard's flags and the integrator's memory), written to the run
 //! file ([`crate::hybrid`]). [`resume`] continues a run from such a state to the scene's end
@@ -28,7 +37,10 @@ use jointplay_solver::model::{Model, State};
 use jointplay_solver::ode::{Flow, OdeSystem, Stats, advance};
 use jointplay_solver::state::HybridState;
 
+use std::path::{Path, PathBuf};
+
 use crate::Result;
+use crate::h5::{Meta, RunWriter, STREAM_ROWS};
 use crate::observe::Observable;
 use crate::progress::Stop;
 
@@ -550,7 +562,193 @@ pub fn simulate_until(
         assembly,
         progress,
         stop,
+        None,
     )
+}
+
+/// Samples a run written to its file keeps in memory for its figures: between this and twice
+/// this (see the module documentation).
+pub const FIGURE_SAMPLES: usize = 10_000;
+
+/// What a run written to its file ([`simulate_to_file`]) leaves besides its [`RunResult`].
+#[derive(Debug, Clone)]
+pub struct Written {
+    /// The run file.
+    pub path: PathBuf,
+    /// Samples written.
+    pub samples: usize,
+    /// The largest constraint drift and velocity drift over all samples, when the scene
+    /// records its diagnostics.
+    pub max_drift: Option<(f64, f64)>,
+    /// The [`RunResult::recording`] returned with it holds every `stride`-th sample.
+    pub stride: usize,
+}
+
+/// Where a streamed run's samples go: the file, and every `stride`-th sample of the channels
+/// the figures draw into `thin`.
+struct Stream {
+    writer: RunWriter,
+    thin: Recording,
+    /// Per channel: kept for the figures.
+    keep: Vec<bool>,
+    stride: usize,
+    /// The channels of the constraint and velocity drift, and their largest values so far.
+    drift: Option<([usize; 2], [f64; 2])>,
+}
+
+impl Stream {
+    fn new(writer: RunWriter, rec: &Recording) -> Stream {
+        let mut thin = rec.clone();
+        let keep = rec
+            .channels
+            .iter()
+            .map(|c| crate::figures::run::drawn(&c.dataset))
+            .collect();
+        for c in &mut thin.channels {
+            c.values = Vec::new();
+        }
+        let at = |d: &str| rec.channels.iter().position(|c| c.dataset == d);
+        let drift = at("diagnostics/constraint_drift")
+            .zip(at("diagnostics/velocity_drift"))
+            .map(|(p, v)| ([p, v], [0.0; 2]));
+        Stream {
+            writer,
+            thin,
+            keep,
+            stride: 1,
+            drift,
+        }
+    }
+
+    /// Writes the samples of `rec`, keeps those of the figures and empties it.
+    fn take(&mut self, rec: &mut Recording) -> Result<()> {
+        let base = self.writer.rows();
+        self.writer.append(rec)?;
+        if let Some((idx, max)) = &mut self.drift {
+            for (m, &i) in max.iter_mut().zip(idx.iter()) {
+                *m = rec.channels[i]
+                    .values
+                    .iter()
+                    .fold(*m, |a, v| a.max(v.abs()));
+            }
+        }
+        for (i, &t) in rec.time.iter().enumerate() {
+            if !(base + i).is_multiple_of(self.stride) {
+                continue;
+            }
+            self.thin.time.push(t);
+            for ((c, th), &keep) in rec
+                .channels
+                .iter()
+                .zip(&mut self.thin.channels)
+                .zip(&self.keep)
+            {
+                if keep {
+                    let w = c.width();
+                    th.values.extend_from_slice(&c.values[i * w..(i + 1) * w]);
+                }
+            }
+        }
+        while self.thin.time.len() >= 2 * FIGURE_SAMPLES {
+            let halve = |v: &[f64], w: usize| -> Vec<f64> {
+                v.chunks_exact(w).step_by(2).flatten().copied().collect()
+            };
+            self.thin.time = halve(&self.thin.time, 1);
+            for c in &mut self.thin.channels {
+                if !c.values.is_empty() {
+                    c.values = halve(&c.values, c.width());
+                }
+            }
+            self.stride *= 2;
+        }
+        rec.truncate(0);
+        Ok(())
+    }
+}
+
+/// [`simulate`] that writes the run to `dir/<scene name>.h5` while it goes (layout and values
+/// those of [`crate::h5::write_run`]; see the module documentation), keeping only what its
+/// figures draw: the returned [`RunResult::recording`] holds every [`Written::stride`]-th sample
+/// of the channels [`crate::figures::run::drawn`] names, and no values of the others. A run
+/// that stops early still finishes its file, marked incomplete (`complete = 0`) with the
+/// samples before the failure.
+pub fn simulate_to_file(
+    model: &Model,
+    mut state: State,
+    progress: &mut dyn FnMut(f64),
+    dir: &Path,
+    meta: &Meta,
+) -> Result<(RunResult, Written)> {
+    let assembly = model.assemble(&mut state)?;
+    stream(
+        model,
+        HybridState::new(state.t, state.y),
+        assembly,
+        progress,
+        dir,
+        meta,
+    )
+}
+
+/// [`resume`] written to its file while it goes, as [`simulate_to_file`].
+pub fn resume_to_file(
+    model: &Model,
+    state: HybridState,
+    progress: &mut dyn FnMut(f64),
+    dir: &Path,
+    meta: &Meta,
+) -> Result<(RunResult, Written)> {
+    let assembly = resumable(model, &state)?;
+    stream(model, state, assembly, progress, dir, meta)
+}
+
+fn stream(
+    model: &Model,
+    state: HybridState,
+    assembly: AssemblyReport,
+    progress: &mut dyn FnMut(f64),
+    dir: &Path,
+    meta: &Meta,
+) -> Result<(RunResult, Written)> {
+    let rec = Recording::of(model)?;
+    let writer = RunWriter::create(dir, meta, &rec)?;
+    let mut sink = Stream::new(writer, &rec);
+    let run = match record(
+        model,
+        state,
+        assembly,
+        progress,
+        &Stop::new(),
+        Some(&mut sink),
+    ) {
+        Ok(run) => run,
+        Err(e) => {
+            sink.writer.discard();
+            return Err(e);
+        }
+    };
+    let Stream {
+        writer,
+        thin,
+        stride,
+        drift,
+        ..
+    } = sink;
+    let samples = writer.rows();
+    let run = RunResult {
+        recording: thin,
+        ..run
+    };
+    let path = writer.finish(meta, &run)?;
+    Ok((
+        run,
+        Written {
+            path,
+            samples,
+            max_drift: drift.map(|(_, m)| (m[0], m[1])),
+            stride,
+        },
+    ))
 }
 
 /// Continues a run from `state` (the final state of an earlier run of the same model, as
@@ -564,8 +762,14 @@ pub fn resume(
     state: HybridState,
     progress: &mut dyn FnMut(f64),
 ) -> Result<RunResult> {
+    let assembly = resumable(model, &state)?;
+    record(model, state, assembly, progress, &Stop::new(), None)
+}
+
+/// Checks that a run can continue from `state` and reports its constraint residuals.
+fn resumable(model: &Model, state: &HybridState) -> Result<AssemblyReport> {
     let mut sys = Mechanism::new(model);
-    sys.load_memory(&state)?;
+    sys.load_memory(state)?;
     let t1 = model.settings.end_time;
     if !state.t.is_finite() || state.t >= t1 || !state.y.iter().all(|v| v.is_finite()) {
         return Err(jointplay_solver::Error::Invalid {
@@ -582,24 +786,25 @@ pub fn resume(
     model.drift(state.t, &state.y, &mut sys.ws);
     let max = |v: &[f64]| v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
     let (p, v) = (max(&sys.ws.phi), max(&sys.ws.phi_dot));
-    let assembly = AssemblyReport {
+    Ok(AssemblyReport {
         iterations: 0,
         initial_residual: p,
         final_residual: p,
         initial_velocity_residual: v,
         final_velocity_residual: v,
-    };
-    record(model, state, assembly, progress, &Stop::new())
+    })
 }
 
 /// Integrates `model` from the hybrid state `state` to the end time and records the outputs at
-/// the sample times from `state.t` on.
+/// the sample times from `state.t` on; with a `sink`, every [`STREAM_ROWS`] samples and those
+/// left at the end go to it (an error writing them is returned as such).
 fn record(
     model: &Model,
     mut state: HybridState,
     assembly: AssemblyReport,
     progress: &mut dyn FnMut(f64),
     stop: &Stop,
+    mut sink: Option<&mut Stream>,
 ) -> Result<RunResult> {
     let mut samples = model.sample_times();
     samples.retain(|&t| t >= state.t);
@@ -607,6 +812,7 @@ fn record(
     let order = rec.order();
     let (t0, t1) = (state.t, model.settings.end_time);
     let mut failure = None;
+    let mut write_failure = None;
     // Outputs are evaluated with the system's own workspace, so that they see its contact history.
     let mut observe = |sys: &mut Mechanism, t: f64, y: &[f64]| -> Result<()> {
         if stop.requested() {
@@ -614,6 +820,13 @@ fn record(
         }
         model.accelerations(t, y, &mut sys.ws);
         rec.sample(&order, model, &mut sys.ws, t, y)?;
+        if let Some(s) = sink.as_deref_mut()
+            && rec.time.len() >= STREAM_ROWS
+            && let Err(e) = s.take(&mut rec)
+        {
+            write_failure = Some(e);
+            return Err(crate::Error::Interrupted { time: Some(t) });
+        }
         progress((t - t0) / (t1 - t0));
         Ok(())
     };
@@ -661,6 +874,12 @@ fn record(
         (None, Err(e)) => Some(Stopped::from_error(&e, t0)),
         (None, Ok(())) => None,
     };
+    if let Some(e) = write_failure {
+        return Err(e);
+    }
+    if let Some(s) = sink {
+        s.take(&mut rec)?;
+    }
     Ok(RunResult {
         recording: rec,
         stats,
@@ -678,6 +897,7 @@ mod tests {
     use jointplay_solver::scene::SceneSpec;
 
     use super::*;
+    use crate::h5::Meta;
 
     fn model(scene: &str) -> (Model, State) {
         let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
@@ -830,6 +1050,116 @@ mod tests {
         // The failed sample is dropped whole.
         rec.truncate(0);
         assert!(rec.time.is_empty() && rec.channels.iter().all(|c| c.values.is_empty()));
+    }
+
+    /// The values of every dataset of a run file, by path, as f64 (flags too), with their shapes.
+    fn datasets(g: &hdf5::Group, prefix: &str, out: &mut Vec<(String, Vec<usize>, Vec<f64>)>) {
+        for name in g.member_names().unwrap() {
+            let path = format!("{prefix}{name}");
+            if let Ok(sub) = g.group(&name) {
+                datasets(&sub, &format!("{path}/"), out);
+                continue;
+            }
+            let ds = g.dataset(&name).unwrap();
+            let v = match ds.read_raw::<f64>() {
+                Ok(v) => v,
+                Err(_) => ds
+                    .read_raw::<u8>()
+                    .unwrap()
+                    .into_iter()
+                    .map(f64::from)
+                    .collect(),
+            };
+            out.push((path, ds.shape(), v));
+        }
+    }
+
+    /// A run written while it goes, over several appended blocks, holds the datasets (names,
+    /// shapes, values bit for bit) and the attributes of the same run written at its end; what
+    /// it keeps in memory is every `stride`-th sample of the figures' datasets.
+    #[test]
+    fn a_run_written_as_it_goes_is_the_run_written_at_its_end() {
+        let (mut m, state) = model("pendulum.toml");
+        // 25 001 samples: a dozen appended blocks, and more than twice FIGURE_SAMPLES.
+        m.settings.end_time = 25.0;
+        let dir = tempfile::tempdir().unwrap();
+        let file = PathBuf::from("pendulum.toml");
+        let meta = Meta::of(&m, &file, "scene text", "test");
+        let whole = simulate(&m, state.clone(), &mut |_| {}).unwrap();
+        let a = crate::h5::write_run(&dir.path().join("a"), &meta, &whole).unwrap();
+        let (thin, w) =
+            simulate_to_file(&m, state, &mut |_| {}, &dir.path().join("b"), &meta).unwrap();
+        let n = whole.recording.time.len();
+        assert!(n > 2 * FIGURE_SAMPLES, "{n}");
+        assert!(n > 10 * STREAM_ROWS, "{n}");
+        assert_eq!(w.samples, n);
+        assert_eq!(w.path, dir.path().join("b/pendulum.h5"));
+        assert!(!dir.path().join("b/pendulum.h5.partial").exists());
+        let (fa, fb) = (
+            hdf5::File::open(&a).unwrap(),
+            hdf5::File::open(&w.path).unwrap(),
+        );
+        let (mut da, mut db) = (Vec::new(), Vec::new());
+        datasets(&fa, "", &mut da);
+        datasets(&fb, "", &mut db);
+        da.sort_by(|x, y| x.0.cmp(&y.0));
+        db.sort_by(|x, y| x.0.cmp(&y.0));
+        assert!(da.len() >= 17, "{}", da.len());
+        assert_eq!(da.len(), db.len());
+        for ((na, sa, va), (nb, sb, vb)) in da.iter().zip(&db) {
+            assert_eq!((na, sa), (nb, sb));
+            assert!(
+                va.iter().zip(vb).all(|(x, y)| x.to_bits() == y.to_bits()),
+                "{na} differs"
+            );
+        }
+        let names = |f: &hdf5::File| {
+            let mut v = f.attr_names().unwrap();
+            v.sort();
+            v
+        };
+        assert_eq!(names(&fa), names(&fb));
+        for k in ["steps_accepted", "rhs_evaluations"] {
+            let r = |f: &hdf5::File| f.attr(k).unwrap().read_scalar::<u64>().unwrap();
+            assert_eq!(r(&fa), r(&fb), "{k}");
+        }
+        let complete = |f: &hdf5::File| f.attr("complete").unwrap().read_scalar::<u8>().unwrap();
+        assert_eq!((complete(&fa), complete(&fb)), (1, 1));
+        // The figures' samples: every second one, once the bound was passed.
+        assert_eq!(w.stride, 2);
+        let every = |v: &[f64], k: usize| -> Vec<f64> {
+            v.chunks_exact(k).step_by(2).flatten().copied().collect()
+        };
+        assert_eq!(thin.recording.time, every(&whole.recording.time, 1));
+        for (c, full) in thin
+            .recording
+            .channels
+            .iter()
+            .zip(&whole.recording.channels)
+        {
+            if crate::figures::run::drawn(&c.dataset) {
+                assert_eq!(c.values, every(&full.values, c.width()), "{}", c.dataset);
+            } else {
+                assert!(c.values.is_empty(), "{}", c.dataset);
+            }
+        }
+        assert!(thin.recording.channel("bodies/bob/position").is_some());
+        let max = |d: &str| {
+            whole
+                .recording
+                .channel(d)
+                .unwrap()
+                .values
+                .iter()
+                .fold(0.0f64, |m, x| m.max(x.abs()))
+        };
+        assert_eq!(
+            w.max_drift,
+            Some((
+                max("diagnostics/constraint_drift"),
+                max("diagnostics/velocity_drift")
+            ))
+        );
     }
 
     /// A stop requested halfway ends the run at the next sample: the samples before it are

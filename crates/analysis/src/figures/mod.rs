@@ -21,7 +21,7 @@
 
 pub mod analysis;
 pub mod precision;
-mod run;
+pub mod run;
 mod study;
 
 use std::path::{Path, PathBuf};
