@@ -9,7 +9,9 @@
 # program's own wall-time output:
 #   plain      the analysis run over 1 + P periods;
 #   k          1 period, then the Lyapunov run over P periods with k exponents (Duffing P x 2000);
-#   k = 1 + 2  the same with the two-trajectory estimate.
+#   k = 1 + 2  the same with the two-trajectory estimate;
+#   forward    the mechanism's k exponents again with forward differences (difference = "forward":
+#              one right-hand side per vector instead of two).
 # Each is run 3 times; the median is reported.
 set -euo pipefail
 bin=$(realpath "$1")
@@ -48,20 +50,24 @@ remove = [\"solver.step\"]"
 
 for flow in duffing 4ups-rpu; do
   if [ "$flow" = duffing ]; then
-    lines=$duffing; obs=x; p=$((periods * 2000)); per=4; ks="1 2"
+    lines=$duffing; obs=x; p=$((periods * 2000)); per=4; ks="1 2"; diffs="central"
   else
     lines=$mech; obs=bodies.platform.position.x; p=$periods; per=20; ks="1 2 4"
+    diffs="central forward"
   fi
   study plain "$lines" $((p + 1)) "" "$obs"
   base=$(wall plain)
   printf '%-9s plain %d periods: %.3f s\n' "$flow" $((p + 1)) "$base"
-  for k in $ks; do
-    study "k$k" "$lines" 1 "[lyapunov]
+  for d in $diffs; do
+    for k in $ks; do
+      study "k$k" "$lines" 1 "[lyapunov]
 exponents = $k
 periods = $p
-per_period = $per" "$obs"
-    w=$(wall "k$k")
-    printf '%-9s k = %d: %.3f s, %.2f x plain\n' "$flow" "$k" "$w" "$(awk -v a="$w" -v b="$base" 'BEGIN {print a / b}')"
+per_period = $per
+difference = \"$d\"" "$obs"
+      w=$(wall "k$k")
+      printf '%-9s k = %d (%s): %.3f s, %.2f x plain\n' "$flow" "$k" "$d" "$w" "$(awk -v a="$w" -v b="$base" 'BEGIN {print a / b}')"
+    done
   done
   study two "$lines" 1 "[lyapunov]
 exponents = 1
