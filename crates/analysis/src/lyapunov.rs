@@ -40,6 +40,7 @@ use nalgebra::DMatrix;
 use serde::Deserialize;
 
 use crate::Result;
+use crate::progress::Stop;
 use crate::tangent::{Difference, Tangent};
 
 /// Settings of a Lyapunov computation (the `[lyapunov]` table of an analysis study).
@@ -485,6 +486,20 @@ pub fn spectrum<F: Tangent>(
     transient: usize,
     progress: &mut dyn FnMut(f64),
 ) -> Result<Spectrum> {
+    spectrum_until(flow, second, start, spec, transient, progress, &Stop::new())
+}
+
+/// [`spectrum`] that ends with [`crate::Error::Interrupted`] at the first re-orthonormalisation
+/// after `stop` is requested.
+pub fn spectrum_until<F: Tangent>(
+    flow: &mut F,
+    second: Option<&mut F>,
+    start: &HybridState,
+    spec: &LyapunovSpec,
+    transient: usize,
+    progress: &mut dyn FnMut(f64),
+    stop: &Stop,
+) -> Result<Spectrum> {
     let method = flow.method();
     let period = flow.period();
     let n = flow.dim();
@@ -595,6 +610,9 @@ pub fn spectrum<F: Tangent>(
         rhs_evals += stats.rhs_evals;
         res?;
         let t = ext_state.t;
+        if stop.requested() {
+            return Err(crate::Error::Interrupted { time: Some(t) });
+        }
         let (ys, rest) = ext_state.y.split_at_mut(n);
         let (vs, y2) = rest.split_at_mut(n * k);
         let basis = flow.manifold_basis(t, ys)?;

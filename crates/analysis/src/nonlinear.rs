@@ -814,11 +814,19 @@ impl Loaded {
             &mut |x| progress(x * share),
             stop,
         );
-        let chaos = match &res {
-            Ok(()) => self.chaos(&target, &mut flow, &tr, &mut |x| {
-                progress(share + x * (1.0 - share))
-            })?,
-            Err(_) => None,
+        let (chaos, res) = match res {
+            Ok(()) => match self.chaos(
+                &target,
+                &mut flow,
+                &tr,
+                &mut |x| progress(share + x * (1.0 - share)),
+                stop,
+            ) {
+                // Stopped in the Lyapunov run: the samples are whole, the measures are not.
+                Err(e @ Error::Interrupted { .. }) => (None, Err(e)),
+                other => (other?, Ok(())),
+            },
+            Err(e) => (None, Err(e)),
         };
         let r = JobResult {
             chaos,
@@ -842,6 +850,7 @@ impl Loaded {
         flow: &mut crate::flow::AnyFlow<'t>,
         tr: &Trace,
         progress: &mut dyn FnMut(f64),
+        stop: &Stop,
     ) -> Result<Option<crate::chaos::Chaos>> {
         use crate::tangent::Tangent;
         let spec = &self.spec;
@@ -853,13 +862,14 @@ impl Loaded {
                 l.check(flow.phase_dim(), &flow.method())
                     .map_err(|(field, m)| invalid(&self.path, field, m))?;
                 let mut second = l.two_trajectory.then(|| target.flow());
-                let s = crate::lyapunov::spectrum(
+                let s = crate::lyapunov::spectrum_until(
                     flow,
                     second.as_mut(),
                     &tr.final_state,
                     l,
                     0,
                     progress,
+                    stop,
                 )?;
                 Some(s)
             }
