@@ -33,6 +33,7 @@
 
 pub mod chaos;
 pub mod comparison;
+pub mod continuation;
 pub mod figures;
 pub mod flow;
 pub mod h5;

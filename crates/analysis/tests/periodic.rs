@@ -3,6 +3,7 @@
 
 use std::path::Path;
 
+use jointplay_analysis::continuation::{Kind, Settings, continuation};
 use jointplay_analysis::flow::{Flow, Target};
 use jointplay_analysis::nonlinear::Loaded;
 use jointplay_analysis::periodic::{Newton, shoot};
@@ -141,4 +142,182 @@ fn impacting_orbit_multipliers_multiply_to_e_squared_exp_minus_c_t() {
         "product {} against {exact}",
         orbit.product()
     );
+}
+
+fn settings(from: f64, to: f64, step: f64) -> Settings {
+    Settings {
+        from,
+        to,
+        step,
+        min_step: step * 1e-4,
+        max_step: step * 4.0,
+        max_points: 200,
+        k: 1,
+        newton: NEWTON,
+        locate: 1e-7,
+        switch_period_doubling: true,
+        max_branches: 2,
+        grazing: None,
+        samples: 100,
+    }
+}
+
+fn duffing_loaded() -> Loaded {
+    let text = "[study]\nname = \"p\"\nsystem = { kind = \"duffing\", delta = 0.3, alpha = -1.0, beta = 1.0, gamma = 0.2, omega = 1.2, initial = [1.0, 0.0], solver = { integrator = \"dopri5\", rtol = 1e-11, atol = 1e-12 } }\n[analysis]\nperiods = 2\nsamples_per_period = 0\n";
+    Loaded::parse(text, Path::new("periodic-test.toml")).unwrap()
+}
+
+/// The first period doubling of the period-1 orbit the Duffing run from (1, 0) settles on at
+/// gamma = 0.20, located by continuation in gamma, against a brute-force sweep of the strobe
+/// points: each value run 1500 periods from the previous value's final state (the same
+/// attractor), then the distance between the last two strobe points. Below the doubling the
+/// period-1 orbit attracts at the rate |mu| ~ 1 - 10 |gamma - gamma_pd| per period, so 1200
+/// periods leave a split below 1e-6 from 0.0005 below it; above it the period-2 orbit's split
+/// grows like sqrt(gamma - gamma_pd), 1e-2 at 0.0005 above. A value counts as period 2 when its
+/// split is above 1e-4 and the same (within 1 %) 100 periods earlier: a settled period-2 orbit,
+/// not a period-1 transient. A grid value closer than 0.0005 to the doubling is still undecided
+/// after 1200 periods (critical slowing down), so the brute-force bracket, from the last value
+/// with a split below 1e-6 to the first settled period-2 value, is at most two grid steps wide,
+/// and the located value must fall inside it. The located value's own bracket is 1e-7.
+#[test]
+fn duffing_first_period_doubling_by_continuation_agrees_with_brute_force() {
+    let st = duffing_loaded();
+    let make = |g: f64| st.target_with(&[("gamma", g)]);
+    let start = settle(&duffing(0.2), 20);
+    let set = settings(0.2, 0.3, 0.01);
+    let t = std::time::Instant::now();
+    let c = continuation(&make, &set, &start, &mut |_| {}).unwrap();
+    let wall = t.elapsed();
+    let pd: Vec<_> = c
+        .specials
+        .iter()
+        .filter(|s| s.kind == Kind::PeriodDoubling)
+        .collect();
+    assert!(!pd.is_empty(), "no period doubling found");
+    let first = pd[0];
+    assert_eq!(first.branch, 0);
+    assert!(first.bracket <= 1e-7);
+    // At the located point a multiplier is -1 (to the corrector's accuracy).
+    assert!(
+        first
+            .multipliers
+            .iter()
+            .any(|m| (m.re + 1.0).abs() < 1e-4 && m.im == 0.0),
+        "{:?}",
+        first.multipliers
+    );
+    // The period-2 branch was switched to, and its orbits are period 2 (not the period-1 orbit).
+    let b2 = c
+        .branches
+        .iter()
+        .find(|b| b.k == 2)
+        .expect("period-2 branch");
+    let p = &b2.points[b2.points.len() / 2];
+    let split = (p.strobe[0][0] - p.strobe[1][0]).abs();
+    assert!(split > 1e-3, "period-2 orbit splits by {split}");
+    eprintln!(
+        "continuation: period doubling at gamma = {} (bracket {:e}); {} branches, {} points, {:?}",
+        first.parameter,
+        first.bracket,
+        c.branches.len(),
+        c.branches.iter().map(|b| b.points.len()).sum::<usize>(),
+        wall
+    );
+    // Brute force.
+    let mut state = start.clone();
+    let (mut below, mut above) = (None, None);
+    for i in 0..=14 {
+        let g = 0.262 + 0.0005 * i as f64;
+        let target = duffing(g);
+        let mut flow = target.flow();
+        let method = flow.method();
+        let mut s = HybridState::new(state.t, state.y.clone());
+        flow.prepare(&s).unwrap();
+        let mut x = Vec::new();
+        for n in 1..=1200 {
+            let t = state.t + n as f64 * flow.period();
+            let (_, r) = advance(
+                &mut flow,
+                method,
+                &mut s,
+                t,
+                &[],
+                |_, _, _| Step::Continue,
+                None,
+            );
+            r.unwrap();
+            x.push(s.y[0]);
+        }
+        let split = (x[1199] - x[1198]).abs();
+        let earlier = (x[1099] - x[1098]).abs();
+        if split < 1e-6 {
+            below = Some(g);
+        } else if split > 1e-4 && (split - earlier).abs() < 0.01 * split && above.is_none() {
+            above = Some(g);
+        }
+        state = HybridState::new(state.t, s.y.clone());
+    }
+    let (below, above) = (below.unwrap(), above.unwrap());
+    eprintln!("brute force: period 1 up to gamma = {below}, period 2 from {above}");
+    assert!(above - below < 0.0011, "{below} .. {above}");
+    assert!(
+        below < first.parameter && first.parameter <= above,
+        "continuation {} outside the brute-force bracket {below} .. {above}",
+        first.parameter
+    );
+}
+
+/// The Newton impact oscillator's non-impacting orbit, continued in the forcing amplitude A from
+/// 0.05: its amplitude is A / sqrt((k - omega^2)^2 + (c omega)^2) = 10 A, so it grazes the stop
+/// (d = 1) at A = 0.1 exactly. The gap is the stop minus the largest x along the orbit (the
+/// contact observable x with level 1), sampled 100 times a period with a parabola through the
+/// top three samples: its error, ~(2 pi / 100)^4 / 24 of the amplitude, is 7e-7 of it at most,
+/// and the grazing value extrapolated from the contact-free side inherits that relative error
+/// times the slope of the gap (10 per unit A): 1e-6 is the tolerance. The branch ends there and
+/// the impacting orbits past it are a branch of their own (one impact per period).
+#[test]
+fn impact_oscillator_grazes_at_a_equal_0_1() {
+    let text = "[study]\nname = \"p\"\nsystem = { kind = \"impact\", damping = 0.1, stiffness = 1.0, forcing = 0.05, omega = 1.0, stop = 1.0, restitution = 0.8, initial = [0.0, 0.0], solver = { rtol = 1e-11, atol = 1e-12 } }\n[analysis]\nperiods = 2\nsamples_per_period = 0\n";
+    let st = Loaded::parse(text, Path::new("periodic-test.toml")).unwrap();
+    let make = |a: f64| st.target_with(&[("forcing", a)]);
+    let start = settle(&impact(0.05), 100);
+    let mut set = settings(0.05, 0.2, 0.01);
+    set.grazing = Some((0, 1.0));
+    set.locate = 1e-9;
+    let t = std::time::Instant::now();
+    let c = continuation(&make, &set, &start, &mut |_| {}).unwrap();
+    for b in &c.branches {
+        eprintln!(
+            "branch k={} from {}: {} points, {} to {}, events {:?}, end: {}",
+            b.k,
+            b.origin,
+            b.points.len(),
+            b.points[0].parameter,
+            b.points.last().unwrap().parameter,
+            b.points.iter().map(|p| p.orbit.events).collect::<Vec<_>>(),
+            b.end
+        );
+    }
+    let g: Vec<_> = c
+        .specials
+        .iter()
+        .filter(|s| s.kind == Kind::Grazing)
+        .collect();
+    assert_eq!(g.len(), 1, "{:?}", c.specials);
+    eprintln!(
+        "grazing at A = {} (bracket {:e}), {:?}",
+        g[0].parameter,
+        g[0].bracket,
+        t.elapsed()
+    );
+    assert!((g[0].parameter - 0.1).abs() < 1e-6, "{}", g[0].parameter);
+    // The first branch is contact-free, the second impacts once per period.
+    assert!(c.branches[0].points.iter().all(|p| p.orbit.events == 0));
+    assert!(c.branches.len() >= 2);
+    assert!(c.branches[1].points.iter().all(|p| p.orbit.events == 1));
+    // The product of the multipliers along the impacting branch: e^2 exp(-c T).
+    let exact = 0.64 * (-0.1 * 2.0 * std::f64::consts::PI).exp();
+    for p in &c.branches[1].points {
+        assert!(((p.orbit.product() - exact) / exact).abs() < 1e-6);
+    }
 }
