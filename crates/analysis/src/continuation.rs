@@ -176,6 +176,8 @@ pub struct Continuation {
     pub specials: Vec<Special>,
     /// Seconds of wall time.
     pub wall: f64,
+    /// Units of the observables (set by [`run_study`]).
+    pub units: Vec<String>,
 }
 
 /// A branch waiting to be followed: its first point, its periods per orbit, where it comes from,
@@ -632,11 +634,12 @@ pub fn continuation(
                 }
                 if kind == Kind::Grazing {
                     graze = true;
-                    // The other side: shooting one first step past the grazing, from the
+                    // The other side: shooting a tenth of the first step past the grazing, from the
                     // converged orbit nearest it there, heading on away from the grazing; or the
                     // step's own point when that fails.
                     let dir = if cur.tangent_s >= 0.0 { 1.0 } else { -1.0 };
-                    let s_past = ctx_s(&ctx, special.parameter) + dir * set.step / ctx.range();
+                    let s_past =
+                        ctx_s(&ctx, special.parameter) + dir * 0.1 * set.step / ctx.range();
                     let other = ctx
                         .start_point(k, s_past, &far.orbit.state, &zero, dir)
                         .ok()
@@ -789,4 +792,535 @@ fn locate(
         (_, Some(fbv)) if fbv.abs() < fa.abs() => (bracket, pb, pa),
         _ => (bracket, pa, pb),
     })
+}
+
+/// The `[continuation]` table of an analysis study (format in the README, "Periodic orbits and
+/// continuation").
+#[derive(Debug, Clone, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ContinuationSpec {
+    /// A scene path or a system parameter, as `sweep.parameter`.
+    pub parameter: String,
+    /// Further scene paths set to the same value.
+    #[serde(default)]
+    pub also: Vec<String>,
+    /// Unit of the parameter, for labels.
+    #[serde(default)]
+    pub unit: String,
+    /// The parameter's start value (the orbit the run settles on there) and end value.
+    pub from: f64,
+    pub to: f64,
+    /// First step (parameter units; see [`crate::continuation`]); smallest and largest step
+    /// (default a ten-thousandth of it and ten times it).
+    pub step: f64,
+    #[serde(default)]
+    pub min_step: Option<f64>,
+    #[serde(default)]
+    pub max_step: Option<f64>,
+    /// Points per branch at most.
+    #[serde(default = "default_points")]
+    pub max_points: usize,
+    /// Drive periods per orbit of the first branch (1: period-1 orbits).
+    #[serde(default = "one")]
+    pub orbit_periods: usize,
+    /// Newton tolerance: the largest component of `P^k(y) - y` (SI units of the state).
+    #[serde(default = "default_tolerance")]
+    pub tolerance: f64,
+    #[serde(default = "default_iterations")]
+    pub max_iterations: usize,
+    /// Bracket special points are located to (parameter units; default 1e-6 of the range).
+    #[serde(default)]
+    pub locate: Option<f64>,
+    /// Follow the period-2k branch from every period doubling.
+    #[serde(default = "yes")]
+    pub switch_period_doubling: bool,
+    /// Branches at most, the first one included.
+    #[serde(default = "default_branches")]
+    pub max_branches: usize,
+    /// Grazing: the contact observable and the level where contact begins.
+    #[serde(default)]
+    pub grazing: Option<GrazingSpec>,
+    /// Samples per drive period for the gap and the observables along the orbit.
+    #[serde(default = "default_samples")]
+    pub samples: usize,
+    /// Periods run at `from` before shooting (default `analysis.transient`).
+    #[serde(default)]
+    pub transient: Option<usize>,
+}
+
+/// The contact observable of grazing detection: contact begins when its largest value along the
+/// orbit reaches `level` (the gap is `level - max`).
+#[derive(Debug, Clone, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GrazingSpec {
+    pub observable: String,
+    #[serde(default)]
+    pub level: f64,
+}
+
+fn one() -> usize {
+    1
+}
+fn yes() -> bool {
+    true
+}
+fn default_points() -> usize {
+    200
+}
+fn default_tolerance() -> f64 {
+    1e-8
+}
+fn default_iterations() -> usize {
+    10
+}
+fn default_branches() -> usize {
+    4
+}
+fn default_samples() -> usize {
+    100
+}
+
+impl ContinuationSpec {
+    /// Checks the numbers; errors name the field of the `[continuation]` table.
+    pub fn check(&self) -> std::result::Result<(), (String, String)> {
+        let bad = |f: &str, m: &str| Err((format!("continuation.{f}"), m.to_string()));
+        for (f, v) in [("from", self.from), ("to", self.to)] {
+            if !v.is_finite() {
+                return bad(f, "must be finite");
+            }
+        }
+        if self.from == self.to {
+            return bad("to", "must differ from continuation.from");
+        }
+        let range = (self.to - self.from).abs();
+        for (f, v) in [
+            ("step", Some(self.step)),
+            ("min_step", self.min_step),
+            ("max_step", self.max_step),
+            ("locate", self.locate),
+            ("tolerance", Some(self.tolerance)),
+        ] {
+            if let Some(v) = v
+                && !(v.is_finite() && v > 0.0)
+            {
+                return bad(f, "must be positive and finite");
+            }
+        }
+        if self.step > range {
+            return bad(
+                "step",
+                "is larger than the range from continuation.from to .to",
+            );
+        }
+        if self.min_step() > self.step || self.max_step() < self.step {
+            return bad(
+                "min_step",
+                "min_step <= step <= max_step must hold (defaults: step / 1e4 and 10 step)",
+            );
+        }
+        if self.max_points < 2 {
+            return bad("max_points", "must be at least 2");
+        }
+        if self.orbit_periods == 0 {
+            return bad("orbit_periods", "must be at least 1");
+        }
+        if self.max_iterations == 0 {
+            return bad("max_iterations", "must be at least 1");
+        }
+        if self.max_branches == 0 {
+            return bad("max_branches", "must be at least 1");
+        }
+        if self.samples < 8 {
+            return bad("samples", "must be at least 8 per period");
+        }
+        if let Some(g) = &self.grazing
+            && !g.level.is_finite()
+        {
+            return bad("grazing.level", "must be finite");
+        }
+        Ok(())
+    }
+    pub fn min_step(&self) -> f64 {
+        self.min_step.unwrap_or(self.step * 1e-4)
+    }
+    pub fn max_step(&self) -> f64 {
+        self.max_step.unwrap_or(self.step * 10.0)
+    }
+    /// The settings of [`continuation`], with the grazing observable's index.
+    pub fn settings(&self, grazing: Option<usize>) -> Settings {
+        Settings {
+            from: self.from,
+            to: self.to,
+            step: self.step,
+            min_step: self.min_step(),
+            max_step: self.max_step(),
+            max_points: self.max_points,
+            k: self.orbit_periods,
+            newton: Newton {
+                tolerance: self.tolerance,
+                max_iterations: self.max_iterations,
+            },
+            locate: self.locate.unwrap_or(1e-6 * (self.to - self.from).abs()),
+            switch_period_doubling: self.switch_period_doubling,
+            max_branches: self.max_branches,
+            grazing: grazing.zip(self.grazing.as_ref().map(|g| g.level)),
+            samples: self.samples,
+        }
+    }
+}
+
+/// Runs the study's `[continuation]`: `transient` periods at `from` from the study's start, then
+/// the branches. `progress` gets the fraction done.
+pub fn run_study(
+    st: &crate::nonlinear::Loaded,
+    progress: &mut dyn FnMut(f64),
+) -> Result<Continuation> {
+    let spec = st.spec.continuation.as_ref().ok_or_else(|| {
+        crate::study::invalid(&st.path, "continuation", "no [continuation] table")
+    })?;
+    let target = st.continuation_target(spec.from)?;
+    let mut flow = target.flow();
+    let mut state = flow.initial_state(None)?;
+    flow.prepare(&state)?;
+    let transient = spec.transient.unwrap_or(st.spec.analysis.transient);
+    let t = state.t + st.spec.analysis.phase + transient as f64 * flow.period();
+    let method = flow.method();
+    let (_, res) = ode::advance(
+        &mut flow,
+        method,
+        &mut state,
+        t,
+        &[],
+        |_, _, _| Step::Continue,
+        None,
+    );
+    res?;
+    let grazing = spec
+        .grazing
+        .as_ref()
+        .and_then(|g| st.spec.observable(&g.observable));
+    let units = flow.observable_units();
+    let make = |p: f64| st.continuation_target(p);
+    let mut c = continuation(&make, &spec.settings(grazing), &state, progress)?;
+    c.units = units;
+    Ok(c)
+}
+
+/// Writes `/continuation` into the analysis file `path` (replacing one written before); layout in
+/// the README, "HDF5 layout". `failure` is the error of a continuation that could not start.
+pub fn write(
+    path: &std::path::Path,
+    st: &crate::nonlinear::Loaded,
+    c: std::result::Result<&Continuation, &crate::Error>,
+) -> Result<()> {
+    use crate::h5::{f64_attr, h5err, str_attr, u8_attr_set, u64_attr};
+    let e = h5err(path);
+    let file = hdf5::File::open_rw(path).map_err(&e)?;
+    if file.group("continuation").is_ok() {
+        file.unlink("continuation").map_err(&e)?;
+    }
+    let spec = st.spec.continuation.as_ref().expect("asked for");
+    let obs: Vec<&str> = st
+        .spec
+        .observables
+        .iter()
+        .map(|o| o.name.as_str())
+        .collect();
+    (|| -> hdf5::Result<()> {
+        let g = file.create_group("continuation")?;
+        str_attr(&g, "parameter", &spec.parameter)?;
+        str_attr(&g, "parameter_unit", &spec.unit)?;
+        f64_attr(&g, "from", spec.from)?;
+        f64_attr(&g, "to", spec.to)?;
+        f64_attr(&g, "tolerance", spec.tolerance)?;
+        f64_attr(&g, "locate", spec.settings(None).locate)?;
+        str_attr(&g, "spurious_reason", crate::periodic::SPURIOUS_REASON)?;
+        let c = match c {
+            Ok(c) => c,
+            Err(err) => {
+                str_attr(&g, "error", &err.to_string())?;
+                return u8_attr_set(&g, "complete", 0);
+            }
+        };
+        f64_attr(&g, "wall_time", c.wall)?;
+        u8_attr_set(
+            &g,
+            "complete",
+            u8::from(c.branches.iter().all(|b| !b.failed)),
+        )?;
+        u64_attr(&g, "branches", c.branches.len() as u64)?;
+        let gap_unit = spec
+            .grazing
+            .as_ref()
+            .and_then(|gz| st.spec.observable(&gz.observable))
+            .and_then(|i| c.units.get(i))
+            .map_or("", String::as_str);
+        for (i, b) in c.branches.iter().enumerate() {
+            write_branch(
+                &g.create_group(&format!("branch_{i}"))?,
+                b,
+                &obs,
+                &c.units,
+                &spec.unit,
+                gap_unit,
+            )?;
+        }
+        write_specials(
+            &g.create_group("special")?,
+            &c.specials,
+            &obs,
+            &c.units,
+            &spec.unit,
+        )
+    })()
+    .map_err(&e)?;
+    file.close().map_err(&e)
+}
+
+fn write_branch(
+    g: &hdf5::Group,
+    b: &Branch,
+    obs: &[&str],
+    units: &[String],
+    unit: &str,
+    gap_unit: &str,
+) -> hdf5::Result<()> {
+    use crate::h5::{f64_attr, str_attr, u8_attr_set, u64_attr, write_column, write_table, write1};
+    u64_attr(g, "orbit_periods", b.k as u64)?;
+    str_attr(g, "origin", &b.origin)?;
+    str_attr(g, "end", &b.end)?;
+    u8_attr_set(g, "failed", u8::from(b.failed))?;
+    if let Some(p) = b.points.first() {
+        f64_attr(g, "strobe_time", p.orbit.state.t)?;
+        f64_attr(g, "period", p.orbit.period)?;
+        u64_attr(g, "spurious", p.orbit.spurious as u64)?;
+    }
+    let col = |f: &dyn Fn(&Point) -> f64| b.points.iter().map(f).collect::<Vec<f64>>();
+    write1(
+        g,
+        "parameter",
+        &col(&|p| p.parameter),
+        unit,
+        "the parameter",
+    )?;
+    let n = b.points.first().map_or(0, |p| p.orbit.state.y.len());
+    let state: Vec<f64> = b
+        .points
+        .iter()
+        .flat_map(|p| p.orbit.state.y.clone())
+        .collect();
+    write_table(
+        g,
+        "state",
+        &state,
+        n.max(1),
+        "SI",
+        "the strobe point (continuous state)",
+    )?;
+    let m = b.points.first().map_or(0, |p| p.orbit.multipliers.len());
+    let re: Vec<f64> = b
+        .points
+        .iter()
+        .flat_map(|p| p.orbit.multipliers.iter().map(|z| z.re))
+        .collect();
+    let im: Vec<f64> = b
+        .points
+        .iter()
+        .flat_map(|p| p.orbit.multipliers.iter().map(|z| z.im))
+        .collect();
+    write_table(
+        g,
+        "multipliers_re",
+        &re,
+        m.max(1),
+        "1",
+        "Floquet multipliers on the manifold, largest modulus first: real parts",
+    )?;
+    write_table(
+        g,
+        "multipliers_im",
+        &im,
+        m.max(1),
+        "1",
+        "their imaginary parts",
+    )?;
+    let stable: Vec<u8> = b
+        .points
+        .iter()
+        .map(|p| u8::from(p.orbit.stable()))
+        .collect();
+    write_column(
+        g,
+        "stable",
+        &stable,
+        None,
+        "1: every multiplier inside the unit circle",
+    )?;
+    let unstable: Vec<u64> = b
+        .points
+        .iter()
+        .map(|p| p.orbit.unstable_count() as u64)
+        .collect();
+    write_column(
+        g,
+        "unstable",
+        &unstable,
+        None,
+        "multipliers outside the unit circle",
+    )?;
+    write1(
+        g,
+        "residual",
+        &col(&|p| p.orbit.residual),
+        "SI",
+        "largest component of P^k(y) - y",
+    )?;
+    let it: Vec<u64> = b.points.iter().map(|p| p.iterations as u64).collect();
+    write_column(
+        g,
+        "iterations",
+        &it,
+        None,
+        "Newton iterations of the corrector",
+    )?;
+    let ev: Vec<u64> = b.points.iter().map(|p| p.orbit.events).collect();
+    write_column(g, "events", &ev, None, "impacts along one orbit")?;
+    if b.points.iter().any(|p| p.gap.is_some()) {
+        write1(
+            g,
+            "gap",
+            &col(&|p| p.gap.unwrap_or(f64::NAN)),
+            gap_unit,
+            "grazing level minus the largest value of the contact observable along the orbit",
+        )?;
+    }
+    let s = g.create_group("strobe")?;
+    for (j, name) in obs.iter().enumerate() {
+        let v: Vec<f64> = b
+            .points
+            .iter()
+            .flat_map(|p| p.strobe.iter().map(|row| row[j]))
+            .collect();
+        let u = units.get(j).map_or("", String::as_str);
+        write_table(
+            &s,
+            name,
+            &v,
+            b.k,
+            u,
+            "the observable at the orbit's strobe points, one column per drive period",
+        )?;
+    }
+    Ok(())
+}
+
+fn write_specials(
+    g: &hdf5::Group,
+    sp: &[Special],
+    obs: &[&str],
+    units: &[String],
+    unit: &str,
+) -> hdf5::Result<()> {
+    use crate::h5::{write_column, write_strings, write_table, write1};
+    let kinds: Vec<String> = sp.iter().map(|s| s.kind.name().to_string()).collect();
+    write_strings(
+        g,
+        "kind",
+        &kinds,
+        "fold, period-doubling, neimark-sacker or grazing",
+    )?;
+    let branch: Vec<u64> = sp.iter().map(|s| s.branch as u64).collect();
+    write_column(g, "branch", &branch, None, "the branch it was found on")?;
+    let after: Vec<u64> = sp.iter().map(|s| s.after as u64).collect();
+    write_column(
+        g,
+        "after",
+        &after,
+        None,
+        "index of the branch point before it",
+    )?;
+    write1(
+        g,
+        "parameter",
+        &sp.iter().map(|s| s.parameter).collect::<Vec<_>>(),
+        unit,
+        "located parameter",
+    )?;
+    write1(
+        g,
+        "bracket",
+        &sp.iter().map(|s| s.bracket).collect::<Vec<_>>(),
+        unit,
+        "arclength bracket reached: the bound on the parameter's error",
+    )?;
+    let n = sp.first().map_or(1, |s| s.state.len());
+    let st: Vec<f64> = sp.iter().flat_map(|s| s.state.clone()).collect();
+    write_table(
+        g,
+        "state",
+        &st,
+        n,
+        "SI",
+        "strobe point of the orbit nearest it",
+    )?;
+    let m = sp.first().map_or(1, |s| s.multipliers.len());
+    let re: Vec<f64> = sp
+        .iter()
+        .flat_map(|s| s.multipliers.iter().map(|z| z.re))
+        .collect();
+    let im: Vec<f64> = sp
+        .iter()
+        .flat_map(|s| s.multipliers.iter().map(|z| z.im))
+        .collect();
+    write_table(
+        g,
+        "multipliers_re",
+        &re,
+        m,
+        "1",
+        "multipliers there: real parts",
+    )?;
+    write_table(g, "multipliers_im", &im, m, "1", "imaginary parts")?;
+    let s = g.create_group("strobe")?;
+    for (j, name) in obs.iter().enumerate() {
+        let v: Vec<f64> = sp.iter().map(|x| x.strobe[0][j]).collect();
+        let u = units.get(j).map_or("", String::as_str);
+        write1(&s, name, &v, u, "the observable at the first strobe point")?;
+    }
+    Ok(())
+}
+
+/// Lines for the terminal: each branch and each special point.
+pub fn summary(c: &Continuation) -> Vec<String> {
+    let mut out = Vec::new();
+    for (i, b) in c.branches.iter().enumerate() {
+        let (Some(a), Some(z)) = (b.points.first(), b.points.last()) else {
+            out.push(format!(
+                "branch {i}      period {}, from {}: no point ({})",
+                b.k, b.origin, b.end
+            ));
+            continue;
+        };
+        let stable = b.points.iter().filter(|p| p.orbit.stable()).count();
+        out.push(format!(
+            "branch {i}      period {}, {} points from {} to {} ({stable} stable), from {}; ended: {}",
+            b.k,
+            b.points.len(),
+            a.parameter,
+            z.parameter,
+            b.origin,
+            b.end
+        ));
+    }
+    for s in &c.specials {
+        out.push(format!(
+            "special      {} on branch {} at {} (within {:.1e})",
+            s.kind.name(),
+            s.branch,
+            s.parameter,
+            s.bracket
+        ));
+    }
+    out.push(format!("continuation {:.3} s", c.wall));
+    out
 }

@@ -29,6 +29,14 @@ pub struct Series {
     pub y: Vec<f64>,
 }
 
+/// How one line of a panel is drawn: its colour (an index into the palette) and whether it is
+/// dashed.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct LineStyle {
+    pub color: usize,
+    pub dashed: bool,
+}
+
 /// One chart: title, axis labels (with units) and lines.
 #[derive(Debug, Clone)]
 pub struct Panel {
@@ -52,6 +60,13 @@ pub struct Panel {
     /// Line width and dot radius (px).
     pub line_width: u32,
     pub point_size: u32,
+    /// Styles of the lines, by index (default: the palette in order, solid). A line with an
+    /// empty label gets no legend entry.
+    pub styles: Vec<LineStyle>,
+    /// Dot radii of the point series, by index (default `point_size`).
+    pub point_radii: Vec<u32>,
+    /// Dot colours of the point series, by index into the dot palette (default in order).
+    pub point_colors: Vec<usize>,
 }
 
 impl Default for Panel {
@@ -71,6 +86,9 @@ impl Default for Panel {
             inset_corner: (true, true),
             line_width: 2,
             point_size: 2,
+            styles: Vec::new(),
+            point_radii: Vec::new(),
+            point_colors: Vec::new(),
         }
     }
 }
@@ -113,12 +131,16 @@ impl Format {
     }
 }
 
-/// Dot colours: red first, so section points stand out over a blue trajectory.
-const POINT_COLORS: [RGBColor; 4] = [
+/// Dot colours: red first, so section points stand out over a blue trajectory; the last three
+/// (grey, black, orange) are only chosen by [`Panel::point_colors`].
+const POINT_COLORS: [RGBColor; 7] = [
     RGBColor(214, 39, 40),
     RGBColor(31, 119, 180),
     RGBColor(44, 160, 44),
     RGBColor(148, 103, 189),
+    RGBColor(170, 170, 170),
+    RGBColor(0, 0, 0),
+    RGBColor(255, 127, 14),
 ];
 
 const COLORS: [RGBColor; 6] = [
@@ -190,32 +212,57 @@ where
         .draw()
         .map_err(|e| e.to_string())?;
     for (i, s) in panel.series.iter().enumerate() {
-        let c = COLORS[i % COLORS.len()];
-        chart
-            .draw_series(LineSeries::new(
-                s.x.iter()
-                    .zip(&s.y)
-                    .filter(|(x, y)| keep(**y) && (!panel.log_x || **x > 0.0))
-                    .map(|(x, y)| (*x, *y)),
-                c.stroke_width(panel.line_width),
-            ))
-            .map_err(|e| e.to_string())?
-            .label(&s.label)
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2)));
+        let style = panel.styles.get(i).copied().unwrap_or(LineStyle {
+            color: i,
+            dashed: false,
+        });
+        let c = COLORS[style.color % COLORS.len()];
+        let pts: Vec<(f64, f64)> =
+            s.x.iter()
+                .zip(&s.y)
+                .filter(|(x, y)| keep(**y) && (!panel.log_x || **x > 0.0))
+                .map(|(x, y)| (*x, *y))
+                .collect();
+        let stroke = c.stroke_width(panel.line_width);
+        let anno = if style.dashed {
+            chart
+                .draw_series(DashedLineSeries::new(pts, 6, 4, stroke))
+                .map_err(|e| e.to_string())?
+        } else {
+            chart
+                .draw_series(LineSeries::new(pts, stroke))
+                .map_err(|e| e.to_string())?
+        };
+        if !s.label.is_empty() {
+            anno.label(&s.label).legend(move |(x, y)| {
+                PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2))
+            });
+        }
     }
     for (i, s) in panel.points.iter().enumerate() {
-        let c = POINT_COLORS[i % POINT_COLORS.len()];
-        let r = if small { 1 } else { panel.point_size as i32 };
-        chart
+        let c =
+            POINT_COLORS[panel.point_colors.get(i).copied().unwrap_or(i % 4) % POINT_COLORS.len()];
+        let r = if small {
+            1
+        } else {
+            panel
+                .point_radii
+                .get(i)
+                .copied()
+                .unwrap_or(panel.point_size) as i32
+        };
+        let anno = chart
             .draw_series(
                 s.x.iter()
                     .zip(&s.y)
                     .filter(|(x, y)| keep(**y) && (!panel.log_x || **x > 0.0))
                     .map(move |(x, y)| Circle::new((*x, *y), r, c.filled())),
             )
-            .map_err(|e| e.to_string())?
-            .label(&s.label)
-            .legend(move |(x, y)| Circle::new((x + 10, y), 3, c.filled()));
+            .map_err(|e| e.to_string())?;
+        if !s.label.is_empty() {
+            anno.label(&s.label)
+                .legend(move |(x, y)| Circle::new((x + 10, y), 3, c.filled()));
+        }
     }
     if panel.series.len() + panel.points.len() > 1 && !small {
         chart
