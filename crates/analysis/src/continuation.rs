@@ -983,7 +983,8 @@ pub fn run_study(
     let mut state = flow.initial_state(None)?;
     flow.prepare(&state)?;
     let transient = spec.transient.unwrap_or(st.spec.analysis.transient);
-    let t = state.t + st.spec.analysis.phase + transient as f64 * flow.period();
+    let t_strobe = state.t + st.spec.analysis.phase;
+    let t = t_strobe + transient as f64 * flow.period();
     let method = flow.method();
     let (_, res) = ode::advance(
         &mut flow,
@@ -995,6 +996,10 @@ pub fn run_study(
         None,
     );
     res?;
+    // The drive is periodic: the settled state is taken back to the first strobe time, so that
+    // when the parameter changes the period (a drive frequency) the strobe phase moves by
+    // `t_strobe d(omega)`, not by `transient` periods' worth of it.
+    state.t = t_strobe;
     let grazing = spec
         .grazing
         .as_ref()

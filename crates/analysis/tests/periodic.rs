@@ -321,3 +321,215 @@ fn impact_oscillator_grazes_at_a_equal_0_1() {
         assert!(((p.orbit.product() - exact) / exact).abs() < 1e-6);
     }
 }
+
+fn hardening(omega: f64) -> String {
+    format!(
+        "[study]\nname = \"p\"\nsystem = {{ kind = \"duffing\", delta = 0.2, alpha = 1.0, beta = 1.0, gamma = 1.0, omega = {omega}, initial = [0.0, 0.0], solver = {{ integrator = \"dopri5\", rtol = 1e-11, atol = 1e-12 }} }}\n[analysis]\nperiods = 2\nsamples_per_period = 0\n"
+    )
+}
+
+/// The brute-force jump of a sweep from `from` (settled from `start`) in steps of `step` (each
+/// value 200 periods from the previous value's final state): the two values between which the
+/// strobe state jumps by more than 0.3 (smooth changes are below 0.05 per step here).
+fn jump(st: &Loaded, start: &HybridState, from: f64, step: f64, count: usize) -> (f64, f64) {
+    let mut state = settle_from(&st.target_with(&[("omega", from)]).unwrap(), start, 200);
+    state.t = 0.0;
+    let mut prev = state.y.clone();
+    for i in 1..count {
+        let w = from + step * i as f64;
+        let target = st.target_with(&[("omega", w)]).unwrap();
+        let s = settle_from(&target, &state, 200);
+        let d = ((s.y[0] - prev[0]).powi(2) + (s.y[1] - prev[1]).powi(2)).sqrt();
+        if d > 0.3 {
+            return (w - step, w);
+        }
+        prev = s.y.clone();
+        state = HybridState::new(0.0, s.y);
+    }
+    panic!("no jump from {from} in {count} steps of {step}");
+}
+
+/// The hardening Duffing oscillator x'' + 0.2 x' + x + x^3 = cos(omega t) has the bent resonance
+/// curve: continued in omega from 1 its period-1 branch turns at two folds (a multiplier through
+/// +1), the middle segment between them a saddle (one real multiplier above 1). A sweep up in
+/// omega drops off the upper branch at the upper fold and a sweep down jumps onto it at the lower
+/// fold (hysteresis): each located fold must lie between the two sweep values (0.005 apart) where
+/// the jump happens, and the multiplier there must be 1 (to the corrector's accuracy).
+#[test]
+fn hardening_duffing_folds_bound_the_hysteresis_of_sweeps() {
+    let st = Loaded::parse(&hardening(1.0), Path::new("periodic-test.toml")).unwrap();
+    let make = |w: f64| st.target_with(&[("omega", w)]);
+    let mut start = settle(&st.target_with(&[]).unwrap(), 100);
+    start.t = 0.0;
+    let mut set = settings(1.0, 3.0, 0.05);
+    set.max_points = 400;
+    let t = std::time::Instant::now();
+    let c = continuation(&make, &set, &start, &mut |_| {}).unwrap();
+    let wall = t.elapsed();
+    let folds: Vec<_> = c.specials.iter().filter(|s| s.kind == Kind::Fold).collect();
+    assert_eq!(folds.len(), 2, "{:?}", c.specials);
+    let (upper, lower) = (folds[0].parameter, folds[1].parameter);
+    assert!(upper > lower);
+    for f in &folds {
+        let mu = f.multipliers.iter().map(|m| m.re).fold(f64::MIN, f64::max);
+        assert!((mu - 1.0).abs() < 1e-4, "multiplier {mu} at the fold");
+    }
+    // Between the folds the branch is a saddle.
+    let b = &c.branches[0];
+    let (i0, i1) = (folds[0].after, folds[1].after);
+    for p in &b.points[i0 + 2..i1] {
+        assert_eq!(p.orbit.unstable_count(), 1, "at {}", p.parameter);
+        assert!(p.orbit.multipliers[0].im == 0.0 && p.orbit.multipliers[0].re > 1.0);
+    }
+    // The sweep up starts on the upper branch (the branch's orbit nearest 2.15), the sweep down
+    // on the lower one (past the second fold, nearest 1.70).
+    let near = |pts: &[jointplay_analysis::continuation::Point], w: f64| {
+        let p = pts
+            .iter()
+            .min_by(|p, q| (p.parameter - w).abs().total_cmp(&(q.parameter - w).abs()))
+            .unwrap();
+        (p.orbit.state.clone(), p.parameter)
+    };
+    let (s_up, w_up) = near(&b.points[..i0], 2.15);
+    let (s_down, w_down) = near(&b.points[i1 + 1..], 1.70);
+    let up = jump(&st, &s_up, w_up, 0.005, 30);
+    let down = jump(&st, &s_down, w_down, -0.005, 30);
+    eprintln!(
+        "folds at omega = {upper} and {lower} ({:?}); sweep up drops between {up:?}, sweep down jumps between {down:?}",
+        wall
+    );
+    assert!(
+        up.0 < upper && upper <= up.1,
+        "upper fold {upper}, sweep {up:?}"
+    );
+    assert!(
+        down.1 <= lower && lower < down.0,
+        "lower fold {lower}, sweep {down:?}"
+    );
+}
+
+fn duffing_study(extra: &str) -> String {
+    format!(
+        "[study]\nname = \"duffing-periodic-test\"\nsystem = {{ kind = \"duffing\", delta = 0.3, alpha = -1.0, beta = 1.0, gamma = 0.2, omega = 1.2, initial = [1.0, 0.0], solver = {{ integrator = \"dopri5\", rtol = 1e-11, atol = 1e-12 }} }}\n[analysis]\nperiods = 30\ntransient = 20\nsamples_per_period = 0\n[[observables]]\nname = \"x\"\npath = \"x\"\n[[observables]]\nname = \"v\"\npath = \"v\"\n{extra}"
+    )
+}
+
+/// Bad `[continuation]` input is refused when the study loads, naming the field.
+#[test]
+fn continuation_errors_name_the_field() {
+    let base = "[continuation]\nparameter = \"gamma\"\nfrom = 0.2\nto = 0.3\nstep = 0.01\n";
+    for (text, field) in [
+        (
+            base.replace("\"gamma\"", "\"gama\""),
+            "continuation.parameter ('gama')",
+        ),
+        (
+            base.replace("step = 0.01", "step = 0.5"),
+            "continuation.step",
+        ),
+        (base.replace("to = 0.3", "to = 0.2"), "continuation.to"),
+        (
+            base.replace("step = 0.01", "step = -0.01"),
+            "continuation.step",
+        ),
+        (
+            format!("{base}orbit_periods = 0\n"),
+            "continuation.orbit_periods",
+        ),
+        (
+            format!("{base}grazing = {{ observable = \"y\", level = 1.0 }}\n"),
+            "continuation.grazing.observable",
+        ),
+        (format!("{base}also = [\"x\"]\n"), "continuation.also"),
+        (format!("{base}stepsize = 1\n"), "stepsize"),
+    ] {
+        let err = Loaded::parse(&duffing_study(&text), Path::new("t.toml"))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains(field), "{field}: {err}");
+    }
+    // A period that is not the drive's.
+    let text = duffing_study(base).replace(
+        "samples_per_period = 0",
+        "samples_per_period = 0\nperiod = 3.0",
+    );
+    let err = Loaded::parse(&text, Path::new("t.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        err.contains("analysis.period") && err.contains("not the drive's period"),
+        "{err}"
+    );
+}
+
+/// A study's continuation is written to `/continuation` of its analysis file and read back: the
+/// branch's parameters, multipliers (their product exp(-0.3 T) at every point) and stability, the
+/// located period doubling, and the observables at the strobe points.
+#[test]
+fn continuation_is_written_to_the_analysis_file() {
+    let text = duffing_study(
+        "[continuation]\nparameter = \"gamma\"\nfrom = 0.2\nto = 0.28\nstep = 0.01\ntolerance = 1e-9\nmax_branches = 2\n",
+    );
+    let st = Loaded::parse(&text, Path::new("t.toml")).unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    let o = jointplay_analysis::nonlinear::execute(
+        &st,
+        dir.path(),
+        Default::default(),
+        "test",
+        &|_| {},
+    )
+    .unwrap();
+    let c = jointplay_analysis::continuation::run_study(&st, &mut |_| {}).unwrap();
+    jointplay_analysis::continuation::write(&o.file, &st, Ok(&c)).unwrap();
+    // Written twice: the second replaces the first.
+    jointplay_analysis::continuation::write(&o.file, &st, Ok(&c)).unwrap();
+    let f = hdf5::File::open(&o.file).unwrap();
+    let g = f.group("continuation").unwrap();
+    let b = g.group("branch_0").unwrap();
+    let p: Vec<f64> = b.dataset("parameter").unwrap().read_raw().unwrap();
+    assert_eq!(p.len(), c.branches[0].points.len());
+    assert_eq!(p[0], 0.2);
+    let re = b
+        .dataset("multipliers_re")
+        .unwrap()
+        .read_2d::<f64>()
+        .unwrap();
+    let im = b
+        .dataset("multipliers_im")
+        .unwrap()
+        .read_2d::<f64>()
+        .unwrap();
+    let t = 2.0 * std::f64::consts::PI / 1.2;
+    for r in 0..p.len() {
+        let z0 = nalgebra::Complex::new(re[(r, 0)], im[(r, 0)]);
+        let z1 = nalgebra::Complex::new(re[(r, 1)], im[(r, 1)]);
+        let prod = (z0 * z1).re;
+        assert!((prod / (-0.3 * t).exp() - 1.0).abs() < 1e-8, "{prod}");
+    }
+    let stable: Vec<u8> = b.dataset("stable").unwrap().read_raw().unwrap();
+    assert_eq!(stable[0], 1);
+    assert_eq!(*stable.last().unwrap(), 0, "unstable past the doubling");
+    let x = b
+        .group("strobe")
+        .unwrap()
+        .dataset("x")
+        .unwrap()
+        .read_2d::<f64>()
+        .unwrap();
+    assert_eq!(x.shape(), [p.len(), 1]);
+    let sp = g.group("special").unwrap();
+    let pd: Vec<f64> = sp.dataset("parameter").unwrap().read_raw().unwrap();
+    assert!((pd[0] - 0.265_581_786).abs() < 1e-6, "{pd:?}");
+    let b1 = g.group("branch_1").unwrap();
+    let k: u64 = b1.attr("orbit_periods").unwrap().read_scalar().unwrap();
+    assert_eq!(k, 2);
+    let x2 = b1
+        .group("strobe")
+        .unwrap()
+        .dataset("x")
+        .unwrap()
+        .read_2d::<f64>()
+        .unwrap();
+    assert_eq!(x2.shape()[1], 2);
+}
