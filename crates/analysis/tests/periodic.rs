@@ -533,3 +533,45 @@ fn continuation_is_written_to_the_analysis_file() {
         .unwrap();
     assert_eq!(x2.shape()[1], 2);
 }
+
+/// The mixed-clearance 4-UPS/RPU at 0.8 mm (section 3's largest clearance; DOPRI5 at rtol 1e-7 as
+/// in the section-3 studies): the period-1 orbit by shooting from the strobe point after 3
+/// drive periods, in the constraint manifold's reduced coordinates. It must converge, and one more
+/// period from the converged state must return to it within the Newton tolerance (1e-6 in SI
+/// units of the state: metres, unit Euler parameters, m/s and rad/s; the integration error of a
+/// period at rtol 1e-7 is about 1e-7 of the velocities, ~1e-7 here). Minutes of run time:
+/// `cargo test --release -p jointplay-analysis --test periodic -- --ignored four_ups`.
+#[test]
+#[ignore]
+fn four_ups_rpu_period_one_orbit_reproduces_itself() {
+    let text = "[study]\nname = \"p\"\nscene = \"../../../data/scenes/4ups-rpu-mixed.toml\"\nset = { \"solver.integrator\" = \"dopri5\", \"solver.rtol\" = 1e-7, \"solver.atol\" = 1e-10, \"joints.*.clearance.radial_clearance\" = 8e-4, \"joints.R1.clearance.axial_clearance\" = 8e-4 }\nremove = [\"solver.step\"]\n[analysis]\nperiods = 2\nsamples_per_period = 0\n[[observables]]\nname = \"x\"\npath = \"bodies.platform.position.x\"\n";
+    let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/periodic.toml");
+    let st = Loaded::parse(text, &file).unwrap();
+    let target = st.target_with(&[]).unwrap();
+    let start = settle(&target, 3);
+    let mut flow = target.flow();
+    let t = std::time::Instant::now();
+    let newton = Newton {
+        tolerance: 1e-6,
+        max_iterations: 8,
+    };
+    let orbit = shoot(&mut flow, &start, 1, newton).unwrap();
+    let wall = t.elapsed();
+    let back = settle_from(&target, &orbit.state, 1);
+    let err = back
+        .y
+        .iter()
+        .zip(&orbit.state.y)
+        .fold(0.0f64, |a, (x, y)| a.max((x - y).abs()));
+    eprintln!(
+        "4-UPS/RPU 0.8 mm: {} Newton iterations in {wall:?}, residual {:e}, returns within {err:e}; {} multipliers (+{} spurious left out), largest |mu| {}: {:?}",
+        orbit.iterations,
+        orbit.residual,
+        orbit.multipliers.len(),
+        orbit.spurious,
+        orbit.spectral_radius(),
+        orbit.multipliers
+    );
+    assert!(err <= 1e-6, "returns within {err:e}");
+    assert!(orbit.iterations <= 6);
+}
