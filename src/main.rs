@@ -610,6 +610,33 @@ fn run_analysis(
     for line in jointplay_analysis::chaos::summary(&o.file)? {
         println!("{line}");
     }
+    // Periodic orbits: followed once the analysis file is written, into the same file (not by a
+    // shard, which holds only part of a sweep).
+    let mut continuation_error = None;
+    if st.spec.continuation.is_some() && opts.shard.is_none() {
+        use jointplay_analysis::continuation;
+        let bar = progress_bar(
+            1000,
+            "{spinner} [{elapsed_precise}] {bar:40} continuation (eta {eta})",
+        );
+        let start = Instant::now();
+        let res = continuation::run_study(&st, &mut |f| {
+            bar.set_position((f * 1000.0) as u64);
+            if !quiet && start.elapsed().as_secs_f64() > 1.0 && bar.is_hidden() {
+                bar.set_draw_target(ProgressDrawTarget::stderr());
+            }
+        });
+        bar.finish_and_clear();
+        continuation::write(&o.file, &st, res.as_ref())?;
+        match res {
+            Ok(c) => {
+                for line in continuation::summary(&c) {
+                    println!("{line}");
+                }
+            }
+            Err(e) => continuation_error = Some(e),
+        }
+    }
     println!("wrote        {}", o.file.display());
     if opts.shard.is_some() {
         // Shards may run side by side into one directory: the figures come from the merge.
@@ -646,6 +673,13 @@ fn run_analysis(
             "{} of {} values failed; the others are in {}",
             o.failed.len(),
             o.jobs,
+            o.file.display()
+        );
+    }
+    if let Some(e) = continuation_error {
+        anyhow::bail!(
+            "{}: the continuation could not start: {e}\n(the analysis is in {}; /continuation holds the error)",
+            path.display(),
             o.file.display()
         );
     }

@@ -33,6 +33,7 @@
 
 pub mod chaos;
 pub mod comparison;
+pub mod continuation;
 pub mod figures;
 pub mod flow;
 pub mod h5;
@@ -41,6 +42,7 @@ pub mod inputs;
 pub mod lyapunov;
 pub mod nonlinear;
 pub mod observe;
+pub mod periodic;
 pub mod plot;
 pub mod precision;
 pub mod progress;
@@ -76,6 +78,9 @@ pub enum Error {
     /// it stopped inside a run.
     #[error("interrupted on request{}", .time.map(|t| format!(" at t = {t} s")).unwrap_or_default())]
     Interrupted { time: Option<f64> },
+    /// A periodic orbit could not be found or followed: what failed.
+    #[error("periodic orbit: {0}")]
+    Orbit(String),
     #[error("case '{label}': {inner}")]
     Case { label: String, inner: Box<Error> },
     #[error("{file}: plot: {message}")]

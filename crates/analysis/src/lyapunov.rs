@@ -439,6 +439,16 @@ pub fn tangent_map<F: Tangent>(
     vectors: &[Vec<f64>],
     t_end: f64,
 ) -> Result<(HybridState, Vec<Vec<f64>>)> {
+    tangent_map_counted(flow, start, vectors, t_end).map(|(s, v, _)| (s, v))
+}
+
+/// [`tangent_map`] that also counts the events (impacts with a state reset) on the way.
+pub fn tangent_map_counted<F: Tangent>(
+    flow: &mut F,
+    start: &HybridState,
+    vectors: &[Vec<f64>],
+    t_end: f64,
+) -> Result<(HybridState, Vec<Vec<f64>>, u64)> {
     let n = flow.dim();
     let k = vectors.len();
     let method = flow.method();
@@ -467,11 +477,12 @@ pub fn tangent_map<F: Tangent>(
         None,
     );
     res?;
+    let events = ext.events;
     let out = (0..k)
         .map(|j| ext_state.y[(j + 1) * n..(j + 2) * n].to_vec())
         .collect();
     ext_state.y.truncate(n);
-    Ok((ext_state, out))
+    Ok((ext_state, out, events))
 }
 
 /// Computes the Lyapunov spectrum of `flow` from the hybrid state `start` (whose memory the flow

@@ -74,6 +74,9 @@ pub struct AnalysisStudy {
     /// The 0-1 test for chaos on one observable's section samples.
     #[serde(default)]
     pub zero_one: Option<crate::chaos::ZeroOneSpec>,
+    /// Periodic orbits followed in a parameter (see [`crate::continuation`]).
+    #[serde(default)]
+    pub continuation: Option<crate::continuation::ContinuationSpec>,
 }
 
 /// The `[study]` table.
@@ -190,6 +193,9 @@ pub enum FigureKind {
     Bifurcation,
     /// `y` against `x` with a clearance circle of radius `circle` (or the swept value).
     Orbit,
+    /// The branches of periodic orbits of the `[continuation]` (`y` at their strobe points
+    /// against the parameter), over the bifurcation diagram when there is a sweep.
+    Branches,
 }
 
 /// One figure.
@@ -251,8 +257,9 @@ pub fn is_analysis(text: &str) -> bool {
         .unwrap_or(false)
 }
 
-const RESERVED: [&str; 11] = [
+const RESERVED: [&str; 12] = [
     "chaos",
+    "continuation",
     "parameter",
     "direction",
     "done",
@@ -550,6 +557,9 @@ impl Loaded {
         // fails before anything runs.
         let first = loaded.jobs.first().map(|j| j.0);
         loaded.target(first)?;
+        if let Some(c) = &loaded.spec.continuation {
+            loaded.check_continuation(c)?;
+        }
         for (i, f) in loaded.spec.figures.iter().enumerate() {
             for (what, name) in [("x", f.x.as_deref()), ("y", Some(f.y.as_str()))] {
                 if let Some(n) = name
@@ -571,6 +581,13 @@ impl Loaded {
                     &loaded.path,
                     format!("figures[{i}].x"),
                     "this kind needs x",
+                ));
+            }
+            if f.kind == FigureKind::Branches && loaded.spec.continuation.is_none() {
+                return Err(invalid(
+                    &loaded.path,
+                    format!("figures[{i}].kind"),
+                    "a branches figure needs a [continuation]",
                 ));
             }
             if f.kind == FigureKind::Bifurcation && loaded.spec.sweep.is_none() {
@@ -714,6 +731,79 @@ impl Loaded {
                 Ok(Target::System { sys, obs, period })
             }
         }
+    }
+
+    /// The flow with the continuation parameter (and its `also` paths) set to `value`.
+    pub fn continuation_target(&self, value: f64) -> Result<Target> {
+        let Some(c) = &self.spec.continuation else {
+            return Err(invalid(
+                &self.path,
+                "continuation",
+                "no [continuation] table",
+            ));
+        };
+        let edits: Vec<Edit> = std::iter::once(Edit {
+            field: format!("continuation.parameter ('{}')", c.parameter),
+            path: c.parameter.clone(),
+            value,
+        })
+        .chain(c.also.iter().enumerate().map(|(i, p)| Edit {
+            field: format!("continuation.also[{i}] ('{p}')"),
+            path: p.clone(),
+            value,
+        }))
+        .collect();
+        self.compile_edited(&edits)
+    }
+
+    /// Checks the `[continuation]` table against the study: its numbers, its paths (the flow is
+    /// compiled at both ends of the range), its grazing observable, and the period (a periodic
+    /// orbit of a forced flow is one of the drive: `analysis.period`, when given, must be the
+    /// drive's own).
+    fn check_continuation(&self, c: &crate::continuation::ContinuationSpec) -> Result<()> {
+        c.check().map_err(|(f, m)| invalid(&self.path, f, m))?;
+        if let Some(g) = &c.grazing
+            && self.spec.observable(&g.observable).is_none()
+        {
+            return Err(invalid(
+                &self.path,
+                "continuation.grazing.observable",
+                format!("'{}' is not an observable of this study", g.observable),
+            ));
+        }
+        if matches!(self.base, Base::System(_)) && !c.also.is_empty() {
+            return Err(invalid(
+                &self.path,
+                "continuation.also",
+                "applies to scenes, not to systems",
+            ));
+        }
+        for v in [c.from, c.to] {
+            let own = match self.continuation_target(v)? {
+                Target::Scene { model, .. } => model.settings.period,
+                Target::System { sys, .. } => sys.builtin.period(),
+            };
+            let Some(own) = own else {
+                return Err(invalid(
+                    &self.path,
+                    "continuation",
+                    "the flow has no drive: periodic orbits are followed on the stroboscopic map of a periodic drive",
+                ));
+            };
+            if let Some(p) = self.spec.analysis.period
+                && (p - own).abs() > 1e-12 * own
+            {
+                return Err(invalid(
+                    &self.path,
+                    "analysis.period",
+                    format!(
+                        "{p} s is not the drive's period ({own} s at {} = {v}): a continuation shoots on the drive's stroboscopic map (use continuation.orbit_periods for a subharmonic)",
+                        c.parameter
+                    ),
+                ));
+            }
+        }
+        Ok(())
     }
 
     fn period(&self, own: Option<f64>) -> Result<f64> {

@@ -29,6 +29,14 @@ pub struct Series {
     pub y: Vec<f64>,
 }
 
+/// How one line of a panel is drawn: its colour (an index into the palette) and whether it is
+/// dashed.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct LineStyle {
+    pub color: usize,
+    pub dashed: bool,
+}
+
 /// One chart: title, axis labels (with units) and lines.
 #[derive(Debug, Clone)]
 pub struct Panel {
@@ -55,6 +63,13 @@ pub struct Panel {
     /// One unit of x as long on the page as one unit of y (orbits: a circle stays a circle).
     /// The plotting area is narrowed or shortened, centred in the panel's area, to fit.
     pub equal_aspect: bool,
+    /// Styles of the lines, by index (default: the palette in order, solid). A line with an
+    /// empty label gets no legend entry.
+    pub styles: Vec<LineStyle>,
+    /// Dot radii of the point series, by index (default `point_size`).
+    pub point_radii: Vec<u32>,
+    /// Dot colours of the point series, by index into the dot palette (default in order).
+    pub point_colors: Vec<usize>,
 }
 
 impl Default for Panel {
@@ -75,6 +90,9 @@ impl Default for Panel {
             line_width: 2,
             point_size: 2,
             equal_aspect: false,
+            styles: Vec::new(),
+            point_radii: Vec::new(),
+            point_colors: Vec::new(),
         }
     }
 }
@@ -117,12 +135,16 @@ impl Format {
     }
 }
 
-/// Dot colours: red first, so section points stand out over a blue trajectory.
-const POINT_COLORS: [RGBColor; 4] = [
+/// Dot colours: red first, so section points stand out over a blue trajectory; the last three
+/// (grey, black, orange) are only chosen by [`Panel::point_colors`].
+const POINT_COLORS: [RGBColor; 7] = [
     RGBColor(214, 39, 40),
     RGBColor(31, 119, 180),
     RGBColor(44, 160, 44),
     RGBColor(148, 103, 189),
+    RGBColor(170, 170, 170),
+    RGBColor(0, 0, 0),
+    RGBColor(255, 127, 14),
 ];
 
 const COLORS: [RGBColor; 6] = [
@@ -198,7 +220,11 @@ where
     let (xr, yr) = (chart.x_range(), chart.y_range());
     let frame = (xr.start, xr.end, yr.start, yr.end);
     for (i, s) in panel.series.iter().enumerate() {
-        let c = COLORS[i % COLORS.len()];
+        let style = panel.styles.get(i).copied().unwrap_or(LineStyle {
+            color: i,
+            dashed: false,
+        });
+        let c = COLORS[style.color % COLORS.len()];
         let kept: Vec<(f64, f64)> =
             s.x.iter()
                 .zip(&s.y)
@@ -207,11 +233,18 @@ where
                 .collect();
         // Lines end at the frame: each piece inside it is drawn on its own.
         let pieces = clip_polyline(&kept, frame, panel.log_x, panel.log_y);
-        let mut legend_done = false;
+        let stroke = c.stroke_width(panel.line_width);
+        let mut legend_done = s.label.is_empty();
         for piece in pieces {
-            let drawn = chart
-                .draw_series(LineSeries::new(piece, c.stroke_width(panel.line_width)))
-                .map_err(|e| e.to_string())?;
+            let drawn = if style.dashed {
+                chart
+                    .draw_series(DashedLineSeries::new(piece, 6, 4, stroke))
+                    .map_err(|e| e.to_string())?
+            } else {
+                chart
+                    .draw_series(LineSeries::new(piece, stroke))
+                    .map_err(|e| e.to_string())?
+            };
             if !legend_done {
                 drawn.label(&s.label).legend(move |(x, y)| {
                     PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2))
@@ -221,9 +254,18 @@ where
         }
     }
     for (i, s) in panel.points.iter().enumerate() {
-        let c = POINT_COLORS[i % POINT_COLORS.len()];
-        let r = if small { 1 } else { panel.point_size as i32 };
-        chart
+        let c =
+            POINT_COLORS[panel.point_colors.get(i).copied().unwrap_or(i % 4) % POINT_COLORS.len()];
+        let r = if small {
+            1
+        } else {
+            panel
+                .point_radii
+                .get(i)
+                .copied()
+                .unwrap_or(panel.point_size) as i32
+        };
+        let anno = chart
             .draw_series(
                 s.x.iter()
                     .zip(&s.y)
@@ -231,9 +273,11 @@ where
                     .filter(|(x, y)| inside(**x, **y, frame))
                     .map(move |(x, y)| Circle::new((*x, *y), r, c.filled())),
             )
-            .map_err(|e| e.to_string())?
-            .label(&s.label)
-            .legend(move |(x, y)| Circle::new((x + 10, y), 3, c.filled()));
+            .map_err(|e| e.to_string())?;
+        if !s.label.is_empty() {
+            anno.label(&s.label)
+                .legend(move |(x, y)| Circle::new((x + 10, y), 3, c.filled()));
+        }
     }
     if panel.series.len() + panel.points.len() > 1 && !small {
         let labels: Vec<&str> = panel

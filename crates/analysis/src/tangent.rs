@@ -119,6 +119,11 @@ pub trait Tangent: Flow {
     fn jvp_kind(&self) -> &'static str {
         "analytic"
     }
+    /// Moves `y` at time `t` back onto the phase space (a mechanism assembles it onto its
+    /// constraint manifold: positions, velocities, Euler-parameter norms); nothing by default.
+    fn onto_manifold(&mut self, _t: f64, _y: &mut [f64]) -> crate::Result<()> {
+        Ok(())
+    }
 }
 
 /// The difference quotient of a mechanism's Jacobian-vector product (see the module overview).
@@ -445,6 +450,12 @@ impl Tangent for MechFlow<'_> {
         }
         Ok(Some(basis))
     }
+    fn onto_manifold(&mut self, t: f64, y: &mut [f64]) -> crate::Result<()> {
+        let mut state = jointplay_solver::model::State { t, y: y.to_vec() };
+        self.mech.model.assemble(&mut state)?;
+        y.copy_from_slice(&state.y);
+        Ok(())
+    }
     fn phase_dim(&self) -> usize {
         let m = self.mech.model;
         if m.n_rows == 0 {
@@ -494,6 +505,9 @@ impl Tangent for AnyFlow<'_> {
     }
     fn reset_jvp(&self, i: usize, t: f64, y: &[f64], v: &[f64], out: &mut [f64]) {
         either!(self, f => f.reset_jvp(i, t, y, v, out))
+    }
+    fn onto_manifold(&mut self, t: f64, y: &mut [f64]) -> crate::Result<()> {
+        either!(self, f => f.onto_manifold(t, y))
     }
     fn event_gradient(&self, i: usize, t: f64, y: &[f64], out: &mut [f64]) {
         either!(self, f => f.event_gradient(i, t, y, out))

@@ -49,6 +49,63 @@ struct Data {
     /// A single run's running Lyapunov estimates: times, one row per time, and the
     /// two-trajectory estimate.
     convergence: Option<Convergence>,
+    /// The branches of periodic orbits, when the study followed them.
+    continuation: Option<ContData>,
+}
+
+/// One branch of periodic orbits as read back: its parameter, stability and, per observable, the
+/// values at its strobe points (one row per point, one column per drive period).
+struct BranchData {
+    parameter: Vec<f64>,
+    stable: Vec<u8>,
+    strobe: BTreeMap<String, Vec<Vec<f64>>>,
+}
+
+/// `/continuation`: the parameter's path and unit, the branches, and the special points (kind,
+/// parameter, observables at the first strobe point).
+struct ContData {
+    parameter: String,
+    unit: String,
+    branches: Vec<BranchData>,
+    specials: Vec<(String, f64, BTreeMap<String, f64>)>,
+}
+
+fn read_continuation(g: &hdf5::Group, spec: &AnalysisStudy) -> hdf5::Result<ContData> {
+    let n: u64 = crate::h5::read_attr(g, "branches").unwrap_or(0);
+    let mut branches = Vec::new();
+    for i in 0..n {
+        let b = g.group(&format!("branch_{i}"))?;
+        let sg = b.group("strobe")?;
+        let mut strobe = BTreeMap::new();
+        for o in &spec.observables {
+            strobe.insert(o.name.clone(), read_rows(&sg, &o.name)?);
+        }
+        branches.push(BranchData {
+            parameter: b.dataset("parameter")?.read_raw()?,
+            stable: b.dataset("stable")?.read_raw()?,
+            strobe,
+        });
+    }
+    let mut specials = Vec::new();
+    if let Ok(sp) = g.group("special") {
+        let kinds = crate::h5::read_strings(&sp, "kind")?;
+        let params: Vec<f64> = sp.dataset("parameter")?.read_raw()?;
+        let sg = sp.group("strobe")?;
+        let mut vals = BTreeMap::new();
+        for o in &spec.observables {
+            vals.insert(o.name.clone(), sg.dataset(&o.name)?.read_raw::<f64>()?);
+        }
+        for (i, (k, p)) in kinds.into_iter().zip(params).enumerate() {
+            let at = vals.iter().map(|(n, v)| (n.clone(), v[i])).collect();
+            specials.push((k, p, at));
+        }
+    }
+    Ok(ContData {
+        parameter: read_str(g, "parameter")?,
+        unit: read_str(g, "parameter_unit").unwrap_or_default(),
+        branches,
+        specials,
+    })
 }
 
 /// Times of the re-orthonormalisations, the running estimates there (one row per time) and the
@@ -209,6 +266,10 @@ fn read(path: &Path) -> Result<Data> {
         }
         jobs.push(job);
     }
+    let continuation = match file.group("continuation") {
+        Ok(g) => Some(read_continuation(&g, &spec).map_err(&e)?),
+        Err(_) => None,
+    };
     Ok(Data {
         spec,
         name,
@@ -217,6 +278,7 @@ fn read(path: &Path) -> Result<Data> {
         jobs,
         chaos,
         convergence,
+        continuation,
     })
 }
 
@@ -301,6 +363,103 @@ fn chaos_panels(d: &Data, x_label: &str, px: f64) -> Vec<Panel> {
         out.push(p);
     }
     out
+}
+
+/// The branches of periodic orbits (observable `y` at their strobe points against the parameter:
+/// stable solid, unstable dashed, every strobe point of a period-k orbit a line of its own) with
+/// their special points marked, over the brute-force bifurcation diagram (the sweep's strobe
+/// points, grey) when the study has one.
+fn branches_panel(d: &Data, f: &FigureSpec, y: &str, scale: f64, y_label: String) -> Panel {
+    let mut p = Panel::new(
+        f.title
+            .clone()
+            .unwrap_or(format!("Periodic orbits: {y} at the strobe points")),
+        String::new(),
+        y_label,
+        Vec::new(),
+    );
+    let Some(c) = &d.continuation else {
+        p.title = format!("{} (no continuation in the file)", p.title);
+        return p;
+    };
+    p.x_label = if c.unit.is_empty() {
+        short(&c.parameter).to_string()
+    } else {
+        format!("{} ({})", short(&c.parameter), c.unit)
+    };
+    let (mut stable_seen, mut unstable_seen) = (false, false);
+    for b in &c.branches {
+        let rows = &b.strobe[y];
+        let k = rows.first().map_or(0, Vec::len);
+        for j in 0..k {
+            // Runs of equal stability; consecutive runs share their end point.
+            let mut start = 0;
+            while start < b.parameter.len() {
+                let st = b.stable[start];
+                let mut end = start;
+                while end + 1 < b.parameter.len() && b.stable[end + 1] == st {
+                    end += 1;
+                }
+                let stop = (end + 1).min(b.parameter.len() - 1);
+                let stable = st == 1;
+                let label = match (stable, stable_seen, unstable_seen) {
+                    (true, false, _) => "stable",
+                    (false, _, false) => "unstable",
+                    _ => "",
+                };
+                if stable {
+                    stable_seen = true;
+                } else {
+                    unstable_seen = true;
+                }
+                p.series.push(Series {
+                    label: label.into(),
+                    x: b.parameter[start..=stop].to_vec(),
+                    y: rows[start..=stop].iter().map(|r| r[j] * scale).collect(),
+                });
+                p.styles.push(crate::plot::LineStyle {
+                    color: if stable { 0 } else { 1 },
+                    dashed: !stable,
+                });
+                start = end + 1;
+            }
+        }
+    }
+    if d.sweep.is_some() {
+        let mut pts = Series {
+            label: "strobe points (sweep)".into(),
+            x: Vec::new(),
+            y: Vec::new(),
+        };
+        for j in &d.jobs {
+            let v = &j.sections["strobe"][y];
+            pts.x.extend(std::iter::repeat_n(j.parameter, v.len()));
+            pts.y.extend(v.iter().map(|a| a * scale));
+        }
+        p.points.push(pts);
+        p.point_colors.push(4);
+        p.point_radii.push(1);
+    }
+    for (kind, color) in [
+        ("fold", 5),
+        ("period-doubling", 0),
+        ("neimark-sacker", 2),
+        ("grazing", 6),
+    ] {
+        let sp: Vec<_> = c.specials.iter().filter(|s| s.0 == kind).collect();
+        if sp.is_empty() {
+            continue;
+        }
+        p.points.push(Series {
+            label: kind.replace('-', " "),
+            x: sp.iter().map(|s| s.1).collect(),
+            y: sp.iter().map(|s| s.2[y] * scale).collect(),
+        });
+        p.point_colors.push(color);
+        p.point_radii.push(5);
+    }
+    p.line_width = 2;
+    p
 }
 
 /// The convergence figure of a single run's Lyapunov exponents.
@@ -430,6 +589,9 @@ fn panels_for(d: &Data, f: &FigureSpec) -> Result<Vec<Panel>> {
             format!("{t}, {}", job.label)
         }
     };
+    if f.kind == FigureKind::Branches {
+        return Ok(vec![branches_panel(d, f, y, s, label(y))]);
+    }
     if f.kind == FigureKind::Bifurcation {
         let (pname, punit) = d.sweep.clone().unwrap_or_default();
         let mut up = Series {
@@ -620,7 +782,7 @@ fn panels_for(d: &Data, f: &FigureSpec) -> Result<Vec<Panel>> {
                 p.equal_aspect = true;
                 p
             }
-            FigureKind::Bifurcation => unreachable!("handled above"),
+            FigureKind::Bifurcation | FigureKind::Branches => unreachable!("handled above"),
         };
         let mut p = p;
         // Thin lines: long trajectories drawn 2 px wide show stroke artifacts.

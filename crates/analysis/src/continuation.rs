@@ -1,0 +1,1331 @@
+//! Pseudo-arclength continuation of periodic orbits in a parameter, with the detection and
+//! location of their bifurcations and of grazing.
+//!
+//! **Branches.** With `s = (p - from) / (to - from)` the scaled parameter (0 at `from`, 1 at
+//! `to`), a branch of period-`k` orbits is a curve of roots of `G(y, s) = P^k(y; s) - y`
+//! ([`crate::periodic`]). From a point `(y0, s0)` with unit tangent `(t_y, t_s)` the next point
+//! is predicted at `(y0 + h t_y, s0 + h t_s)` and corrected by Newton's method on
+//!
+//! ```text
+//! G(y, s) = 0,     t_y . (y - y0) + t_s (s - s0) = h
+//! ```
+//!
+//! (Keller's pseudo-arclength condition; Seydel, Practical Bifurcation and Stability Analysis,
+//! 2010, sec. 4.4; Dankowicz & Schilder, Recipes for Continuation, 2013, ch. 10). On a mechanism
+//! the state is corrected in the reduced coordinates of its constraint manifold, `dy = B dz`,
+//! as in shooting, so the bordered Jacobian is
+//!
+//! ```text
+//! [ B^T M B - I    B^T dG/ds ]
+//! [ (B^T t_y)^T    t_s       ] ,
+//! ```
+//!
+//! `dG/ds` by central differences of the map (step `1e-4` of the parameter range: the
+//! truncation error `~1e-8` relative, the integration error divided by the step well below it).
+//! The new tangent solves the same matrix with the right-hand side `(0, 1)` (its last row the old
+//! tangent: the branch keeps its direction through folds). The state is in SI units and the
+//! parameter scaled to its range, so steps `h` are given in parameter units and converted; a step
+//! moves the parameter by at most that much.
+//!
+//! **Step control.** A corrector that does not converge in the Newton iterations halves the step,
+//! down to `min_step` (then the branch ends, its last good point kept); one that converges in at
+//! most 3 iterations lets the next step grow by 1.5 up to `max_step`.
+//!
+//! **Test functions** (Seydel sec. 7.4; Kuznetsov, Elements of Applied Bifurcation Theory, 2004,
+//! sec. 10.3), evaluated at every point from the multipliers `mu_i` and the tangent:
+//!
+//! | kind | test function | zero when |
+//! |---|---|---|
+//! | fold | `t_s` | the parameter turns (a multiplier through +1) |
+//! | period doubling | `prod (mu_i + 1)` | a real multiplier through -1 |
+//! | Neimark-Sacker | `prod_{i<j} (mu_i mu_j - 1)` | a complex pair through the unit circle (also a neutral saddle, `mu_i mu_j = 1` real, which is not reported) |
+//! | grazing | `level - max over the orbit of the contact observable` | contact begins or ends |
+//!
+//! A sign change between two points is located by the Illinois variant of regula falsi on the
+//! arclength from the first point (each trial a corrector solve) until the arclength bracket,
+//! in parameter units, is below `locate`: a bound on the error of the located parameter.
+//! Grazing (di Bernardo et al., Piecewise-smooth Dynamical Systems, 2008, ch. 7): the gap is the
+//! smallest clearance along the orbit, sampled `samples` times per period with a parabola through
+//! the largest sample and its neighbours (error `~h^4`); for a flow with impacts the impacting
+//! side has no gap to extrapolate, so it is located by secant steps from the contact-free side
+//! alternated with bisection. The contact-free and the contacting segments are different
+//! branches: the branch ends at a grazing, and the first point past it starts a new one.
+//!
+//! **Branch switching at a period doubling.** The period-`2k` orbits leave the located point
+//! `(y*, s*)` tangent to the eigenvector `v` of the multiplier -1 at fixed parameter (a pitchfork
+//! of the `2k`-fold map; Seydel sec. 7.6.3). The new branch starts with the tangent `(v, 0)` and
+//! the pseudo-arclength corrector on the `2k`-fold map, which the period-`k` branch (also a
+//! solution) meets only at `h = 0`.
+
+use jointplay_solver::ode::{self, Flow as Step};
+use jointplay_solver::state::HybridState;
+use nalgebra::{Complex, DMatrix, DVector};
+
+use crate::Result;
+use crate::flow::{Flow, Target};
+use crate::lyapunov::tangent_map;
+use crate::periodic::{MapEval, Newton, Orbit, evaluate, orbit_of, shoot};
+use crate::sections::Observed;
+use crate::tangent::Tangent;
+
+/// What a continuation needs besides the flow.
+#[derive(Debug, Clone)]
+pub struct Settings {
+    /// Start and end of the parameter range.
+    pub from: f64,
+    pub to: f64,
+    /// First, smallest and largest step (parameter units, see the module overview).
+    pub step: f64,
+    pub min_step: f64,
+    pub max_step: f64,
+    /// Points per branch at most.
+    pub max_points: usize,
+    /// Drive periods per orbit of the first branch.
+    pub k: usize,
+    pub newton: Newton,
+    /// Bracket (parameter units) special points are located to.
+    pub locate: f64,
+    /// Follow the period-2k branch from every period doubling.
+    pub switch_period_doubling: bool,
+    /// Branches at most (the first one and those switched to).
+    pub max_branches: usize,
+    /// Grazing: the index of the contact observable and the level at which contact begins (the
+    /// gap is `level - max` of the observable over the orbit).
+    pub grazing: Option<(usize, f64)>,
+    /// Samples per drive period for the gap.
+    pub samples: usize,
+}
+
+/// The kinds of special points.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kind {
+    Fold = 1,
+    PeriodDoubling = 2,
+    NeimarkSacker = 3,
+    Grazing = 4,
+}
+
+impl Kind {
+    pub fn name(self) -> &'static str {
+        match self {
+            Kind::Fold => "fold",
+            Kind::PeriodDoubling => "period-doubling",
+            Kind::NeimarkSacker => "neimark-sacker",
+            Kind::Grazing => "grazing",
+        }
+    }
+    const ALL: [Kind; 4] = [
+        Kind::Fold,
+        Kind::PeriodDoubling,
+        Kind::NeimarkSacker,
+        Kind::Grazing,
+    ];
+}
+
+/// One point of a branch.
+#[derive(Debug, Clone)]
+pub struct Point {
+    pub parameter: f64,
+    pub orbit: Orbit,
+    /// Corrector iterations.
+    pub iterations: usize,
+    /// The observables at the orbit's `k` strobe points (`[k][observables]`).
+    pub strobe: Vec<Vec<f64>>,
+    /// The smallest gap along the orbit, when grazing is followed.
+    pub gap: Option<f64>,
+    /// Unit tangent: state part and scaled-parameter part.
+    tangent_y: Vec<f64>,
+    tangent_s: f64,
+    s: f64,
+}
+
+/// A located special point.
+#[derive(Debug, Clone)]
+pub struct Special {
+    pub kind: Kind,
+    pub branch: usize,
+    /// Index of the branch point before it.
+    pub after: usize,
+    pub parameter: f64,
+    /// The arclength bracket reached (parameter units): the error bound of `parameter`.
+    pub bracket: f64,
+    /// The strobe point and the multipliers there (of the nearest corrected orbit).
+    pub state: Vec<f64>,
+    pub multipliers: Vec<Complex<f64>>,
+    /// The observables at its strobe points.
+    pub strobe: Vec<Vec<f64>>,
+}
+
+/// One branch.
+#[derive(Debug, Clone)]
+pub struct Branch {
+    pub k: usize,
+    /// Where it starts: "start" or the special point it was switched from.
+    pub origin: String,
+    pub points: Vec<Point>,
+    /// Why it ended.
+    pub end: String,
+    /// It ended because a step failed (the last good point is kept).
+    pub failed: bool,
+}
+
+/// A continuation's result.
+#[derive(Debug, Clone, Default)]
+pub struct Continuation {
+    pub branches: Vec<Branch>,
+    pub specials: Vec<Special>,
+    /// Seconds of wall time.
+    pub wall: f64,
+    /// Units of the observables (set by [`run_study`]).
+    pub units: Vec<String>,
+}
+
+/// A branch waiting to be followed: its first point, its periods per orbit, where it comes from,
+/// and the first step's tangent when it is not the point's own (branch switching).
+struct Pending {
+    start: Point,
+    k: usize,
+    origin: String,
+    switch: Option<(Vec<f64>, f64)>,
+}
+
+/// A point of the corrector with what the next tangent needs.
+struct Corrected {
+    state: HybridState,
+    s: f64,
+    ev: MapEval,
+    /// `B^T dG/ds`.
+    gs: DVector<f64>,
+    iterations: usize,
+}
+
+/// The continuation machinery over a family of flows `make(p)`.
+struct Ctx<'a> {
+    make: &'a dyn Fn(f64) -> Result<Target>,
+    set: &'a Settings,
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+impl Ctx<'_> {
+    fn p(&self, s: f64) -> f64 {
+        self.set.from + s * (self.set.to - self.set.from)
+    }
+    fn range(&self) -> f64 {
+        (self.set.to - self.set.from).abs()
+    }
+
+    fn eval(&self, s: f64, state: &HybridState, k: usize) -> Result<MapEval> {
+        let target = (self.make)(self.p(s))?;
+        let mut flow = target.flow();
+        evaluate(&mut flow, state, k)
+    }
+
+    fn onto(&self, s: f64, state: &mut HybridState) -> Result<()> {
+        let target = (self.make)(self.p(s))?;
+        let mut flow = target.flow();
+        flow.onto_manifold(state.t, &mut state.y)
+    }
+
+    /// `B^T dP^k/ds` by central differences.
+    fn gs(&self, s: f64, state: &HybridState, k: usize, ev: &MapEval) -> Result<DVector<f64>> {
+        let h = 1e-4;
+        let mut ends = Vec::new();
+        for sg in [1.0, -1.0] {
+            let target = (self.make)(self.p(s + sg * h))?;
+            let mut flow = target.flow();
+            let t_end = state.t + k as f64 * flow.period();
+            let (end, _) = tangent_map(&mut flow, &state.for_new_run(), &[], t_end)?;
+            ends.push(end.y);
+        }
+        let d: Vec<f64> = ends[0]
+            .iter()
+            .zip(&ends[1])
+            .map(|(a, b)| (a - b) / (2.0 * h))
+            .collect();
+        Ok(ev.reduce(&d))
+    }
+
+    /// Corrects the prediction `anchor + h tangent` onto the branch.
+    fn correct(&self, k: usize, anchor: &Point, ty: &[f64], ts: f64, h: f64) -> Result<Corrected> {
+        let mut state = anchor.orbit.state.for_new_run();
+        for (a, t) in state.y.iter_mut().zip(ty) {
+            *a += h * t;
+        }
+        let mut s = anchor.s + h * ts;
+        self.onto(s, &mut state)?;
+        let y0 = &anchor.orbit.state.y;
+        for it in 0..=self.set.newton.max_iterations {
+            let ev = self.eval(s, &state, k)?;
+            let res = ev.max_residual();
+            if !res.is_finite() {
+                break;
+            }
+            let gs = self.gs(s, &state, k, &ev)?;
+            if res <= self.set.newton.tolerance {
+                state.onset.clone_from(&ev.end.onset);
+                return Ok(Corrected {
+                    state,
+                    s,
+                    ev,
+                    gs,
+                    iterations: it,
+                });
+            }
+            if it == self.set.newton.max_iterations {
+                break;
+            }
+            let m = ev.reduced.nrows();
+            let mut jac = DMatrix::zeros(m + 1, m + 1);
+            jac.view_mut((0, 0), (m, m))
+                .copy_from(&(&ev.reduced - DMatrix::identity(m, m)));
+            jac.view_mut((0, m), (m, 1)).copy_from(&gs);
+            let tz = ev.reduce(ty);
+            for c in 0..m {
+                jac[(m, c)] = tz[c];
+            }
+            jac[(m, m)] = ts;
+            let dy: Vec<f64> = state.y.iter().zip(y0).map(|(a, b)| a - b).collect();
+            let mut rhs = DVector::zeros(m + 1);
+            rhs.rows_mut(0, m).copy_from(&-ev.reduce(&ev.residual));
+            rhs[m] = -(dot(ty, &dy) + ts * (s - anchor.s) - h);
+            let Some(x) = jac.lu().solve(&rhs) else {
+                break;
+            };
+            let step = ev.lift(&x.rows(0, m).into_owned());
+            for (a, d) in state.y.iter_mut().zip(&step) {
+                *a += d;
+            }
+            s += x[m];
+            state.onset.clone_from(&ev.end.onset);
+            self.onto(s, &mut state)?;
+        }
+        Err(crate::Error::Orbit(format!(
+            "the corrector did not converge at parameter {}",
+            self.p(s)
+        )))
+    }
+
+    /// The unit tangent at a corrected point, oriented along `(ty, ts)`.
+    fn tangent(&self, c: &Corrected, ty: &[f64], ts: f64) -> Option<(Vec<f64>, f64)> {
+        let m = c.ev.reduced.nrows();
+        let mut jac = DMatrix::zeros(m + 1, m + 1);
+        jac.view_mut((0, 0), (m, m))
+            .copy_from(&(&c.ev.reduced - DMatrix::identity(m, m)));
+        jac.view_mut((0, m), (m, 1)).copy_from(&c.gs);
+        let tz = c.ev.reduce(ty);
+        for col in 0..m {
+            jac[(m, col)] = tz[col];
+        }
+        jac[(m, m)] = ts;
+        let mut rhs = DVector::zeros(m + 1);
+        rhs[m] = 1.0;
+        let x = jac.lu().solve(&rhs)?;
+        let norm = x.norm();
+        if !(norm.is_finite() && norm > 0.0) {
+            return None;
+        }
+        let ty = c.ev.lift(&(x.rows(0, m) / norm).into_owned());
+        Some((ty, x[m] / norm))
+    }
+
+    /// Observables at the orbit's strobe points and the smallest gap along it.
+    fn sample(
+        &self,
+        s: f64,
+        state: &HybridState,
+        k: usize,
+    ) -> Result<(Vec<Vec<f64>>, Option<f64>)> {
+        let target = (self.make)(self.p(s))?;
+        let mut flow = target.flow();
+        let period = flow.period();
+        let per = self.set.samples.max(4);
+        let n = per * k;
+        let times: Vec<f64> = (0..=n)
+            .map(|i| state.t + i as f64 * k as f64 * period / n as f64)
+            .collect();
+        let n_obs = flow.n_obs();
+        let mut all: Vec<Vec<f64>> = Vec::with_capacity(n + 1);
+        let mut st = state.for_new_run();
+        flow.prepare(&st)?;
+        let method = flow.method();
+        let (_, res) = ode::advance(
+            &mut flow,
+            method,
+            &mut st,
+            *times.last().expect("at least one"),
+            &times,
+            |f, t, y| {
+                let mut out = vec![0.0; n_obs];
+                f.observe(t, y, &mut out);
+                all.push(out);
+                Step::Continue
+            },
+            None,
+        );
+        res?;
+        let strobe = (0..k).map(|j| all[j * per].clone()).collect();
+        let gap = self.set.grazing.map(|(i, level)| {
+            let x: Vec<f64> = all[..n].iter().map(|o| o[i]).collect();
+            let (j, _) = x
+                .iter()
+                .enumerate()
+                .fold((0, f64::NEG_INFINITY), |(bj, bv), (j, &v)| {
+                    if v > bv { (j, v) } else { (bj, bv) }
+                });
+            // Parabola through the largest sample and its neighbours (periodic).
+            let (a, b, c) = (x[(j + n - 1) % n], x[j], x[(j + 1) % n]);
+            let den = a - 2.0 * b + c;
+            let top = if den < 0.0 {
+                b - (c - a).powi(2) / (8.0 * den)
+            } else {
+                b
+            };
+            level - top
+        });
+        Ok((strobe, gap))
+    }
+
+    /// A branch's first point: shooting at fixed scaled parameter `s` from `start`, its tangent
+    /// oriented along `(ty, ts)`.
+    fn start_point(
+        &self,
+        k: usize,
+        s: f64,
+        start: &HybridState,
+        ty: &[f64],
+        ts: f64,
+    ) -> Result<Point> {
+        let target = (self.make)(self.p(s))?;
+        let mut flow = target.flow();
+        let orbit = shoot(&mut flow, start, k, self.set.newton)?;
+        let ev = self.eval(s, &orbit.state, k)?;
+        let gs = self.gs(s, &orbit.state, k, &ev)?;
+        let c = Corrected {
+            state: orbit.state,
+            s,
+            ev,
+            gs,
+            iterations: orbit.iterations,
+        };
+        let tangent = self.tangent(&c, ty, ts).ok_or_else(|| {
+            crate::Error::Orbit(format!(
+                "no tangent at parameter {}: the orbit is singular there",
+                self.p(s)
+            ))
+        })?;
+        self.point(k, c, tangent)
+    }
+
+    fn point(&self, k: usize, c: Corrected, tangent: (Vec<f64>, f64)) -> Result<Point> {
+        let (strobe, gap) = self.sample(c.s, &c.state, k)?;
+        let target = (self.make)(self.p(c.s))?;
+        let flow = target.flow();
+        let orbit = orbit_of(&flow, c.state, c.ev, k, c.iterations);
+        Ok(Point {
+            parameter: self.p(c.s),
+            orbit,
+            iterations: c.iterations,
+            strobe,
+            gap,
+            tangent_y: tangent.0,
+            tangent_s: tangent.1,
+            s: c.s,
+        })
+    }
+}
+
+/// The test function of `kind` at a point (None: not defined there, the contacting side of a
+/// grazing with impacts).
+fn test(kind: Kind, p: &Point) -> Option<f64> {
+    let mu = &p.orbit.multipliers;
+    match kind {
+        Kind::Fold => Some(p.tangent_s),
+        Kind::PeriodDoubling => Some(
+            mu.iter()
+                .fold(Complex::new(1.0, 0.0), |a, m| a * (m + 1.0))
+                .re,
+        ),
+        Kind::NeimarkSacker => {
+            let mut prod = Complex::new(1.0, 0.0);
+            for i in 0..mu.len() {
+                for j in i + 1..mu.len() {
+                    prod *= mu[i] * mu[j] - 1.0;
+                }
+            }
+            Some(prod.re)
+        }
+        Kind::Grazing => {
+            let g = p.gap?;
+            if p.orbit.events > 0 { None } else { Some(g) }
+        }
+    }
+}
+
+/// Whether `kind` changes between `a` and `b`.
+fn changes(kind: Kind, a: &Point, b: &Point) -> bool {
+    match (test(kind, a), test(kind, b)) {
+        (Some(x), Some(y)) => (x > 0.0) != (y > 0.0),
+        (Some(x), None) | (None, Some(x)) => kind == Kind::Grazing && x > 0.0 && a.gap.is_some(),
+        (None, None) => false,
+    }
+}
+
+/// A Neimark-Sacker test zero is reported only when a complex pair sits on the unit circle.
+fn is_neimark_sacker(p: &Point) -> bool {
+    p.orbit
+        .multipliers
+        .iter()
+        .any(|m| m.im.abs() > 1e-6 && (m.norm() - 1.0).abs() < 0.05)
+}
+
+/// Follows the periodic orbits of the flows `make(p)` from the strobe point `start` (at
+/// parameter `from`): the first branch, then the period-doubled branches when asked. `progress`
+/// gets a fraction done (by points). A failure of the first shooting solve is an error; a later
+/// failure ends its branch, with the reason and its last good point kept.
+pub fn continuation(
+    make: &dyn Fn(f64) -> Result<Target>,
+    set: &Settings,
+    start: &HybridState,
+    progress: &mut dyn FnMut(f64),
+) -> Result<Continuation> {
+    let t0 = std::time::Instant::now();
+    let ctx = Ctx { make, set };
+    let mut out = Continuation::default();
+    // The first point: shooting at `from`, its tangent oriented towards `to`.
+    let zero = vec![0.0; start.y.len()];
+    let first = ctx.start_point(set.k, 0.0, start, &zero, 1.0)?;
+    // Queue of branches to follow: their first point, k and origin, and the first step's tangent
+    // when it differs from the point's (branch switching).
+    let mut queue: Vec<Pending> = vec![Pending {
+        start: first,
+        k: set.k,
+        origin: "start".into(),
+        switch: None,
+    }];
+    let total = (set.max_branches * set.max_points) as f64;
+    let mut done_points = 0usize;
+    while let Some(Pending {
+        start: p0,
+        k,
+        origin,
+        switch,
+    }) = (!queue.is_empty()).then(|| queue.remove(0))
+    {
+        if out.branches.len() >= set.max_branches {
+            break;
+        }
+        let bi = out.branches.len();
+        let mut branch = Branch {
+            k,
+            origin,
+            points: Vec::new(),
+            end: String::new(),
+            failed: false,
+        };
+        let mut h = set.step / ctx.range();
+        let (hmin, hmax) = (set.min_step / ctx.range(), set.max_step / ctx.range());
+        // The first step of a switched branch: from the special point along its tangent.
+        let mut current = if let Some((ty, ts)) = switch {
+            let mut trial = h;
+            loop {
+                match ctx.correct(k, &p0, &ty, ts, trial) {
+                    Ok(c) => {
+                        let tan = ctx.tangent(&c, &ty, ts);
+                        match tan {
+                            Some(tan) => break Some(ctx.point(k, c, tan)?),
+                            None => break None,
+                        }
+                    }
+                    Err(_) if trial / 2.0 >= hmin => trial /= 2.0,
+                    Err(e) => {
+                        branch.end = format!("could not leave the branch point: {e}");
+                        branch.failed = true;
+                        break None;
+                    }
+                }
+            }
+        } else {
+            Some(p0)
+        };
+        let Some(mut cur) = current.take() else {
+            if branch.end.is_empty() {
+                branch.end = "no tangent at the branch point".into();
+                branch.failed = true;
+            }
+            out.branches.push(branch);
+            continue;
+        };
+        branch.points.push(cur.clone());
+        loop {
+            if branch.points.len() >= set.max_points {
+                branch.end = format!("{} points (continuation.max_points)", set.max_points);
+                break;
+            }
+            if !(-1e-12..=1.0 + 1e-12).contains(&cur.s) {
+                branch.end = "left the parameter range".into();
+                break;
+            }
+            let (ty, ts) = (cur.tangent_y.clone(), cur.tangent_s);
+            let next = match ctx.correct(k, &cur, &ty, ts, h) {
+                Ok(c) => match ctx.tangent(&c, &ty, ts) {
+                    Some(tan) => ctx.point(k, c, tan),
+                    None => Err(crate::Error::Orbit("singular tangent".into())),
+                },
+                Err(e) => Err(e),
+            };
+            let next = match next {
+                Ok(p) => p,
+                Err(e) => {
+                    h /= 2.0;
+                    if h < hmin {
+                        branch.end =
+                            format!("the step fell below continuation.min_step after: {e}");
+                        branch.failed = true;
+                        break;
+                    }
+                    continue;
+                }
+            };
+            // Special points between cur and next.
+            let mut graze = false;
+            for kind in Kind::ALL {
+                if kind == Kind::Grazing && set.grazing.is_none() {
+                    continue;
+                }
+                if !changes(kind, &cur, &next) {
+                    continue;
+                }
+                let Some(sp) = locate(&ctx, kind, k, &cur, &next, h) else {
+                    continue;
+                };
+                if kind == Kind::NeimarkSacker && !is_neimark_sacker(&sp.1) {
+                    continue;
+                }
+                let (bracket, at, far) = sp;
+                let special = Special {
+                    kind,
+                    branch: bi,
+                    after: branch.points.len() - 1,
+                    parameter: at.parameter,
+                    bracket,
+                    state: at.orbit.state.y.clone(),
+                    multipliers: at.orbit.multipliers.clone(),
+                    strobe: at.strobe.clone(),
+                };
+                let parameter = grazing_parameter(kind, &cur, &at).unwrap_or(at.parameter);
+                let special = Special {
+                    parameter,
+                    ..special
+                };
+                if kind == Kind::PeriodDoubling && set.switch_period_doubling {
+                    let v = at.orbit.eigenvector(-1.0);
+                    queue.push(Pending {
+                        start: at.clone(),
+                        k: 2 * k,
+                        origin: format!(
+                            "period doubling of branch {bi} at parameter {}",
+                            special.parameter
+                        ),
+                        switch: Some((v, 0.0)),
+                    });
+                }
+                if kind == Kind::Grazing {
+                    graze = true;
+                    // The other side: shooting a tenth of the first step past the grazing, from the
+                    // converged orbit nearest it there, heading on away from the grazing; or the
+                    // step's own point when that fails.
+                    let dir = if cur.tangent_s >= 0.0 { 1.0 } else { -1.0 };
+                    let s_past =
+                        ctx_s(&ctx, special.parameter) + dir * 0.1 * set.step / ctx.range();
+                    let other = ctx
+                        .start_point(k, s_past, &far.orbit.state, &zero, dir)
+                        .ok()
+                        .filter(|p| test(kind, p).is_none_or(|g| g <= 0.0))
+                        .or_else(|| test(kind, &next).is_none().then(|| next.clone()));
+                    if let Some(other) = other {
+                        queue.push(Pending {
+                            start: other,
+                            k,
+                            origin: format!(
+                                "the other side of the grazing of branch {bi} at parameter {}",
+                                special.parameter
+                            ),
+                            switch: None,
+                        });
+                    }
+                }
+                out.specials.push(special);
+            }
+            if graze {
+                branch.end = "grazing: the contact changes (the other side is a new branch)".into();
+                break;
+            }
+            if next.iterations <= 3 {
+                h = (h * 1.5).min(hmax);
+            }
+            branch.points.push(next.clone());
+            cur = next;
+            done_points += 1;
+            progress((done_points as f64 / total).min(1.0));
+        }
+        out.branches.push(branch);
+    }
+    out.wall = t0.elapsed().as_secs_f64();
+    Ok(out)
+}
+
+fn ctx_s(ctx: &Ctx, p: f64) -> f64 {
+    (p - ctx.set.from) / (ctx.set.to - ctx.set.from)
+}
+
+/// For a grazing: the parameter where the gap of the contact-free side extrapolates to zero
+/// (secant through the contact-free point nearest it and the branch point before).
+fn grazing_parameter(kind: Kind, before: &Point, at: &Point) -> Option<f64> {
+    if kind != Kind::Grazing {
+        return None;
+    }
+    let (g0, g1) = (before.gap?, at.gap?);
+    if at.orbit.events > 0 || g0 == g1 {
+        return None;
+    }
+    Some(at.parameter - g1 * (at.parameter - before.parameter) / (g1 - g0))
+}
+
+/// Locates the zero of `kind`'s test function between `a` (arclength 0) and `b` (arclength `h`
+/// from `a` along `a`'s tangent): the arclength bracket reached (parameter units), the corrected
+/// point nearest the zero (for grazing, on the contact-free side) and the last converged point on
+/// the other side.
+fn locate(
+    ctx: &Ctx,
+    kind: Kind,
+    k: usize,
+    a: &Point,
+    b: &Point,
+    h: f64,
+) -> Option<(f64, Point, Point)> {
+    let (ty, ts) = (a.tangent_y.clone(), a.tangent_s);
+    let at = |x: f64| -> Option<Point> {
+        let c = ctx.correct(k, a, &ty, ts, x).ok()?;
+        let tan = ctx.tangent(&c, &ty, ts)?;
+        ctx.point(k, c, tan).ok()
+    };
+    let fa0 = test(kind, a)?;
+    let (mut xa, mut fa, mut pa) = (0.0, fa0, a.clone());
+    let (mut xb, mut fb, mut pb) = (h, test(kind, b), b.clone());
+    // Contact-free points for the grazing secant: (arclength, gap).
+    let mut free: Vec<(f64, f64)> = vec![(0.0, fa0)];
+    // Which end was replaced last (Illinois: 1 the first, -1 the second).
+    let mut last = 0i8;
+    let mut bisect_next = false;
+    for _ in 0..60 {
+        if (xb - xa).abs() * ctx.range() < ctx.set.locate {
+            break;
+        }
+        let x = match fb {
+            Some(fbv) if !bisect_next => xa - fa * (xb - xa) / (fbv - fa),
+            None if !bisect_next && free.len() >= 2 => {
+                let (x1, g1) = free[free.len() - 1];
+                let (x0, g0) = free[free.len() - 2];
+                if g1 != g0 {
+                    x1 - g1 * (x1 - x0) / (g1 - g0)
+                } else {
+                    0.5 * (xa + xb)
+                }
+            }
+            _ => 0.5 * (xa + xb),
+        };
+        let w = xb - xa;
+        let x = if x.is_finite() {
+            x.clamp(xa.min(xb) + 0.01 * w.abs(), xa.max(xb) - 0.01 * w.abs())
+        } else {
+            0.5 * (xa + xb)
+        };
+        bisect_next = false;
+        let trial = at(x);
+        let f = trial.as_ref().and_then(|p| test(kind, p));
+        match (trial, f) {
+            (Some(p), Some(fv)) if (fv > 0.0) == (fa > 0.0) => {
+                if kind == Kind::Grazing {
+                    free.push((x, fv));
+                }
+                if last == 1
+                    && let Some(v) = fb.as_mut()
+                {
+                    *v /= 2.0;
+                }
+                last = 1;
+                xa = x;
+                fa = fv;
+                pa = p;
+            }
+            (Some(p), f) => {
+                if f.is_none() {
+                    bisect_next = true;
+                }
+                if last == -1 {
+                    fa /= 2.0;
+                }
+                last = -1;
+                xb = x;
+                fb = f;
+                pb = p;
+            }
+            (None, _) => {
+                // A failed corrector: the far side for grazing (the orbit touches the stop with
+                // vanishing velocity there); otherwise the point cannot be located.
+                if kind != Kind::Grazing {
+                    return None;
+                }
+                xb = x;
+                fb = None;
+                bisect_next = true;
+            }
+        }
+    }
+    let bracket = (xb - xa).abs() * ctx.range();
+    // The nearer end to the zero (grazing: the contact-free end), and the far end.
+    Some(match (kind, fb) {
+        (Kind::Grazing, _) => (bracket, pa, pb),
+        (_, Some(fbv)) if fbv.abs() < fa.abs() => (bracket, pb, pa),
+        _ => (bracket, pa, pb),
+    })
+}
+
+/// The `[continuation]` table of an analysis study (format in the README, "Periodic orbits and
+/// continuation").
+#[derive(Debug, Clone, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ContinuationSpec {
+    /// A scene path or a system parameter, as `sweep.parameter`.
+    pub parameter: String,
+    /// Further scene paths set to the same value.
+    #[serde(default)]
+    pub also: Vec<String>,
+    /// Unit of the parameter, for labels.
+    #[serde(default)]
+    pub unit: String,
+    /// The parameter's start value (the orbit the run settles on there) and end value.
+    pub from: f64,
+    pub to: f64,
+    /// First step (parameter units; see [`crate::continuation`]); smallest and largest step
+    /// (default a ten-thousandth of it and ten times it).
+    pub step: f64,
+    #[serde(default)]
+    pub min_step: Option<f64>,
+    #[serde(default)]
+    pub max_step: Option<f64>,
+    /// Points per branch at most.
+    #[serde(default = "default_points")]
+    pub max_points: usize,
+    /// Drive periods per orbit of the first branch (1: period-1 orbits).
+    #[serde(default = "one")]
+    pub orbit_periods: usize,
+    /// Newton tolerance: the largest component of `P^k(y) - y` (SI units of the state).
+    #[serde(default = "default_tolerance")]
+    pub tolerance: f64,
+    #[serde(default = "default_iterations")]
+    pub max_iterations: usize,
+    /// Bracket special points are located to (parameter units; default 1e-6 of the range).
+    #[serde(default)]
+    pub locate: Option<f64>,
+    /// Follow the period-2k branch from every period doubling.
+    #[serde(default = "yes")]
+    pub switch_period_doubling: bool,
+    /// Branches at most, the first one included.
+    #[serde(default = "default_branches")]
+    pub max_branches: usize,
+    /// Grazing: the contact observable and the level where contact begins.
+    #[serde(default)]
+    pub grazing: Option<GrazingSpec>,
+    /// Samples per drive period for the gap and the observables along the orbit.
+    #[serde(default = "default_samples")]
+    pub samples: usize,
+    /// Periods run at `from` before shooting (default `analysis.transient`).
+    #[serde(default)]
+    pub transient: Option<usize>,
+}
+
+/// The contact observable of grazing detection: contact begins when its largest value along the
+/// orbit reaches `level` (the gap is `level - max`).
+#[derive(Debug, Clone, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GrazingSpec {
+    pub observable: String,
+    #[serde(default)]
+    pub level: f64,
+}
+
+fn one() -> usize {
+    1
+}
+fn yes() -> bool {
+    true
+}
+fn default_points() -> usize {
+    200
+}
+fn default_tolerance() -> f64 {
+    1e-8
+}
+fn default_iterations() -> usize {
+    10
+}
+fn default_branches() -> usize {
+    4
+}
+fn default_samples() -> usize {
+    100
+}
+
+impl ContinuationSpec {
+    /// Checks the numbers; errors name the field of the `[continuation]` table.
+    pub fn check(&self) -> std::result::Result<(), (String, String)> {
+        let bad = |f: &str, m: &str| Err((format!("continuation.{f}"), m.to_string()));
+        for (f, v) in [("from", self.from), ("to", self.to)] {
+            if !v.is_finite() {
+                return bad(f, "must be finite");
+            }
+        }
+        if self.from == self.to {
+            return bad("to", "must differ from continuation.from");
+        }
+        let range = (self.to - self.from).abs();
+        for (f, v) in [
+            ("step", Some(self.step)),
+            ("min_step", self.min_step),
+            ("max_step", self.max_step),
+            ("locate", self.locate),
+            ("tolerance", Some(self.tolerance)),
+        ] {
+            if let Some(v) = v
+                && !(v.is_finite() && v > 0.0)
+            {
+                return bad(f, "must be positive and finite");
+            }
+        }
+        if self.step > range {
+            return bad(
+                "step",
+                "is larger than the range from continuation.from to .to",
+            );
+        }
+        if self.min_step() > self.step || self.max_step() < self.step {
+            return bad(
+                "min_step",
+                "min_step <= step <= max_step must hold (defaults: step / 1e4 and 10 step)",
+            );
+        }
+        if self.max_points < 2 {
+            return bad("max_points", "must be at least 2");
+        }
+        if self.orbit_periods == 0 {
+            return bad("orbit_periods", "must be at least 1");
+        }
+        if self.max_iterations == 0 {
+            return bad("max_iterations", "must be at least 1");
+        }
+        if self.max_branches == 0 {
+            return bad("max_branches", "must be at least 1");
+        }
+        if self.samples < 8 {
+            return bad("samples", "must be at least 8 per period");
+        }
+        if let Some(g) = &self.grazing
+            && !g.level.is_finite()
+        {
+            return bad("grazing.level", "must be finite");
+        }
+        Ok(())
+    }
+    pub fn min_step(&self) -> f64 {
+        self.min_step.unwrap_or(self.step * 1e-4)
+    }
+    pub fn max_step(&self) -> f64 {
+        self.max_step.unwrap_or(self.step * 10.0)
+    }
+    /// The settings of [`continuation`], with the grazing observable's index.
+    pub fn settings(&self, grazing: Option<usize>) -> Settings {
+        Settings {
+            from: self.from,
+            to: self.to,
+            step: self.step,
+            min_step: self.min_step(),
+            max_step: self.max_step(),
+            max_points: self.max_points,
+            k: self.orbit_periods,
+            newton: Newton {
+                tolerance: self.tolerance,
+                max_iterations: self.max_iterations,
+            },
+            locate: self.locate.unwrap_or(1e-6 * (self.to - self.from).abs()),
+            switch_period_doubling: self.switch_period_doubling,
+            max_branches: self.max_branches,
+            grazing: grazing.zip(self.grazing.as_ref().map(|g| g.level)),
+            samples: self.samples,
+        }
+    }
+}
+
+/// Runs the study's `[continuation]`: `transient` periods at `from` from the study's start, then
+/// the branches. `progress` gets the fraction done.
+pub fn run_study(
+    st: &crate::nonlinear::Loaded,
+    progress: &mut dyn FnMut(f64),
+) -> Result<Continuation> {
+    let spec = st.spec.continuation.as_ref().ok_or_else(|| {
+        crate::study::invalid(&st.path, "continuation", "no [continuation] table")
+    })?;
+    let target = st.continuation_target(spec.from)?;
+    let mut flow = target.flow();
+    let mut state = flow.initial_state(None)?;
+    flow.prepare(&state)?;
+    let transient = spec.transient.unwrap_or(st.spec.analysis.transient);
+    let t_strobe = state.t + st.spec.analysis.phase;
+    let t = t_strobe + transient as f64 * flow.period();
+    let method = flow.method();
+    let (_, res) = ode::advance(
+        &mut flow,
+        method,
+        &mut state,
+        t,
+        &[],
+        |_, _, _| Step::Continue,
+        None,
+    );
+    res?;
+    // The drive is periodic: the settled state is taken back to the first strobe time, so that
+    // when the parameter changes the period (a drive frequency) the strobe phase moves by
+    // `t_strobe d(omega)`, not by `transient` periods' worth of it.
+    state.t = t_strobe;
+    let grazing = spec
+        .grazing
+        .as_ref()
+        .and_then(|g| st.spec.observable(&g.observable));
+    let units = flow.observable_units();
+    let make = |p: f64| st.continuation_target(p);
+    let mut c = continuation(&make, &spec.settings(grazing), &state, progress)?;
+    c.units = units;
+    Ok(c)
+}
+
+/// Writes `/continuation` into the analysis file `path` (replacing one written before); layout in
+/// the README, "HDF5 layout". `failure` is the error of a continuation that could not start.
+pub fn write(
+    path: &std::path::Path,
+    st: &crate::nonlinear::Loaded,
+    c: std::result::Result<&Continuation, &crate::Error>,
+) -> Result<()> {
+    use crate::h5::{f64_attr, h5err, str_attr, u8_attr_set, u64_attr};
+    let e = h5err(path);
+    let file = hdf5::File::open_rw(path).map_err(&e)?;
+    if file.group("continuation").is_ok() {
+        file.unlink("continuation").map_err(&e)?;
+    }
+    let spec = st.spec.continuation.as_ref().expect("asked for");
+    let obs: Vec<&str> = st
+        .spec
+        .observables
+        .iter()
+        .map(|o| o.name.as_str())
+        .collect();
+    (|| -> hdf5::Result<()> {
+        let g = file.create_group("continuation")?;
+        str_attr(&g, "parameter", &spec.parameter)?;
+        str_attr(&g, "parameter_unit", &spec.unit)?;
+        f64_attr(&g, "from", spec.from)?;
+        f64_attr(&g, "to", spec.to)?;
+        f64_attr(&g, "tolerance", spec.tolerance)?;
+        f64_attr(&g, "locate", spec.settings(None).locate)?;
+        str_attr(&g, "spurious_reason", crate::periodic::SPURIOUS_REASON)?;
+        let c = match c {
+            Ok(c) => c,
+            Err(err) => {
+                str_attr(&g, "error", &err.to_string())?;
+                return u8_attr_set(&g, "complete", 0);
+            }
+        };
+        f64_attr(&g, "wall_time", c.wall)?;
+        u8_attr_set(
+            &g,
+            "complete",
+            u8::from(c.branches.iter().all(|b| !b.failed)),
+        )?;
+        u64_attr(&g, "branches", c.branches.len() as u64)?;
+        let gap_unit = spec
+            .grazing
+            .as_ref()
+            .and_then(|gz| st.spec.observable(&gz.observable))
+            .and_then(|i| c.units.get(i))
+            .map_or("", String::as_str);
+        for (i, b) in c.branches.iter().enumerate() {
+            write_branch(
+                &g.create_group(&format!("branch_{i}"))?,
+                b,
+                &obs,
+                &c.units,
+                &spec.unit,
+                gap_unit,
+            )?;
+        }
+        write_specials(
+            &g.create_group("special")?,
+            &c.specials,
+            &obs,
+            &c.units,
+            &spec.unit,
+        )
+    })()
+    .map_err(&e)?;
+    file.close().map_err(&e)
+}
+
+fn write_branch(
+    g: &hdf5::Group,
+    b: &Branch,
+    obs: &[&str],
+    units: &[String],
+    unit: &str,
+    gap_unit: &str,
+) -> hdf5::Result<()> {
+    use crate::h5::{f64_attr, str_attr, u8_attr_set, u64_attr, write_column, write_table, write1};
+    u64_attr(g, "orbit_periods", b.k as u64)?;
+    str_attr(g, "origin", &b.origin)?;
+    str_attr(g, "end", &b.end)?;
+    u8_attr_set(g, "failed", u8::from(b.failed))?;
+    if let Some(p) = b.points.first() {
+        f64_attr(g, "strobe_time", p.orbit.state.t)?;
+        f64_attr(g, "period", p.orbit.period)?;
+        u64_attr(g, "spurious", p.orbit.spurious as u64)?;
+    }
+    let col = |f: &dyn Fn(&Point) -> f64| b.points.iter().map(f).collect::<Vec<f64>>();
+    write1(
+        g,
+        "parameter",
+        &col(&|p| p.parameter),
+        unit,
+        "the parameter",
+    )?;
+    let n = b.points.first().map_or(0, |p| p.orbit.state.y.len());
+    let state: Vec<f64> = b
+        .points
+        .iter()
+        .flat_map(|p| p.orbit.state.y.clone())
+        .collect();
+    write_table(
+        g,
+        "state",
+        &state,
+        n.max(1),
+        "SI",
+        "the strobe point (continuous state)",
+    )?;
+    let m = b.points.first().map_or(0, |p| p.orbit.multipliers.len());
+    let re: Vec<f64> = b
+        .points
+        .iter()
+        .flat_map(|p| p.orbit.multipliers.iter().map(|z| z.re))
+        .collect();
+    let im: Vec<f64> = b
+        .points
+        .iter()
+        .flat_map(|p| p.orbit.multipliers.iter().map(|z| z.im))
+        .collect();
+    write_table(
+        g,
+        "multipliers_re",
+        &re,
+        m.max(1),
+        "1",
+        "Floquet multipliers on the manifold, largest modulus first: real parts",
+    )?;
+    write_table(
+        g,
+        "multipliers_im",
+        &im,
+        m.max(1),
+        "1",
+        "their imaginary parts",
+    )?;
+    let stable: Vec<u8> = b
+        .points
+        .iter()
+        .map(|p| u8::from(p.orbit.stable()))
+        .collect();
+    write_column(
+        g,
+        "stable",
+        &stable,
+        None,
+        "1: every multiplier inside the unit circle",
+    )?;
+    let unstable: Vec<u64> = b
+        .points
+        .iter()
+        .map(|p| p.orbit.unstable_count() as u64)
+        .collect();
+    write_column(
+        g,
+        "unstable",
+        &unstable,
+        None,
+        "multipliers outside the unit circle",
+    )?;
+    write1(
+        g,
+        "residual",
+        &col(&|p| p.orbit.residual),
+        "SI",
+        "largest component of P^k(y) - y",
+    )?;
+    let it: Vec<u64> = b.points.iter().map(|p| p.iterations as u64).collect();
+    write_column(
+        g,
+        "iterations",
+        &it,
+        None,
+        "Newton iterations of the corrector",
+    )?;
+    let ev: Vec<u64> = b.points.iter().map(|p| p.orbit.events).collect();
+    write_column(g, "events", &ev, None, "impacts along one orbit")?;
+    if b.points.iter().any(|p| p.gap.is_some()) {
+        write1(
+            g,
+            "gap",
+            &col(&|p| p.gap.unwrap_or(f64::NAN)),
+            gap_unit,
+            "grazing level minus the largest value of the contact observable along the orbit",
+        )?;
+    }
+    let s = g.create_group("strobe")?;
+    for (j, name) in obs.iter().enumerate() {
+        let v: Vec<f64> = b
+            .points
+            .iter()
+            .flat_map(|p| p.strobe.iter().map(|row| row[j]))
+            .collect();
+        let u = units.get(j).map_or("", String::as_str);
+        write_table(
+            &s,
+            name,
+            &v,
+            b.k,
+            u,
+            "the observable at the orbit's strobe points, one column per drive period",
+        )?;
+    }
+    Ok(())
+}
+
+fn write_specials(
+    g: &hdf5::Group,
+    sp: &[Special],
+    obs: &[&str],
+    units: &[String],
+    unit: &str,
+) -> hdf5::Result<()> {
+    use crate::h5::{write_column, write_strings, write_table, write1};
+    let kinds: Vec<String> = sp.iter().map(|s| s.kind.name().to_string()).collect();
+    write_strings(
+        g,
+        "kind",
+        &kinds,
+        "fold, period-doubling, neimark-sacker or grazing",
+    )?;
+    let branch: Vec<u64> = sp.iter().map(|s| s.branch as u64).collect();
+    write_column(g, "branch", &branch, None, "the branch it was found on")?;
+    let after: Vec<u64> = sp.iter().map(|s| s.after as u64).collect();
+    write_column(
+        g,
+        "after",
+        &after,
+        None,
+        "index of the branch point before it",
+    )?;
+    write1(
+        g,
+        "parameter",
+        &sp.iter().map(|s| s.parameter).collect::<Vec<_>>(),
+        unit,
+        "located parameter",
+    )?;
+    write1(
+        g,
+        "bracket",
+        &sp.iter().map(|s| s.bracket).collect::<Vec<_>>(),
+        unit,
+        "arclength bracket reached: the bound on the parameter's error",
+    )?;
+    let n = sp.first().map_or(1, |s| s.state.len());
+    let st: Vec<f64> = sp.iter().flat_map(|s| s.state.clone()).collect();
+    write_table(
+        g,
+        "state",
+        &st,
+        n,
+        "SI",
+        "strobe point of the orbit nearest it",
+    )?;
+    let m = sp.first().map_or(1, |s| s.multipliers.len());
+    let re: Vec<f64> = sp
+        .iter()
+        .flat_map(|s| s.multipliers.iter().map(|z| z.re))
+        .collect();
+    let im: Vec<f64> = sp
+        .iter()
+        .flat_map(|s| s.multipliers.iter().map(|z| z.im))
+        .collect();
+    write_table(
+        g,
+        "multipliers_re",
+        &re,
+        m,
+        "1",
+        "multipliers there: real parts",
+    )?;
+    write_table(g, "multipliers_im", &im, m, "1", "imaginary parts")?;
+    let s = g.create_group("strobe")?;
+    for (j, name) in obs.iter().enumerate() {
+        let v: Vec<f64> = sp.iter().map(|x| x.strobe[0][j]).collect();
+        let u = units.get(j).map_or("", String::as_str);
+        write1(&s, name, &v, u, "the observable at the first strobe point")?;
+    }
+    Ok(())
+}
+
+/// Lines for the terminal: each branch and each special point.
+pub fn summary(c: &Continuation) -> Vec<String> {
+    let mut out = Vec::new();
+    for (i, b) in c.branches.iter().enumerate() {
+        let (Some(a), Some(z)) = (b.points.first(), b.points.last()) else {
+            out.push(format!(
+                "branch {i}      period {}, from {}: no point ({})",
+                b.k, b.origin, b.end
+            ));
+            continue;
+        };
+        let stable = b.points.iter().filter(|p| p.orbit.stable()).count();
+        out.push(format!(
+            "branch {i}      period {}, {} points from {} to {} ({stable} stable), from {}; ended: {}",
+            b.k,
+            b.points.len(),
+            a.parameter,
+            z.parameter,
+            b.origin,
+            b.end
+        ));
+    }
+    for s in &c.specials {
+        out.push(format!(
+            "special      {} on branch {} at {} (within {:.1e})",
+            s.kind.name(),
+            s.branch,
+            s.parameter,
+            s.bracket
+        ));
+    }
+    out.push(format!("continuation {:.3} s", c.wall));
+    out
+}
