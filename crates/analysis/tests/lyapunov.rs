@@ -487,6 +487,10 @@ fn redundant_rows_give_the_same_manifold_and_spectrum() {
     for f in &mut flows {
         let mut sp = s.clone();
         sp.batch = Some(4);
+        // The bounds above are the central quotient's; the forward one's first-order error
+        // (5.7e-3 of the vector through an onset) separates the formulations by 3.5e-3 over a
+        // turn (measured), which says nothing about redundant rows.
+        sp.difference = Difference::Central;
         spectra.push(spectrum(f, None, &start, &sp, 0, &mut |_| {}).unwrap());
     }
     for j in 0..4 {
