@@ -546,7 +546,7 @@ fn continuation_is_written_to_the_analysis_file() {
 #[test]
 #[ignore]
 fn four_ups_rpu_period_one_orbit_reproduces_itself() {
-    let text = "[study]\nname = \"p\"\nscene = \"../../../data/scenes/4ups-rpu-mixed.toml\"\nset = { \"solver.integrator\" = \"dopri5\", \"solver.rtol\" = 1e-7, \"solver.atol\" = 1e-10, \"joints.*.clearance.radial_clearance\" = 8e-4, \"joints.R1.clearance.axial_clearance\" = 8e-4 }\nremove = [\"solver.step\"]\n[analysis]\nperiods = 2\nsamples_per_period = 0\n[[observables]]\nname = \"x\"\npath = \"bodies.platform.position.x\"\n";
+    let text = "[study]\nname = \"p\"\nscene = \"../../../data/scenes/variants/4ups-rpu-mixed-gravity-minus-x.toml\"\nset = { \"solver.integrator\" = \"dopri5\", \"solver.rtol\" = 1e-7, \"solver.atol\" = 1e-10, \"joints.*.clearance.radial_clearance\" = 8e-4, \"joints.R1.clearance.axial_clearance\" = 8e-4 }\nremove = [\"solver.step\"]\n[analysis]\nperiods = 2\nsamples_per_period = 0\n[[observables]]\nname = \"x\"\npath = \"bodies.platform.position.x\"\n";
     let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/periodic.toml");
     let st = Loaded::parse(text, &file).unwrap();
     let target = st.target_with(&[]).unwrap();
