@@ -251,3 +251,16 @@ def test_ctrl_c_stops_a_sweep_and_resume_finishes_it(tmp_path):
     res = jointplay.run_study(long, out=tmp_path, threads=2, progress=False, resume=True)
     assert res.complete and np.all(res["sweep/done"] == 1)
     assert pathlib.Path(res.file) == pathlib.Path(part.file)
+
+
+def test_ctrl_c_stops_a_lyapunov_run(tmp_path):
+    """The interrupt reaches the Lyapunov run after the analysis run: it stops at its next
+    re-orthonormalisation, the samples are kept and the file is marked incomplete."""
+    text = SWEEP.split("[sweep]")[0] + "[lyapunov]\nexponents = 2\nperiods = 10000000\nper_period = 2\n"
+    timer = interrupt_after(1.0)
+    with pytest.raises(jointplay.Interrupted) as e:
+        jointplay.run_study(text, out=tmp_path, progress=False)
+    timer.join()
+    part = e.value.partial
+    assert not part.complete and part.data.attrs["complete"] == 0
+    assert "chaos/lyapunov/exponents" not in part.data.datasets
