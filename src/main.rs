@@ -424,8 +424,8 @@ fn run(
     );
     println!("integrator   {}", model.settings.method.describe());
     println!(
-        "steps        {} accepted, {} rejected",
-        st.accepted, st.rejected
+        "steps        {} accepted, {} rejected, {} ended at an event",
+        st.accepted, st.rejected, st.events
     );
     println!(
         "RHS          {} evaluations, {:.0} per second",

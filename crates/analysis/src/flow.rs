@@ -108,6 +108,18 @@ impl OdeSystem for MechFlow<'_> {
     fn save_memory(&self, state: &mut HybridState) {
         self.mech.save_memory(state)
     }
+    fn events(&self) -> usize {
+        self.mech.events()
+    }
+    fn event_values(&mut self, t: f64, y: &[f64], g: &mut [f64]) {
+        self.mech.event_values(t, y, g)
+    }
+    fn apply_event(&mut self, i: usize, t: f64, y: &mut [f64]) -> std::result::Result<(), String> {
+        self.mech.apply_event(i, t, y)
+    }
+    fn event_restarts_step(&self, i: usize) -> bool {
+        self.mech.event_restarts_step(i)
+    }
 }
 
 impl Observed for MechFlow<'_> {
@@ -370,6 +382,9 @@ impl OdeSystem for AnyFlow<'_> {
     }
     fn apply_event(&mut self, i: usize, t: f64, y: &mut [f64]) -> std::result::Result<(), String> {
         either!(self, f => f.apply_event(i, t, y))
+    }
+    fn event_restarts_step(&self, i: usize) -> bool {
+        either!(self, f => f.event_restarts_step(i))
     }
 }
 

@@ -416,6 +416,7 @@ fn write_outcome(file: &hdf5::Group, meta: &Meta, run: &RunResult) -> hdf5::Resu
     u64_attr(file, "steps_accepted", run.stats.accepted)?;
     u64_attr(file, "steps_rejected", run.stats.rejected)?;
     u64_attr(file, "rhs_evaluations", run.stats.rhs_evals)?;
+    u64_attr(file, "step_events", run.stats.events)?;
     f64_attr(file, "wall_time_s", run.stats.wall.as_secs_f64())?;
     f64_attr(file, "assembly_residual", run.assembly.final_residual)?;
     // A run that stopped keeps its samples up to the failure and says so.

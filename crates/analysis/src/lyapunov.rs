@@ -308,6 +308,16 @@ impl<F: Tangent> OdeSystem for Extended<'_, F> {
     fn events(&self) -> usize {
         self.flow.events() + self.second.as_ref().map_or(0, |g| g.events())
     }
+    fn event_restarts_step(&self, i: usize) -> bool {
+        let ne = self.flow.events();
+        if i < ne {
+            self.flow.event_restarts_step(i)
+        } else {
+            self.second
+                .as_ref()
+                .is_some_and(|g| g.event_restarts_step(i - ne))
+        }
+    }
     fn event_values(&mut self, t: f64, y: &[f64], g: &mut [f64]) {
         let ne = self.flow.events();
         let r2 = self.second_range();
@@ -328,6 +338,12 @@ impl<F: Tangent> OdeSystem for Extended<'_, F> {
                 Some(s) => s.apply_event(i - ne, t, &mut y[r2]),
                 None => Ok(()),
             };
+        }
+        if self.flow.event_restarts_step(i) {
+            // A contact onset: nothing in the state jumps (the compliant force is zero at zero
+            // penetration), so the saltation matrix is the identity; the onset velocity's own
+            // saltation was applied in `step_accepted`. Not an impact: not counted.
+            return self.flow.apply_event(i, t, &mut y[..n]);
         }
         let y_minus = y[..n].to_vec();
         let mut f_minus = vec![0.0; n];

@@ -1128,6 +1128,7 @@ impl Outcome {
                     rhs_evals: rhs[i] as u64,
                     wall: Duration::try_from_secs_f64(wall[i]).unwrap_or_default(),
                     jacobians: jacobians[i] as u64,
+                    events: 0,
                 },
                 failure: (status[i] != "ok").then(|| status[i].clone()),
                 warnings: warnings[i].lines().map(str::to_string).collect(),

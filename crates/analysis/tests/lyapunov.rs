@@ -219,7 +219,20 @@ fn stroboscopic_map_exponents_are_the_flow_exponents_times_the_period() {
 /// quotients of the Jacobian-vector products are checked.
 #[test]
 fn tangent_map_through_contact_onsets_matches_finite_differences() {
-    let target = slider_crank("");
+    tangent_map_through_onsets("");
+}
+
+/// The same with contact onsets as integrator events (`solver.onset_events`): the steps end at
+/// each onset and the straddling step is taken again, the tangent vectors with it; the event
+/// changes nothing in the state (its saltation matrix is the identity: the compliant force is
+/// zero at the onset), and the onset velocity's saltation acts as before.
+#[test]
+fn tangent_map_with_onset_events_matches_finite_differences() {
+    tangent_map_through_onsets(", \"solver.onset_events\" = true");
+}
+
+fn tangent_map_through_onsets(set: &str) {
+    let target = slider_crank(set);
     let mut flow = target.flow();
     let method = target.method();
     let mut state = flow.initial_state(None).unwrap();

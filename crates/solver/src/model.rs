@@ -257,6 +257,8 @@ pub struct Settings {
     pub max_penetration: Option<f64>,
     /// Divergence guard: largest constraint residual |Phi_i| (m or rad).
     pub max_drift: f64,
+    /// Contact onsets end integrator steps ([`crate::scene::SolverSpec::onset_events`]).
+    pub onset_events: bool,
 }
 
 /// What to record, resolved to indices.

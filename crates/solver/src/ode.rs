@@ -135,6 +135,15 @@ pub trait OdeSystem {
     ) -> std::result::Result<(), String> {
         Ok(())
     }
+
+    /// Whether the step after event `i` starts from a fresh step-size estimate (Hairer's HINIT
+    /// at the event state, kept no larger than the controller's proposal) instead of the
+    /// controller's proposal alone: for an event where the dynamics change character, such as
+    /// a contact onset, the step the controller grew before it is too long after it. False by
+    /// default.
+    fn event_restarts_step(&self, _i: usize) -> bool {
+        false
+    }
 }
 
 /// An integration scheme and how it is used: the descriptor each integrator file defines and
@@ -438,6 +447,8 @@ pub struct Stats {
     pub rhs_evals: u64,
     /// Jacobians df/dy formed (Rosenbrock23: one per step start, by n + 1 forward differences).
     pub jacobians: u64,
+    /// Events that ended a step (impacts, contact onsets with `onset_events`).
+    pub events: u64,
     /// Wall-clock time spent in [`integrate`].
     pub wall: Duration,
 }
@@ -448,6 +459,7 @@ impl std::ops::AddAssign for Stats {
         self.rejected += o.rejected;
         self.rhs_evals += o.rhs_evals;
         self.jacobians += o.jacobians;
+        self.events += o.events;
         self.wall += o.wall;
     }
 }
@@ -740,6 +752,39 @@ pub fn advance<S: OdeSystem>(
     (stats, res)
 }
 
+/// The first event of the step from `(t, y)` over `h` whose function crosses from positive to
+/// zero or below (`g0` at the start, `g1` at the end), located by bisection to round-off on the
+/// step's dense output (`w` holds it): the event and the fraction of the step at the first
+/// point found at or past the crossing.
+#[allow(clippy::too_many_arguments)]
+fn first_crossing<S: OdeSystem>(
+    sys: &mut S,
+    stepper: &dyn Stepper,
+    (t, y, h): (f64, &[f64], f64),
+    w: &Work,
+    (g0, g1): (&[f64], &[f64]),
+    ys: &mut [f64],
+    gi: &mut [f64],
+) -> Option<(usize, f64)> {
+    let mut first: Option<(usize, f64)> = None;
+    for i in 0..g0.len() {
+        if !(g0[i] > 0.0 && g1[i] <= 0.0) {
+            continue;
+        }
+        let (mut lo, mut hi) = (0.0, 1.0);
+        for _ in 0..60 {
+            let mid = 0.5 * (lo + hi);
+            stepper.eval(y, w, h, mid, ys);
+            sys.event_values(t + mid * h, ys, gi);
+            if gi[i] > 0.0 { lo = mid } else { hi = mid }
+        }
+        if first.is_none_or(|(_, th)| hi < th) {
+            first = Some((i, hi));
+        }
+    }
+    first
+}
+
 /// The step loop. `(t, y, memory)` is the state it starts from and leaves at the last accepted
 /// step (the end of the step of a stopping sample); the memory is written back on every exit.
 #[allow(clippy::too_many_arguments)]
@@ -818,6 +863,7 @@ fn step_loop<S: OdeSystem>(
     // Event functions at the start of the current step and at its end.
     let n_events = sys.events();
     let (mut g0, mut g1) = (vec![0.0; n_events], vec![0.0; n_events]);
+    let mut gi = vec![0.0; n_events];
     let mut y_event = vec![0.0; if n_events > 0 { n } else { 0 }];
     if n_events > 0 {
         sys.event_values(t0, y, &mut g0);
@@ -831,7 +877,7 @@ fn step_loop<S: OdeSystem>(
             };
             // Land exactly on t_end when within a small fraction of a step of it.
             let tol = 1e-9 * h.max(span * 1e-12);
-            let (h_try, mut t_new) = if t_next_grid >= t_end - tol {
+            let (mut h_try, mut t_new) = if t_next_grid >= t_end - tol {
                 (t_end - t, t_end)
             } else {
                 (t_next_grid - t, t_next_grid)
@@ -886,30 +932,42 @@ fn step_loop<S: OdeSystem>(
                 if g0.iter().zip(&g1).any(|(a, b)| *a > 0.0 && *b <= 0.0) {
                     stepper.dense(sys, t, y, h_try, &mut w, stats);
                     dense_ready = true;
-                    let mut first: Option<(usize, f64)> = None;
-                    let mut gi = vec![0.0; n_events];
-                    for i in 0..n_events {
-                        if !(g0[i] > 0.0 && g1[i] <= 0.0) {
-                            continue;
-                        }
-                        let (mut lo, mut hi) = (0.0, 1.0);
-                        for _ in 0..60 {
-                            let mid = 0.5 * (lo + hi);
-                            stepper.eval(y, &w, h_try, mid, &mut ys);
-                            sys.event_values(t + mid * h_try, &ys, &mut gi);
-                            if gi[i] > 0.0 { lo = mid } else { hi = mid }
-                        }
-                        if first.is_none_or(|(_, th)| hi < th) {
-                            first = Some((i, hi));
-                        }
-                    }
+                    let first = first_crossing(
+                        sys,
+                        stepper,
+                        (t, y, h_try),
+                        &w,
+                        (&g0, &g1),
+                        &mut ys,
+                        &mut gi,
+                    );
                     if let Some((i, theta)) = first
                         && theta < 1.0
                     {
-                        stepper.eval(y, &w, h_try, theta, &mut y_event);
-                        t_new = t + theta * h_try;
-                        on_grid = false;
-                        event = Some(i);
+                        if !sys.event_restarts_step(i) {
+                            stepper.eval(y, &w, h_try, theta, &mut y_event);
+                            t_new = t + theta * h_try;
+                            on_grid = false;
+                            event = Some(i);
+                        } else if theta > 1e-6 && theta < 1.0 - 1e-6 {
+                            // The step's later stages, and so its dense output, saw the
+                            // dynamics after the event (a contact force): step again from t to
+                            // the event, with stages that stay before it.
+                            h_try *= theta;
+                            if let Err(e) = stepper.step(sys, t, y, h_try, &mut w, stats, false) {
+                                break 'run Err(e);
+                            }
+                            t_new = t + h_try;
+                            dense_ready = false;
+                            on_grid = false;
+                            event = Some(i);
+                        } else if theta >= 1.0 - 1e-6 {
+                            // At the step's end: the step stands.
+                            event = Some(i);
+                        }
+                        // At its very start the previous step ended a round-off short of the
+                        // event: no step of 1e-6 of this one is cut off (its Hermite data would
+                        // be round-off), and the step stands as an ordinary one.
                     } else if let Some((i, _)) = first {
                         event = Some(i);
                     }
@@ -981,6 +1039,13 @@ fn step_loop<S: OdeSystem>(
                 }
                 sys.rhs(t, y, &mut w.k[0]);
                 stats.rhs_evals += 1;
+                if adaptive && sys.event_restarts_step(i) {
+                    let q = method.control_order();
+                    let fresh = initial_step(sys, t, y, &w.k[0], (rtol, atol, max_step), q, stats);
+                    h = h.min(fresh);
+                    last_rejected = false;
+                }
+                stats.events += 1;
                 sys.event_values(t, y, &mut g0);
                 continue;
             }

@@ -76,6 +76,7 @@ pub(crate) fn settings(sv: &SolverSpec, drives: &[Drive], cx: &Ctx) -> Result<Se
         period,
         max_penetration,
         max_drift,
+        onset_events: sv.onset_events,
     })
 }
 
