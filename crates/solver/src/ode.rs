@@ -949,7 +949,7 @@ fn step_loop<S: OdeSystem>(
                             t_new = t + theta * h_try;
                             on_grid = false;
                             event = Some(i);
-                        } else if theta > 1e-6 && theta < 1.0 - 1e-6 {
+                        } else if theta > 1e-3 && theta < 1.0 - 1e-3 {
                             // The step's later stages, and so its dense output, saw the
                             // dynamics after the event (a contact force): step again from t to
                             // the event, with stages that stay before it.
@@ -961,13 +961,15 @@ fn step_loop<S: OdeSystem>(
                             dense_ready = false;
                             on_grid = false;
                             event = Some(i);
-                        } else if theta >= 1.0 - 1e-6 {
+                        } else if theta >= 1.0 - 1e-3 {
                             // At the step's end: the step stands.
                             event = Some(i);
                         }
-                        // At its very start the previous step ended a round-off short of the
-                        // event: no step of 1e-6 of this one is cut off (its Hermite data would
-                        // be round-off), and the step stands as an ordinary one.
+                        // Within its first thousandth (typically: the previous step, taken again
+                        // up to the event, ended a round-off short of it) the step stands as an
+                        // ordinary one: a step cut a thousandth long would carry the onset's
+                        // Hermite data at the level of the penetration's round-off (1e-16 m
+                        // for coordinates of 1 m), and the onset velocity with it.
                     } else if let Some((i, _)) = first {
                         event = Some(i);
                     }

@@ -503,8 +503,8 @@ fn undamped_line_contact_conserves_energy() {
 /// ends at the onset, located on the dense output, and the next one starts there with a fresh
 /// step-size estimate. On the head-on impact above at a loose tolerance (DOPRI5, rtol 1e-7,
 /// no step bound) the approach velocity the law remembers is the exact 0.1 m/s (straight free
-/// flight: the penetration is linear in time up to the onset) and the restitution is the law's
-/// analytic value to the tolerance's level.
+/// flight: the penetration is linear in time up to the onset) to 1e-8, and the restitution is
+/// the law's analytic value to the tolerance's level.
 #[test]
 fn onset_events_end_a_step_at_the_onset_and_keep_the_restitution() {
     let v0 = 0.1;
@@ -541,12 +541,12 @@ fn onset_events_end_a_step_at_the_onset_and_keep_the_restitution() {
         // Without events the stages of the step that straddles the onset see the contact
         // force, and so does the interpolant the onset velocity is read from: measured 3.0e-4
         // off, restitution 8.0e-5 off. With events the straddling step is taken again up to the
-        // onset (measured: velocity exact, restitution 1.1e-6 off, the tolerance's level). A
-        // re-taken step that lands a round-off short of the surface is followed by another
-        // located one: at most a few events for one onset.
+        // onset; when it lands a round-off short of the surface, the next step crosses within
+        // its first thousandth and stands as an ordinary step (measured: velocity 2.7e-9 off,
+        // restitution 5.1e-6, the tolerance's level). Bounds: 1e-8 and 1e-5.
         if events {
             assert!((1..=4).contains(&stats.events), "{} events", stats.events);
-            assert!((onset - v0).abs() < 1e-12, "onset velocity {onset}");
+            assert!((onset - v0).abs() < 1e-8 * v0, "onset velocity {onset}");
             assert!((e - exact).abs() < 1e-5, "restitution {e} vs {exact}");
         } else {
             assert_eq!(stats.events, 0);
