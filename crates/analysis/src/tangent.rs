@@ -196,16 +196,21 @@ impl Builtin {
                 out[0] = v[1];
                 out[1] = -stiffness * v[0] - damping * v[1];
             }
+            Builtin::VanDerPol { mu, .. } => {
+                out[0] = v[1];
+                out[1] = -(2.0 * mu * y[0] * y[1] + 1.0) * v[0] + mu * (1.0 - y[0] * y[0]) * v[1];
+            }
         }
     }
 
-    /// The divergence (trace of the Jacobian) of the vector field; constant for these systems.
-    pub fn divergence(&self, _y: &[f64]) -> f64 {
+    /// The divergence (trace of the Jacobian) of the vector field.
+    pub fn divergence(&self, y: &[f64]) -> f64 {
         match *self {
             Builtin::Duffing { delta, .. } => -delta,
             Builtin::Pendulum { damping, .. } => -damping,
             Builtin::Lorenz { sigma, beta, .. } => -(sigma + 1.0 + beta),
             Builtin::Impact { damping, .. } => -damping,
+            Builtin::VanDerPol { mu, .. } => mu * (1.0 - y[0] * y[0]),
         }
     }
 }

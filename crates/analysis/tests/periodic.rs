@@ -581,3 +581,121 @@ fn four_ups_rpu_period_one_orbit_reproduces_itself() {
     assert_eq!(orbit.spurious, 123);
     assert!(orbit.stable());
 }
+
+fn van_der_pol(forcing: f64) -> Target {
+    system(&format!(
+        "kind = \"van_der_pol\", mu = 0.4, forcing = {forcing}, omega = 1.15, initial = [1.0, 0.0], solver = {{ integrator = \"dopri5\", rtol = 1e-11, atol = 1e-12 }}"
+    ))
+}
+
+/// The mean of x^2 over one drive period from the strobe point `y` (Simpson's rule on 2000
+/// intervals of the dense output), and the strobe point a period later.
+fn mean_x_squared(target: &Target, y: &[f64]) -> (f64, Vec<f64>) {
+    let mut flow = target.flow();
+    let method = flow.method();
+    let period = flow.period();
+    let mut s = HybridState::new(0.0, y.to_vec());
+    flow.prepare(&s).unwrap();
+    let n = 2000;
+    let samples: Vec<f64> = (0..=n).map(|k| k as f64 * period / n as f64).collect();
+    let mut x2 = Vec::new();
+    let (_, r) = advance(
+        &mut flow,
+        method,
+        &mut s,
+        period,
+        &samples,
+        |_, _, y| {
+            x2.push(y[0] * y[0]);
+            Step::Continue
+        },
+        None,
+    );
+    r.unwrap();
+    assert_eq!(x2.len(), n + 1);
+    let simpson: f64 = (0..=n)
+        .map(|k| {
+            let w = if k == 0 || k == n {
+                1.0
+            } else if k % 2 == 1 {
+                4.0
+            } else {
+                2.0
+            };
+            w * x2[k]
+        })
+        .sum::<f64>()
+        / (3.0 * n as f64);
+    (simpson, s.y)
+}
+
+/// The forced van der Pol oscillator x'' - 0.4 (1 - x^2) x' + x = F cos(1.15 t), its period-1
+/// response continued in F from 0.8 down: it loses stability to a torus where a complex pair of
+/// multipliers leaves the unit circle (a Neimark-Sacker point). The oracle is Liouville's
+/// formula: the multipliers multiply to exp(0.4 T (1 - <x^2>)), so a complex pair of modulus 1
+/// has <x^2> = 1 along that orbit, computed here by quadrature of the orbit itself, not by the
+/// tangent code. Measured: the point at F = 0.5655732 (bracket 4e-9), multipliers
+/// 0.8096 +- 0.5870 i, <x^2> - 1 = -6.6e-13. Bounds: <x^2> within 1e-6 of 1 (the bracket, at
+/// most 1e-7 in F, times d<x^2>/dF of order 1, with margin) and the pair within 1e-4 of the
+/// circle. Brute force confirms the character: 0.02 above the point a run from the orbit pushed
+/// off by 1e-3 returns to it (strobe range over the last 50 of 400 periods 8e-13; bound 1e-6),
+/// 0.02 below it the strobe points stay spread on the torus (range 1.75; bound 1e-2).
+#[test]
+fn van_der_pol_loses_its_forced_response_to_a_torus_where_the_mean_of_x_squared_is_one() {
+    let text = "[study]\nname = \"p\"\nsystem = { kind = \"van_der_pol\", mu = 0.4, forcing = 0.8, omega = 1.15, initial = [1.0, 0.0], solver = { integrator = \"dopri5\", rtol = 1e-11, atol = 1e-12 } }\n[analysis]\nperiods = 2\nsamples_per_period = 0\n";
+    let st = Loaded::parse(text, Path::new("periodic-test.toml")).unwrap();
+    let make = |f: f64| st.target_with(&[("forcing", f)]);
+    let start = settle(&van_der_pol(0.8), 40);
+    let c = continuation(&make, &settings(0.8, 0.4, 0.02), &start, &mut |_| {}).unwrap();
+    let ns: Vec<_> = c
+        .specials
+        .iter()
+        .filter(|s| s.kind == Kind::NeimarkSacker)
+        .collect();
+    assert_eq!(ns.len(), 1, "{:?}", c.specials);
+    let p = ns[0];
+    assert!(p.bracket <= 1e-7);
+    for m in &p.multipliers {
+        assert!(m.im.abs() > 0.1, "a complex pair: {:?}", p.multipliers);
+        assert!((m.norm() - 1.0).abs() < 1e-4, "{:?}", p.multipliers);
+    }
+    let (mean, _) = mean_x_squared(&van_der_pol(p.parameter), &p.state);
+    eprintln!(
+        "Neimark-Sacker at F = {} (bracket {:e}), multipliers {:?}, <x^2> - 1 = {:e}",
+        p.parameter,
+        p.bracket,
+        p.multipliers,
+        mean - 1.0
+    );
+    assert!((mean - 1.0).abs() < 1e-6, "<x^2> = {mean}");
+    // Brute force on either side, from the located orbit pushed off by 1e-3.
+    let spread = |f: f64| -> f64 {
+        let target = van_der_pol(f);
+        let mut flow = target.flow();
+        let method = flow.method();
+        let mut s = HybridState::new(0.0, vec![p.state[0] + 1e-3, p.state[1]]);
+        flow.prepare(&s).unwrap();
+        let mut x = Vec::new();
+        for n in 1..=400 {
+            let t = n as f64 * flow.period();
+            let (_, r) = advance(
+                &mut flow,
+                method,
+                &mut s,
+                t,
+                &[],
+                |_, _, _| Step::Continue,
+                None,
+            );
+            r.unwrap();
+            x.push(s.y[0]);
+        }
+        let last = &x[350..];
+        last.iter().cloned().fold(f64::MIN, f64::max)
+            - last.iter().cloned().fold(f64::MAX, f64::min)
+    };
+    let (above, below) = (spread(p.parameter + 0.02), spread(p.parameter - 0.02));
+    eprintln!("strobe spread over the last 50 of 400 periods: {above:e} above, {below:e} below");
+    assert!(above < 1e-6, "F + 0.02: spread {above}");
+    assert!(below > 1e-2, "F - 0.02: spread {below}");
+}
