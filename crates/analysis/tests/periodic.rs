@@ -558,9 +558,10 @@ fn four_ups_rpu_period_one_orbit_reproduces_itself() {
 
 /// The same Newton solve from the strobe point after 2 drive periods, still in the start's
 /// transient: the target of at most 6 iterations is for a settled strobe point, and this checks
-/// it from one that is not.
+/// it from one that is not. Measured: 2 iterations, residual 2.5e-9, 73 s (dev build, shared
+/// cores).
 #[test]
-#[ignore = "about 5 minutes: Newton on the 4-UPS/RPU from an unsettled strobe point"]
+#[ignore = "about 2 minutes: Newton on the 4-UPS/RPU from an unsettled strobe point"]
 fn four_ups_rpu_newton_converges_from_an_unsettled_strobe_point() {
     four_ups_rpu_shot_from(2);
 }
