@@ -132,8 +132,10 @@ pub const SMALL: usize = 256;
 /// Bytes per chunk of a compressed dataset (rounded to whole rows).
 pub const CHUNK_BYTES: usize = 64 * 1024;
 
-/// Deflate level after the shuffle filter. Level 4 is the middle of zlib's range; other levels
-/// and other compressors have not been compared on recorded trajectories yet.
+/// Deflate level after the shuffle filter. Level 4 is the middle of zlib's range. On a 6 s run
+/// of the mixed 4-UPS/RPU (DOPRI5, 1 ms output) level 1 made the file 0.8 % larger and took the
+/// same share of the run's time (about 16 %, by `perf`): recorded trajectories compress little
+/// either way.
 pub const DEFLATE: u8 = 4;
 
 /// Samples a streamed run file appends at once: one chunk of every dataset whose row is at most

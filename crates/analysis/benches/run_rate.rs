@@ -1,0 +1,90 @@
+//! What a run costs besides its right-hand sides: the rate of a whole run of the mixed
+//! 4-UPS/RPU (evaluations per second, everything included: steps, error control, onset
+//! bookkeeping, guards, events, the recording streamed to its HDF5 file) against the rate of
+//! the right-hand side alone, measured in the same benchmark run.
+//!
+//! `cargo bench -p jointplay-analysis --bench run_rate`
+//!
+//! The run is `data/scenes/4ups-rpu-mixed.toml` over its first 2 s (about one drive period)
+//! with DOPRI5 at rtol 1e-6 (atol 1e-9) and the scene's 1 ms output, with contact onsets as
+//! events off and on. Divan
+//! reports each as items per second, one item being one right-hand-side evaluation (the run's
+//! count, fixed: the run is deterministic); the `rhs` bench is one evaluation at the state the
+//! run reaches after 0.15 s. The ratio of the two rates is the share of the run's time spent in
+//! its evaluations.
+
+use std::path::PathBuf;
+
+use jointplay_analysis::h5::Meta;
+use jointplay_analysis::run::simulate_to_file;
+use jointplay_solver::dynamics::Mechanism;
+use jointplay_solver::model::{Model, State};
+use jointplay_solver::ode::{Flow, OdeSystem, integrate};
+use jointplay_solver::scene::{SceneFile, SceneSpec};
+
+fn main() {
+    divan::main();
+}
+
+const EVENTS: [bool; 2] = [false, true];
+
+/// The scene with the benchmark's solver settings.
+fn scene(events: bool) -> (Model, State, SceneFile) {
+    let path =
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../data/scenes/4ups-rpu-mixed.toml");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let start = text.find("[solver]").unwrap();
+    let end = start + text[start..].find("\n[").unwrap();
+    let text = format!(
+        "{}[solver]\nintegrator = \"dopri5\"\nrtol = 1e-6\natol = 1e-9\nend_time = 2.0\nonset_events = {events}\n{}",
+        &text[..start],
+        &text[end..]
+    );
+    let spec = SceneSpec::parse(&text, &path).unwrap();
+    let file = SceneFile { path, text, spec };
+    let (model, state) = Model::compile(&file).unwrap();
+    (model, state, file)
+}
+
+/// One whole run to a file in `dir`; its right-hand-side evaluations.
+fn run(model: &Model, state: &State, file: &SceneFile, dir: &std::path::Path) -> u64 {
+    let meta = Meta::of(model, &file.path, &file.text, "bench");
+    let (result, _) = simulate_to_file(model, state.clone(), &mut |_| {}, dir, &meta).unwrap();
+    assert!(result.stopped.is_none());
+    result.stats.rhs_evals
+}
+
+#[divan::bench(args = EVENTS, sample_count = 5)]
+fn whole_run(bencher: divan::Bencher, events: bool) {
+    let (model, state, file) = scene(events);
+    let dir = tempfile::tempdir().unwrap();
+    let evals = run(&model, &state, &file, dir.path());
+    bencher
+        .counter(divan::counter::ItemsCount::new(evals))
+        .bench_local(|| run(&model, &state, &file, dir.path()));
+}
+
+#[divan::bench(sample_count = 200)]
+fn rhs(bencher: divan::Bencher) {
+    let (model, mut state, _) = scene(false);
+    model.assemble(&mut state).unwrap();
+    let mut sys = Mechanism::new(&model);
+    integrate(
+        &mut sys,
+        model.settings.method,
+        0.0,
+        &mut state.y,
+        0.15,
+        &[],
+        |_, _, _| Flow::Continue,
+    )
+    .unwrap();
+    let y = state.y.clone();
+    let mut dy = vec![0.0; y.len()];
+    bencher
+        .counter(divan::counter::ItemsCount::new(1u64))
+        .bench_local(|| {
+            sys.rhs(0.15, divan::black_box(&y), &mut dy);
+            divan::black_box(&dy);
+        });
+}
