@@ -142,6 +142,25 @@ pub const DEFLATE: u8 = 4;
 /// `CHUNK_BYTES / STREAM_ROWS` bytes wide.
 pub const STREAM_ROWS: usize = 2048;
 
+/// Creates dataset `name` in `g` holding `arr`: chunked, shuffled and deflated when
+/// [`chunk_shape`] finds it large enough, contiguous otherwise.
+fn create_filtered<T: hdf5::H5Type, D: ndarray::Dimension>(
+    g: &hdf5::Group,
+    name: &str,
+    arr: &ndarray::Array<T, D>,
+) -> hdf5::Result<hdf5::Dataset> {
+    match chunk_shape(arr.shape(), filter_size::<T>()) {
+        Some(c) => g
+            .new_dataset_builder()
+            .with_data(arr)
+            .chunk(c)
+            .shuffle()
+            .deflate(DEFLATE)
+            .create(name),
+        None => g.new_dataset_builder().with_data(arr).create(name),
+    }
+}
+
 /// The chunk shape of a compressed dataset of `shape` with elements of `size` bytes: whole rows
 /// (every dimension but the first kept whole), about [`CHUNK_BYTES`] of them; `None` for a
 /// dataset of at most [`SMALL`] values, or of strings (`size` 0), stored as it is.
@@ -178,16 +197,7 @@ pub(crate) fn write_column<T: hdf5::H5Type + Clone>(
     desc: &str,
 ) -> hdf5::Result<()> {
     let arr = Array1::from(data.to_vec());
-    let ds = match chunk_shape(&[data.len()], filter_size::<T>()) {
-        Some(c) => g
-            .new_dataset_builder()
-            .with_data(&arr)
-            .chunk(c)
-            .shuffle()
-            .deflate(DEFLATE)
-            .create(name)?,
-        None => g.new_dataset_builder().with_data(&arr).create(name)?,
-    };
+    let ds = create_filtered(g, name, &arr)?;
     describe(&ds, unit, desc)
 }
 
@@ -295,16 +305,7 @@ pub(crate) fn write_table<T: hdf5::H5Type + Clone>(
     let rows = data.len().checked_div(cols).unwrap_or(0);
     let arr = Array2::from_shape_vec((rows, cols), data.to_vec())
         .map_err(|e| hdf5::Error::from(e.to_string()))?;
-    let ds = match chunk_shape(&[rows, cols], filter_size::<T>()) {
-        Some(c) => g
-            .new_dataset_builder()
-            .with_data(&arr)
-            .chunk(c)
-            .shuffle()
-            .deflate(DEFLATE)
-            .create(name)?,
-        None => g.new_dataset_builder().with_data(&arr).create(name)?,
-    };
+    let ds = create_filtered(g, name, &arr)?;
     describe(&ds, Some(unit), desc)
 }
 
