@@ -12,6 +12,7 @@
 //! * `jointplay plot FILE.h5`: redraw an analysis file's figures without simulating.
 //! * `jointplay precision STUDY_OR_SCENE --out DIR`: work-precision of every integrator.
 
+use std::io::IsTerminal;
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::time::Instant;
@@ -74,10 +75,12 @@ enum Command {
         #[arg(long, short)]
         quiet: bool,
         /// Analysis sweeps: keep the finished values of an existing DIR/<name>.h5 (with --shard,
-        /// of the shard's file) and compute only the rest.
+        /// of the shard's file) and compute only the rest. Continuations: go on from where the
+        /// continuation in DIR/<name>.h5 stopped.
         #[arg(long)]
         resume: bool,
-        /// Analysis sweeps: stop after this many values have finished (resume later).
+        /// Analysis sweeps: stop after this many values have finished (resume later). A
+        /// continuation without a sweep: stop after this many branch points.
         #[arg(long)]
         max_jobs: Option<usize>,
         /// Analysis sweeps: compute only shard I of N of the values (those whose index j has
@@ -522,11 +525,21 @@ fn run_analysis(
     mut opts: Options,
 ) -> Result<()> {
     let st = Loaded::load(path)?;
-    if st.spec.sweep.is_none() && (opts.resume || opts.max_jobs.is_some() || opts.shard.is_some()) {
+    let continuation_only = st.spec.sweep.is_none() && st.spec.continuation.is_some();
+    if st.spec.sweep.is_none()
+        && (opts.shard.is_some()
+            || (!continuation_only && (opts.resume || opts.max_jobs.is_some())))
+    {
         anyhow::bail!(
-            "{}: --resume, --max-jobs and --shard apply to studies with a [sweep]",
+            "{}: --resume and --max-jobs apply to studies with a [sweep] or a [continuation], --shard to studies with a [sweep]",
             path.display()
         );
+    }
+    // A continuation's start state, read before the analysis rewrites the output file (it may
+    // be the file named by `continuation.start`).
+    let start_state = jointplay_analysis::continuation::start_of(&st)?;
+    if continuation_only && opts.resume {
+        return resume_continuation(&st, path, out, plots, quiet, opts.max_jobs);
     }
     // In a Slurm job array, a sweep is sharded by the task's id unless --shard says otherwise.
     let mut from_env = false;
@@ -614,28 +627,9 @@ fn run_analysis(
     // shard, which holds only part of a sweep).
     let mut continuation_error = None;
     if st.spec.continuation.is_some() && opts.shard.is_none() {
-        use jointplay_analysis::continuation;
-        let bar = progress_bar(
-            1000,
-            "{spinner} [{elapsed_precise}] {bar:40} continuation (eta {eta})",
-        );
-        let start = Instant::now();
-        let res = continuation::run_study(&st, &mut |f| {
-            bar.set_position((f * 1000.0) as u64);
-            if !quiet && start.elapsed().as_secs_f64() > 1.0 && bar.is_hidden() {
-                bar.set_draw_target(ProgressDrawTarget::stderr());
-            }
-        });
-        bar.finish_and_clear();
-        continuation::write(&o.file, &st, res.as_ref())?;
-        match res {
-            Ok(c) => {
-                for line in continuation::summary(&c) {
-                    println!("{line}");
-                }
-            }
-            Err(e) => continuation_error = Some(e),
-        }
+        let begin = jointplay_analysis::continuation::Begin::Fresh(start_state);
+        let limit = opts.max_jobs.filter(|_| continuation_only);
+        continuation_error = follow_orbits(&st, &o.file, begin, quiet, limit)?;
     }
     println!("wrote        {}", o.file.display());
     if opts.shard.is_some() {
@@ -682,6 +676,105 @@ fn run_analysis(
             path.display(),
             o.file.display()
         );
+    }
+    Ok(())
+}
+
+/// Follows the periodic orbits of a study's `[continuation]` into its analysis file `file`,
+/// writing the file after every point (a stopped run keeps what it computed, for `--resume`),
+/// with a progress bar on a terminal and a line per point otherwise. At most `limit` points are
+/// computed now. Returns the error of a continuation that could not start (written into the
+/// file).
+fn follow_orbits(
+    st: &Loaded,
+    file: &Path,
+    begin: jointplay_analysis::continuation::Begin,
+    quiet: bool,
+    limit: Option<usize>,
+) -> Result<Option<jointplay_analysis::Error>> {
+    use jointplay_analysis::continuation;
+    let bar = progress_bar(
+        1000,
+        "{spinner} [{elapsed_precise}] {bar:40} continuation (eta {eta})",
+    );
+    if !quiet && std::io::stderr().is_terminal() {
+        bar.set_draw_target(ProgressDrawTarget::stderr());
+    }
+    let mut checkpoint_error = None;
+    let mut points = 0usize;
+    let res = continuation::run_study(st, begin, &mut |r| {
+        bar.set_position((r.fraction * 1000.0) as u64);
+        if !quiet && bar.is_hidden() {
+            println!("point        {}", r.line);
+        }
+        if let Err(e) = continuation::write(file, st, Ok(&r.snapshot)) {
+            checkpoint_error = Some(e);
+            return false;
+        }
+        points += 1;
+        limit.is_none_or(|n| points < n)
+    });
+    bar.finish_and_clear();
+    if let Some(e) = checkpoint_error {
+        return Err(anyhow::Error::new(e).context("writing the continuation's checkpoint"));
+    }
+    continuation::write(file, st, res.as_ref())?;
+    match res {
+        Ok(c) => {
+            for line in continuation::summary(&c) {
+                println!("{line}");
+            }
+            if c.unfinished.is_some() {
+                println!(
+                    "incomplete   stopped after {points} points: rerun with --resume to go on"
+                );
+            }
+            Ok(None)
+        }
+        Err(e) => Ok(Some(e)),
+    }
+}
+
+/// `jointplay run STUDY --resume` for a study with a `[continuation]` and no sweep: goes on with
+/// the unfinished continuation of DIR/<name>.h5.
+fn resume_continuation(
+    st: &Loaded,
+    path: &Path,
+    out: &Path,
+    plots: bool,
+    quiet: bool,
+    limit: Option<usize>,
+) -> Result<()> {
+    let file = out.join(format!("{}.h5", st.spec.study.name));
+    if !file.exists() {
+        anyhow::bail!(
+            "{}: nothing to resume: {} does not exist (run without --resume)",
+            path.display(),
+            file.display()
+        );
+    }
+    let Some(prior) = jointplay_analysis::continuation::read_unfinished(&file, st)? else {
+        anyhow::bail!(
+            "{}: nothing to resume: the continuation in {} is finished (or there is none)",
+            path.display(),
+            file.display()
+        );
+    };
+    println!("study        {} ({})", st.spec.study.name, path.display());
+    println!(
+        "resume       {} branches and {} special points kept",
+        prior.branches.len(),
+        prior.specials.len()
+    );
+    let begin = jointplay_analysis::continuation::Begin::Resume(prior);
+    if let Some(e) = follow_orbits(st, &file, begin, quiet, limit)? {
+        anyhow::bail!("{}: the continuation could not go on: {e}", path.display());
+    }
+    println!("wrote        {}", file.display());
+    if plots {
+        for f in redraw(&file, out, &[Format::Png, Format::Svg])? {
+            println!("wrote        {}", f.display());
+        }
     }
     Ok(())
 }

@@ -1375,3 +1375,139 @@ fn a_single_run_reports_its_lyapunov_exponents_k_and_class() {
         );
     }
 }
+
+const DUFFING_CONTINUATION: &str = r#"[study]
+name = "duffing-continuation"
+system = { kind = "duffing", delta = 0.3, alpha = -1.0, beta = 1.0, gamma = 0.2, omega = 1.2, initial = [1.0, 0.0], solver = { integrator = "dopri5", rtol = 1e-11, atol = 1e-12 } }
+[analysis]
+periods = 30
+transient = 20
+samples_per_period = 0
+[[observables]]
+name = "x"
+path = "x"
+[continuation]
+parameter = "gamma"
+from = 0.2
+to = 0.28
+step = 0.01
+tolerance = 1e-9
+max_branches = 2
+"#;
+
+/// A continuation stopped with `--max-jobs` (points) leaves its file marked unfinished, with a
+/// line per point when not on a terminal; `--resume` goes on to the file an uninterrupted run
+/// writes (its branches bit for bit), and a second `--resume` has nothing left to do.
+#[test]
+fn a_continuation_stopped_after_some_points_resumes_from_its_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let study = write_scene(dir.path(), "c.toml", DUFFING_CONTINUATION);
+    let run = |out: &str, extra: &[&str]| {
+        bin()
+            .arg("run")
+            .arg(&study)
+            .args(["--no-plots", "--out"])
+            .arg(dir.path().join(out))
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let o = run("full", &[]);
+    assert!(o.status.success(), "{:?}", text(&o));
+    let o = run("part", &["--max-jobs", "3"]);
+    let (so, se) = text(&o);
+    assert!(o.status.success(), "{so}{se}");
+    assert!(
+        so.contains("point        branch 0 point 3: parameter"),
+        "{so}"
+    );
+    assert!(so.contains("incomplete   stopped after 3 points"), "{so}");
+    let file = dir.path().join("part/duffing-continuation.h5");
+    {
+        let f = hdf5::File::open(&file).unwrap();
+        let g = f.group("continuation").unwrap();
+        assert_eq!(g.attr("finished").unwrap().read_scalar::<u8>().unwrap(), 0);
+    }
+    let o = run("part", &["--resume"]);
+    let (so, se) = text(&o);
+    assert!(o.status.success(), "{so}{se}");
+    assert!(so.contains("resume       1 branches"), "{so}");
+    let read = |f: &Path, name: &str| -> Vec<f64> {
+        let f = hdf5::File::open(f).unwrap();
+        f.dataset(name).unwrap().read_raw().unwrap()
+    };
+    let full = dir.path().join("full/duffing-continuation.h5");
+    for name in [
+        "continuation/branch_0/parameter",
+        "continuation/branch_0/state",
+        "continuation/branch_1/state",
+        "continuation/branch_1/multipliers_re",
+        "continuation/special/parameter",
+    ] {
+        assert_eq!(read(&full, name), read(&file, name), "{name}");
+    }
+    let o = run("part", &["--resume"]);
+    let (_, se) = text(&o);
+    assert!(!o.status.success());
+    assert!(se.contains("nothing to resume"), "{se}");
+}
+
+/// A continuation's `start` state off the constraint manifold (a run file's final state with the
+/// crank moved by 1 mm) is refused when the study loads, naming the field and the residual; a
+/// mechanism whose drives prescribe its whole motion has no orbit to shoot, and says so.
+#[test]
+fn a_continuation_start_off_the_constraint_manifold_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = bin()
+        .args(["run", "-q", "--no-plots", "--out"])
+        .arg(dir.path())
+        .arg(scenes().join("slider-crank.toml"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{:?}", text(&o));
+    let run_file = dir.path().join("slider-crank.h5");
+    let study = |name: &str| {
+        let text = format!(
+            "[study]\nname = \"{name}\"\nscene = \"{}\"\n[analysis]\nperiods = 1\ntransient = 0\nsamples_per_period = 0\n[[observables]]\nname = \"x\"\npath = \"bodies.slider.position.x\"\n[continuation]\nparameter = \"bodies.slider.mass\"\nfrom = 0.14\nto = 0.2\nstep = 0.01\nstart = {{ file = \"slider-crank.h5\" }}\n",
+            scenes().join("slider-crank.toml").display()
+        );
+        write_scene(dir.path(), &format!("{name}.toml"), &text)
+    };
+    // The run's own final state is taken; the ideal slider-crank then has no free degree of
+    // freedom to shoot in, which is an error too, not a panic.
+    let p = study("on");
+    let o = bin()
+        .args(["run", "-q", "--no-plots", "--out"])
+        .arg(dir.path().join("on"))
+        .arg(&p)
+        .output()
+        .unwrap();
+    let (so, se) = text(&o);
+    assert_eq!(o.status.code(), Some(1), "{so}{se}");
+    assert!(!se.contains("continuation.start"), "{so}{se}");
+    assert!(se.contains("no free degree of freedom"), "{se}");
+    assert!(!se.contains("panicked"), "{se}");
+    {
+        let f = hdf5::File::open_rw(&run_file).unwrap();
+        let ds = f.dataset("final_state").unwrap();
+        let mut y: Vec<f64> = ds.read_raw().unwrap();
+        y[0] += 1e-3;
+        ds.write_raw(&y).unwrap();
+        drop(ds);
+        f.close().unwrap();
+    }
+    let p = study("off");
+    let o = bin()
+        .args(["run", "-q", "--no-plots", "--out"])
+        .arg(dir.path().join("o"))
+        .arg(&p)
+        .output()
+        .unwrap();
+    let (_, se) = text(&o);
+    assert_eq!(o.status.code(), Some(1), "{se}");
+    assert!(
+        se.contains("continuation.start.file") && se.contains("off the constraint manifold"),
+        "{se}"
+    );
+    assert!(!se.contains("panicked"), "{se}");
+}

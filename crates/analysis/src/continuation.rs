@@ -178,10 +178,34 @@ pub struct Continuation {
     pub wall: f64,
     /// Units of the observables (set by [`run_study`]).
     pub units: Vec<String>,
+    /// Set when the continuation stopped before its end (a progress report returned `false`):
+    /// what [`resume`] needs to go on. The last branch is then the one being followed.
+    pub unfinished: Option<Unfinished>,
+}
+
+/// Where an interrupted continuation stands: the step of the branch being followed (its last
+/// branch, whose last point is the next step's anchor), the branches still to follow, and the
+/// points done (for the progress fraction).
+#[derive(Debug, Clone)]
+pub struct Unfinished {
+    pub step: f64,
+    queue: Vec<Pending>,
+    pub points_done: usize,
+}
+
+/// What the continuation reports after every point it adds.
+pub struct Report {
+    /// The fraction done (by points, against `max_branches * max_points`).
+    pub fraction: f64,
+    /// One line on the point just added.
+    pub line: String,
+    /// Everything so far, marked unfinished: written as a checkpoint it can be resumed.
+    pub snapshot: Continuation,
 }
 
 /// A branch waiting to be followed: its first point, its periods per orbit, where it comes from,
 /// and the first step's tangent when it is not the point's own (branch switching).
+#[derive(Debug, Clone)]
 struct Pending {
     start: Point,
     k: usize,
@@ -483,82 +507,131 @@ fn is_neimark_sacker(p: &Point) -> bool {
 
 /// Follows the periodic orbits of the flows `make(p)` from the strobe point `start` (at
 /// parameter `from`): the first branch, then the period-doubled branches when asked. `progress`
-/// gets a fraction done (by points). A failure of the first shooting solve is an error; a later
-/// failure ends its branch, with the reason and its last good point kept.
+/// gets a [`Report`] after every point; when it returns `false` the continuation stops there and
+/// returns what it has, marked [`Continuation::unfinished`]. A failure of the first shooting
+/// solve is an error; a later failure ends its branch, with the reason and its last good point
+/// kept.
 pub fn continuation(
     make: &dyn Fn(f64) -> Result<Target>,
     set: &Settings,
     start: &HybridState,
-    progress: &mut dyn FnMut(f64),
+    progress: &mut dyn FnMut(&mut Report) -> bool,
 ) -> Result<Continuation> {
-    let t0 = std::time::Instant::now();
     let ctx = Ctx { make, set };
-    let mut out = Continuation::default();
     // The first point: shooting at `from`, its tangent oriented towards `to`.
     let zero = vec![0.0; start.y.len()];
     let first = ctx.start_point(set.k, 0.0, start, &zero, 1.0)?;
-    // Queue of branches to follow: their first point, k and origin, and the first step's tangent
-    // when it differs from the point's (branch switching).
-    let mut queue: Vec<Pending> = vec![Pending {
+    let queue = vec![Pending {
         start: first,
         k: set.k,
         origin: "start".into(),
         switch: None,
     }];
+    follow(&ctx, Continuation::default(), None, queue, 0, progress)
+}
+
+/// Goes on with a continuation that stopped before its end (read back with [`read_unfinished`]):
+/// the branch being followed from its last point with the step it had, then the branches still
+/// waiting. With the same settings the points are those an uninterrupted run computes.
+pub fn resume(
+    make: &dyn Fn(f64) -> Result<Target>,
+    set: &Settings,
+    mut prior: Continuation,
+    progress: &mut dyn FnMut(&mut Report) -> bool,
+) -> Result<Continuation> {
+    let ctx = Ctx { make, set };
+    let Some(u) = prior.unfinished.take() else {
+        return Ok(prior);
+    };
+    let open = prior
+        .branches
+        .pop()
+        .filter(|b| !b.points.is_empty())
+        .map(|b| (b, u.step));
+    follow(&ctx, prior, open, u.queue, u.points_done, progress)
+}
+
+/// The branches: `open` (a branch followed up to its last point, with its step) first, then the
+/// queue.
+fn follow(
+    ctx: &Ctx,
+    mut out: Continuation,
+    mut open: Option<(Branch, f64)>,
+    mut queue: Vec<Pending>,
+    mut done_points: usize,
+    progress: &mut dyn FnMut(&mut Report) -> bool,
+) -> Result<Continuation> {
+    let t0 = std::time::Instant::now();
+    let wall0 = out.wall;
+    let set = ctx.set;
     let total = (set.max_branches * set.max_points) as f64;
-    let mut done_points = 0usize;
-    while let Some(Pending {
-        start: p0,
-        k,
-        origin,
-        switch,
-    }) = (!queue.is_empty()).then(|| queue.remove(0))
-    {
-        if out.branches.len() >= set.max_branches {
-            break;
-        }
-        let bi = out.branches.len();
-        let mut branch = Branch {
-            k,
-            origin,
-            points: Vec::new(),
-            end: String::new(),
-            failed: false,
-        };
-        let mut h = set.step / ctx.range();
-        let (hmin, hmax) = (set.min_step / ctx.range(), set.max_step / ctx.range());
-        // The first step of a switched branch: from the special point along its tangent.
-        let mut current = if let Some((ty, ts)) = switch {
-            let mut trial = h;
-            loop {
-                match ctx.correct(k, &p0, &ty, ts, trial) {
-                    Ok(c) => {
-                        let tan = ctx.tangent(&c, &ty, ts);
-                        match tan {
-                            Some(tan) => break Some(ctx.point(k, c, tan)?),
-                            None => break None,
+    let (hmin, hmax) = (set.min_step / ctx.range(), set.max_step / ctx.range());
+    loop {
+        let (mut branch, mut h, mut cur) = if let Some((b, h)) = open.take() {
+            let cur = b
+                .points
+                .last()
+                .cloned()
+                .expect("an open branch has a point");
+            (b, h, cur)
+        } else {
+            let Some(Pending {
+                start: p0,
+                k,
+                origin,
+                switch,
+            }) = (!queue.is_empty()).then(|| queue.remove(0))
+            else {
+                break;
+            };
+            if out.branches.len() >= set.max_branches {
+                break;
+            }
+            let mut branch = Branch {
+                k,
+                origin,
+                points: Vec::new(),
+                end: String::new(),
+                failed: false,
+            };
+            let h = set.step / ctx.range();
+            // The first step of a switched branch: from the special point along its tangent.
+            let mut current = if let Some((ty, ts)) = switch {
+                let mut trial = h;
+                loop {
+                    match ctx.correct(k, &p0, &ty, ts, trial) {
+                        Ok(c) => {
+                            let tan = ctx.tangent(&c, &ty, ts);
+                            match tan {
+                                Some(tan) => break Some(ctx.point(k, c, tan)?),
+                                None => break None,
+                            }
+                        }
+                        Err(_) if trial / 2.0 >= hmin => trial /= 2.0,
+                        Err(e) => {
+                            branch.end = format!("could not leave the branch point: {e}");
+                            branch.failed = true;
+                            break None;
                         }
                     }
-                    Err(_) if trial / 2.0 >= hmin => trial /= 2.0,
-                    Err(e) => {
-                        branch.end = format!("could not leave the branch point: {e}");
-                        branch.failed = true;
-                        break None;
-                    }
                 }
-            }
-        } else {
-            Some(p0)
+            } else {
+                Some(p0)
+            };
+            let Some(cur) = current.take() else {
+                if branch.end.is_empty() {
+                    branch.end = "no tangent at the branch point".into();
+                    branch.failed = true;
+                }
+                out.branches.push(branch);
+                continue;
+            };
+            branch.points.push(cur.clone());
+            (branch, h, cur)
         };
-        let Some(mut cur) = current.take() else {
-            if branch.end.is_empty() {
-                branch.end = "no tangent at the branch point".into();
-                branch.failed = true;
-            }
-            out.branches.push(branch);
-            continue;
-        };
-        branch.points.push(cur.clone());
+        let bi = out.branches.len();
+        let k = branch.k;
+        let zero = vec![0.0; cur.orbit.state.y.len()];
         loop {
             if branch.points.len() >= set.max_points {
                 branch.end = format!("{} points (continuation.max_points)", set.max_points);
@@ -598,7 +671,7 @@ pub fn continuation(
                 if !changes(kind, &cur, &next) {
                     continue;
                 }
-                let Some(sp) = locate(&ctx, kind, k, &cur, &next, h) else {
+                let Some(sp) = locate(ctx, kind, k, &cur, &next, h) else {
                     continue;
                 };
                 if kind == Kind::NeimarkSacker && !is_neimark_sacker(&sp.1) {
@@ -638,8 +711,7 @@ pub fn continuation(
                     // converged orbit nearest it there, heading on away from the grazing; or the
                     // step's own point when that fails.
                     let dir = if cur.tangent_s >= 0.0 { 1.0 } else { -1.0 };
-                    let s_past =
-                        ctx_s(&ctx, special.parameter) + dir * 0.1 * set.step / ctx.range();
+                    let s_past = ctx_s(ctx, special.parameter) + dir * 0.1 * set.step / ctx.range();
                     let other = ctx
                         .start_point(k, s_past, &far.orbit.state, &zero, dir)
                         .ok()
@@ -669,12 +741,50 @@ pub fn continuation(
             branch.points.push(next.clone());
             cur = next;
             done_points += 1;
-            progress((done_points as f64 / total).min(1.0));
+            let mut snapshot = Continuation {
+                branches: out.branches.clone(),
+                specials: out.specials.clone(),
+                wall: wall0 + t0.elapsed().as_secs_f64(),
+                units: Vec::new(),
+                unfinished: Some(Unfinished {
+                    step: h,
+                    queue: queue.clone(),
+                    points_done: done_points,
+                }),
+            };
+            snapshot.branches.push(branch.clone());
+            let mut report = Report {
+                fraction: (done_points as f64 / total).min(1.0),
+                line: point_line(bi, &branch, t0.elapsed().as_secs_f64()),
+                snapshot,
+            };
+            if !progress(&mut report) {
+                let mut s = report.snapshot;
+                s.units.clear();
+                return Ok(s);
+            }
         }
         out.branches.push(branch);
     }
-    out.wall = t0.elapsed().as_secs_f64();
+    out.wall = wall0 + t0.elapsed().as_secs_f64();
     Ok(out)
+}
+
+/// A line on the last point of branch `bi`.
+fn point_line(bi: usize, b: &Branch, elapsed: f64) -> String {
+    let p = b.points.last().expect("called after a point");
+    format!(
+        "branch {bi} point {}: parameter {:.6e}, {} corrector iterations, {} ({} multipliers outside the unit circle), {elapsed:.0} s",
+        b.points.len() - 1,
+        p.parameter,
+        p.iterations,
+        if p.orbit.stable() {
+            "stable"
+        } else {
+            "unstable"
+        },
+        p.orbit.unstable_count()
+    )
 }
 
 fn ctx_s(ctx: &Ctx, p: f64) -> f64 {
@@ -843,10 +953,35 @@ pub struct ContinuationSpec {
     /// Samples per drive period for the gap and the observables along the orbit.
     #[serde(default = "default_samples")]
     pub samples: usize,
-    /// Periods run at `from` before shooting (default `analysis.transient`).
+    /// Periods run at `from` before shooting (default `analysis.transient`, or none from a
+    /// `start` state).
     #[serde(default)]
     pub transient: Option<usize>,
+    /// The state to shoot from instead of the study's start after its transient.
+    #[serde(default)]
+    pub start: Option<StartSpec>,
 }
+
+/// `[continuation] start`: a state from a file of the program. Without `branch`, the file's
+/// final state (a run file of `jointplay run SCENE`, or an analysis file of a single run); with
+/// it, a point of a branch of its `/continuation` (`point` counts from 0, negative from the end;
+/// default the last), whose parameter must be `from`.
+#[derive(Debug, Clone, PartialEq, serde::Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct StartSpec {
+    /// The HDF5 file, relative to the study file.
+    pub file: String,
+    #[serde(default)]
+    pub branch: Option<usize>,
+    #[serde(default)]
+    pub point: Option<i64>,
+}
+
+/// Largest constraint residuals a `start` state may have (position m, velocity m/s, Euler norm):
+/// a state written by a run keeps them near its integration tolerance (Baumgarte stabilisation),
+/// so more than this is a state of another scene or an edited one, which the assembly would move
+/// by an amount nobody asked for.
+const START_OFF_MANIFOLD: [f64; 3] = [1e-6, 1e-6, 1e-6];
 
 /// The contact observable of grazing detection: contact begins when its largest value along the
 /// orbit reaches `level` (the gap is `level - max`).
@@ -969,22 +1104,72 @@ impl ContinuationSpec {
     }
 }
 
-/// Runs the study's `[continuation]`: `transient` periods at `from` from the study's start, then
-/// the branches. `progress` gets the fraction done.
+/// Where a continuation begins.
+pub enum Begin {
+    /// From the study's start after `transient` periods at `from`, or from the `start` state
+    /// read before with [`start_of`] (then `transient` periods from it, default none).
+    Fresh(Option<HybridState>),
+    /// Going on with an unfinished continuation read back with [`read_unfinished`].
+    Resume(Continuation),
+}
+
+/// Runs the study's `[continuation]` from `begin`, then its branches. `progress` gets a
+/// [`Report`] after every point and stops the continuation by returning `false`.
 pub fn run_study(
     st: &crate::nonlinear::Loaded,
-    progress: &mut dyn FnMut(f64),
+    begin: Begin,
+    progress: &mut dyn FnMut(&mut Report) -> bool,
 ) -> Result<Continuation> {
     let spec = st.spec.continuation.as_ref().ok_or_else(|| {
         crate::study::invalid(&st.path, "continuation", "no [continuation] table")
     })?;
+    let grazing = spec
+        .grazing
+        .as_ref()
+        .and_then(|g| st.spec.observable(&g.observable));
+    let make = |p: f64| st.continuation_target(p);
+    let set = spec.settings(grazing);
+    let units = st.continuation_target(spec.from)?.flow().observable_units();
+    let mut forward = |r: &mut Report| {
+        r.snapshot.units.clone_from(&units);
+        progress(r)
+    };
+    let mut c = match begin {
+        Begin::Resume(prior) => resume(&make, &set, prior, &mut forward)?,
+        Begin::Fresh(start) => {
+            let state = start_state(st, spec, start)?;
+            continuation(&make, &set, &state, &mut forward)?
+        }
+    };
+    c.units = units;
+    Ok(c)
+}
+
+/// The strobe point the first branch is shot from (see [`run_study`]).
+fn start_state(
+    st: &crate::nonlinear::Loaded,
+    spec: &ContinuationSpec,
+    start: Option<HybridState>,
+) -> Result<HybridState> {
     let target = st.continuation_target(spec.from)?;
     let mut flow = target.flow();
-    let mut state = flow.initial_state(None)?;
+    let t_strobe = flow.start_time() + st.spec.analysis.phase;
+    let (mut state, transient) = match start {
+        None => (
+            flow.initial_state(None)?,
+            spec.transient.unwrap_or(st.spec.analysis.transient),
+        ),
+        Some(s) => {
+            let mut s = s.for_new_run();
+            s.t = t_strobe;
+            (s, spec.transient.unwrap_or(0))
+        }
+    };
     flow.prepare(&state)?;
-    let transient = spec.transient.unwrap_or(st.spec.analysis.transient);
-    let t_strobe = state.t + st.spec.analysis.phase;
-    let t = t_strobe + transient as f64 * flow.period();
+    // The drive is periodic: the settled state is taken back to the first strobe time, so that
+    // when the parameter changes the period (a drive frequency) the strobe phase moves by
+    // `t_strobe d(omega)`, not by `transient` periods' worth of it.
+    let t = state.t + transient as f64 * flow.period();
     let method = flow.method();
     let (_, res) = ode::advance(
         &mut flow,
@@ -996,19 +1181,148 @@ pub fn run_study(
         None,
     );
     res?;
-    // The drive is periodic: the settled state is taken back to the first strobe time, so that
-    // when the parameter changes the period (a drive frequency) the strobe phase moves by
-    // `t_strobe d(omega)`, not by `transient` periods' worth of it.
     state.t = t_strobe;
-    let grazing = spec
-        .grazing
-        .as_ref()
-        .and_then(|g| st.spec.observable(&g.observable));
-    let units = flow.observable_units();
-    let make = |p: f64| st.continuation_target(p);
-    let mut c = continuation(&make, &spec.settings(grazing), &state, progress)?;
-    c.units = units;
-    Ok(c)
+    Ok(state)
+}
+
+/// The study's `[continuation] start` state (None without one), read and checked: the file and
+/// the point exist, the state has the flow's size, sits at a strobe time and on the constraint
+/// manifold. Errors name the field.
+pub fn start_of(st: &crate::nonlinear::Loaded) -> Result<Option<HybridState>> {
+    let Some(spec) = st.spec.continuation.as_ref() else {
+        return Ok(None);
+    };
+    let Some(s) = &spec.start else {
+        return Ok(None);
+    };
+    let target = st.continuation_target(spec.from)?;
+    let mut flow = target.flow();
+    let t_strobe = flow.start_time() + st.spec.analysis.phase;
+    read_start(st, spec, s, &mut flow, t_strobe).map(Some)
+}
+
+fn read_start(
+    st: &crate::nonlinear::Loaded,
+    spec: &ContinuationSpec,
+    s: &StartSpec,
+    flow: &mut crate::flow::AnyFlow,
+    t_strobe: f64,
+) -> Result<HybridState> {
+    let bad =
+        |f: &str, m: String| crate::study::invalid(&st.path, format!("continuation.start.{f}"), m);
+    let path = st
+        .path
+        .parent()
+        .unwrap_or(std::path::Path::new(""))
+        .join(&s.file);
+    let file = hdf5::File::open(&path)
+        .map_err(|e| bad("file", format!("cannot open {}: {e}", path.display())))?;
+    let mut state = match s.branch {
+        None => {
+            if s.point.is_some() {
+                return Err(bad("point", "needs continuation.start.branch".into()));
+            }
+            let complete: u8 = crate::h5::read_attr(&file, "complete").unwrap_or(0);
+            if complete != 1 {
+                return Err(bad(
+                    "file",
+                    format!(
+                        "{} is not a finished run of the program (attribute complete = 1): its last state is where it stopped",
+                        path.display()
+                    ),
+                ));
+            }
+            crate::hybrid::read_state(&file).map_err(|e| {
+                bad(
+                    "file",
+                    format!(
+                        "{} has no final state ({e}); a sweep's file holds one per value: start from a run file or a branch point",
+                        path.display()
+                    ),
+                )
+            })?
+        }
+        Some(b) => {
+            let g = file
+                .group(&format!("continuation/branch_{b}"))
+                .map_err(|_| {
+                    bad(
+                        "branch",
+                        format!("{} has no /continuation/branch_{b}", path.display()),
+                    )
+                })?;
+            let read = |name: &str| crate::h5::read_rows(&g, name);
+            let e = |err: hdf5::Error| bad("branch", format!("{}: {err}", path.display()));
+            let params = read("parameter").map_err(e)?;
+            let n = params.len() as i64;
+            let i = s.point.unwrap_or(-1);
+            let j = if i < 0 { n + i } else { i };
+            if !(0..n).contains(&j) {
+                return Err(bad(
+                    "point",
+                    format!("branch {b} has {n} points: {i} is not one of them"),
+                ));
+            }
+            let j = j as usize;
+            let p = params[j][0];
+            if (p - spec.from).abs() > 1e-9 * (spec.to - spec.from).abs() {
+                return Err(bad(
+                    "point",
+                    format!(
+                        "the point is at parameter {p:e}, continuation.from is {:e}: set from = {p:e}",
+                        spec.from
+                    ),
+                ));
+            }
+            let t: f64 = crate::h5::read_attr(&g, "strobe_time").map_err(e)?;
+            let y = read("state").map_err(e)?.swap_remove(j);
+            let onset = read("onset")
+                .ok()
+                .and_then(|mut o| (o.len() > j).then(|| o.swap_remove(j)))
+                .unwrap_or_default();
+            let mut st = HybridState::new(t, y);
+            st.onset = onset;
+            st
+        }
+    };
+    use crate::tangent::Tangent;
+    let dim = jointplay_solver::ode::OdeSystem::dim(flow);
+    if state.y.len() != dim {
+        return Err(bad(
+            "file",
+            format!(
+                "the state in {} has {} components, the flow at continuation.from {dim}: a state of another scene",
+                path.display(),
+                state.y.len()
+            ),
+        ));
+    }
+    let period = flow.period();
+    let n = (state.t - t_strobe) / period;
+    if !state.t.is_finite() || (n - n.round()).abs() > 1e-6 {
+        return Err(bad(
+            "file",
+            format!(
+                "the state is at t = {} s, not at a strobe time {t_strobe} + n {period} s (analysis.phase and the drive's period): shooting needs a state at the strobe phase",
+                state.t
+            ),
+        ));
+    }
+    if state.y.iter().any(|v| !v.is_finite()) {
+        return Err(bad("file", "the state has a non-finite component".into()));
+    }
+    let off = flow.off_manifold(state.t, &state.y);
+    if off.iter().zip(START_OFF_MANIFOLD).any(|(r, lim)| *r > lim) {
+        return Err(bad(
+            "file",
+            format!(
+                "the state is off the constraint manifold (position residual {:.2e} m, velocity residual {:.2e} m/s, Euler-parameter norm off by {:.2e}; at most 1e-6 each): a state of another scene or parameter",
+                off[0], off[1], off[2]
+            ),
+        ));
+    }
+    state.warned.clear();
+    Ok(state.for_new_run())
 }
 
 /// Writes `/continuation` into the analysis file `path` (replacing one written before); layout in
@@ -1018,7 +1332,7 @@ pub fn write(
     st: &crate::nonlinear::Loaded,
     c: std::result::Result<&Continuation, &crate::Error>,
 ) -> Result<()> {
-    use crate::h5::{f64_attr, h5err, str_attr, u8_attr_set, u64_attr};
+    use crate::h5::{f64_attr, h5err, str_attr, u8_attr_set, u64_attr, write1};
     let e = h5err(path);
     let file = hdf5::File::open_rw(path).map_err(&e)?;
     if file.group("continuation").is_ok() {
@@ -1051,8 +1365,9 @@ pub fn write(
         u8_attr_set(
             &g,
             "complete",
-            u8::from(c.branches.iter().all(|b| !b.failed)),
+            u8::from(c.unfinished.is_none() && c.branches.iter().all(|b| !b.failed)),
         )?;
+        u8_attr_set(&g, "finished", u8::from(c.unfinished.is_none()))?;
         u64_attr(&g, "branches", c.branches.len() as u64)?;
         let gap_unit = spec
             .grazing
@@ -1061,14 +1376,46 @@ pub fn write(
             .and_then(|i| c.units.get(i))
             .map_or("", String::as_str);
         for (i, b) in c.branches.iter().enumerate() {
-            write_branch(
-                &g.create_group(&format!("branch_{i}"))?,
-                b,
-                &obs,
-                &c.units,
-                &spec.unit,
-                gap_unit,
-            )?;
+            let bg = g.create_group(&format!("branch_{i}"))?;
+            match c.unfinished.as_ref().filter(|_| i + 1 == c.branches.len()) {
+                Some(u) => {
+                    let open = Branch {
+                        end: "not finished: the continuation stopped here (`jointplay run STUDY --out DIR --resume` goes on)".into(),
+                        ..b.clone()
+                    };
+                    write_branch(&bg, &open, &obs, &c.units, &spec.unit, gap_unit)?;
+                    f64_attr(&bg, "next_step", u.step)?;
+                }
+                None => write_branch(&bg, b, &obs, &c.units, &spec.unit, gap_unit)?,
+            }
+        }
+        if let Some(u) = &c.unfinished {
+            u64_attr(&g, "points_done", u.points_done as u64)?;
+            u64_attr(&g, "pending", u.queue.len() as u64)?;
+            for (i, p) in u.queue.iter().enumerate() {
+                let pg = g.create_group(&format!("pending_{i}"))?;
+                // Its first point is an orbit of the branch it leaves (of its own periods).
+                let b = Branch {
+                    k: p.start.orbit.k,
+                    origin: p.origin.clone(),
+                    points: vec![p.start.clone()],
+                    end: "waiting".into(),
+                    failed: false,
+                };
+                write_branch(&pg, &b, &obs, &c.units, &spec.unit, gap_unit)?;
+                u64_attr(&pg, "branch_periods", p.k as u64)?;
+                if let Some((ty, ts)) = &p.switch {
+                    let mut v = ty.clone();
+                    v.push(*ts);
+                    write1(
+                        &pg,
+                        "switch",
+                        &v,
+                        "SI",
+                        "the first step's tangent (state, then scaled parameter)",
+                    )?;
+                }
+            }
         }
         write_specials(
             &g.create_group("special")?,
@@ -1080,6 +1427,202 @@ pub fn write(
     })()
     .map_err(&e)?;
     file.close().map_err(&e)
+}
+
+/// Reads back the continuation of the analysis file `path` when it stopped before its end
+/// (`finished = 0`, written by [`write`] from a [`Report`]'s snapshot or an interrupted run): the
+/// branches, the special points and where it stands. None when the file has no continuation or
+/// a finished one.
+pub fn read_unfinished(
+    path: &std::path::Path,
+    st: &crate::nonlinear::Loaded,
+) -> Result<Option<Continuation>> {
+    use crate::h5::{h5err, read_attr, read_rows, read_strings};
+    let e = h5err(path);
+    let file = hdf5::File::open(path).map_err(&e)?;
+    let Ok(g) = file.group("continuation") else {
+        return Ok(None);
+    };
+    if read_attr::<u8>(&g, "finished").unwrap_or(1) == 1 {
+        return Ok(None);
+    }
+    let text = crate::h5::read_str(&file, "study").unwrap_or_default();
+    if text != st.text {
+        return Err(crate::Error::Io {
+            file: path.to_path_buf(),
+            message: "written by another study text: a continuation goes on only with the study that began it".into(),
+        });
+    }
+    let obs: Vec<&str> = st
+        .spec
+        .observables
+        .iter()
+        .map(|o| o.name.as_str())
+        .collect();
+    (|| -> hdf5::Result<Option<Continuation>> {
+        let n: u64 = read_attr(&g, "branches")?;
+        let mut branches = Vec::new();
+        for i in 0..n {
+            branches.push(read_branch(&g.group(&format!("branch_{i}"))?, &obs)?);
+        }
+        let step: f64 = match n.checked_sub(1) {
+            Some(last) => {
+                let bg = g.group(&format!("branch_{last}"))?;
+                read_attr(&bg, "next_step")?
+            }
+            None => 0.0,
+        };
+        let mut queue = Vec::new();
+        for i in 0..read_attr::<u64>(&g, "pending")? {
+            let pg = g.group(&format!("pending_{i}"))?;
+            let b = read_branch(&pg, &obs)?;
+            let switch = match pg.dataset("switch") {
+                Ok(d) => {
+                    let mut v: Vec<f64> = d.read_raw()?;
+                    let ts = v.pop().unwrap_or(0.0);
+                    Some((v, ts))
+                }
+                Err(_) => None,
+            };
+            let start = b
+                .points
+                .into_iter()
+                .next()
+                .ok_or("a pending branch without its point")?;
+            queue.push(Pending {
+                start,
+                k: read_attr::<u64>(&pg, "branch_periods")? as usize,
+                origin: b.origin,
+                switch,
+            });
+        }
+        let sg = g.group("special")?;
+        let kinds = read_strings(&sg, "kind")?;
+        let col = |name: &str| read_rows(&sg, name);
+        let (branch, after, param, bracket) = (
+            sg.dataset("branch")?.read_raw::<u64>()?,
+            sg.dataset("after")?.read_raw::<u64>()?,
+            sg.dataset("parameter")?.read_raw::<f64>()?,
+            sg.dataset("bracket")?.read_raw::<f64>()?,
+        );
+        let (states, re, im) = (
+            col("state")?,
+            col("multipliers_re")?,
+            col("multipliers_im")?,
+        );
+        let strobe: Vec<Vec<f64>> = obs
+            .iter()
+            .map(|o| sg.dataset(&format!("strobe/{o}"))?.read_raw::<f64>())
+            .collect::<hdf5::Result<_>>()?;
+        let mut specials = Vec::new();
+        for (i, kind) in kinds.iter().enumerate() {
+            let kind = Kind::ALL
+                .into_iter()
+                .find(|k| k.name() == kind)
+                .ok_or_else(|| format!("unknown special point '{kind}'"))?;
+            specials.push(Special {
+                kind,
+                branch: branch[i] as usize,
+                after: after[i] as usize,
+                parameter: param[i],
+                bracket: bracket[i],
+                state: states[i].clone(),
+                multipliers: re[i]
+                    .iter()
+                    .zip(&im[i])
+                    .map(|(a, b)| Complex::new(*a, *b))
+                    .collect(),
+                strobe: vec![strobe.iter().map(|v| v[i]).collect()],
+            });
+        }
+        Ok(Some(Continuation {
+            branches,
+            specials,
+            wall: read_attr(&g, "wall_time")?,
+            units: Vec::new(),
+            unfinished: Some(Unfinished {
+                step,
+                queue,
+                points_done: read_attr::<u64>(&g, "points_done")? as usize,
+            }),
+        }))
+    })()
+    .map_err(|err| crate::Error::Io {
+        file: path.to_path_buf(),
+        message: format!("cannot read the unfinished continuation to resume it: {err}"),
+    })
+}
+
+/// One branch as [`write_branch`] wrote it (the points' monodromy matrices are not kept: a
+/// resumed continuation needs only their multipliers).
+fn read_branch(g: &hdf5::Group, obs: &[&str]) -> hdf5::Result<Branch> {
+    use crate::h5::{read_attr, read_rows, read_str};
+    let k = read_attr::<u64>(g, "orbit_periods")? as usize;
+    let parameter: Vec<f64> = g.dataset("parameter")?.read_raw()?;
+    let n = parameter.len();
+    let mut points = Vec::with_capacity(n);
+    if n > 0 {
+        let t: f64 = read_attr(g, "strobe_time")?;
+        let period: f64 = read_attr(g, "period")?;
+        let spurious = read_attr::<u64>(g, "spurious")? as usize;
+        let scaled: Vec<f64> = g.dataset("scaled")?.read_raw()?;
+        let state = read_rows(g, "state")?;
+        let tangent = read_rows(g, "tangent")?;
+        let onset = read_rows(g, "onset").ok();
+        let (re, im) = (
+            read_rows(g, "multipliers_re")?,
+            read_rows(g, "multipliers_im")?,
+        );
+        let residual: Vec<f64> = g.dataset("residual")?.read_raw()?;
+        let iterations: Vec<u64> = g.dataset("iterations")?.read_raw()?;
+        let events: Vec<u64> = g.dataset("events")?.read_raw()?;
+        let gap: Option<Vec<f64>> = g.dataset("gap").and_then(|d| d.read_raw()).ok();
+        let strobe: Vec<Vec<Vec<f64>>> = obs
+            .iter()
+            .map(|o| read_rows(g, &format!("strobe/{o}")))
+            .collect::<hdf5::Result<_>>()?;
+        for i in 0..n {
+            let mut tan = tangent[i].clone();
+            let ts = tan.pop().unwrap_or(0.0);
+            let mut st = HybridState::new(t, state[i].clone());
+            st.onset = onset.as_ref().map(|o| o[i].clone()).unwrap_or_default();
+            let orbit = Orbit {
+                state: st,
+                k,
+                period,
+                residual: residual[i],
+                iterations: iterations[i] as usize,
+                multipliers: re[i]
+                    .iter()
+                    .zip(&im[i])
+                    .map(|(a, b)| Complex::new(*a, *b))
+                    .collect(),
+                spurious,
+                events: events[i],
+                monodromy: DMatrix::zeros(0, 0),
+                basis: None,
+            };
+            points.push(Point {
+                parameter: parameter[i],
+                orbit,
+                iterations: iterations[i] as usize,
+                strobe: (0..k)
+                    .map(|j| strobe.iter().map(|o| o[i][j]).collect())
+                    .collect(),
+                gap: gap.as_ref().map(|g| g[i]).filter(|g| !g.is_nan()),
+                tangent_y: tan,
+                tangent_s: ts,
+                s: scaled[i],
+            });
+        }
+    }
+    Ok(Branch {
+        k,
+        origin: read_str(g, "origin")?,
+        points,
+        end: read_str(g, "end")?,
+        failed: read_attr::<u8>(g, "failed")? == 1,
+    })
 }
 
 fn write_branch(
@@ -1190,6 +1733,44 @@ fn write_branch(
     )?;
     let ev: Vec<u64> = b.points.iter().map(|p| p.orbit.events).collect();
     write_column(g, "events", &ev, None, "impacts along one orbit")?;
+    // What a resumed continuation needs: the scaled parameter, the tangent and the contacts'
+    // onset memory of each point.
+    write1(
+        g,
+        "scaled",
+        &col(&|p| p.s),
+        "1",
+        "the scaled parameter (p - from) / (to - from) the continuation steps in",
+    )?;
+    let tangent: Vec<f64> = b
+        .points
+        .iter()
+        .flat_map(|p| p.tangent_y.iter().copied().chain([p.tangent_s]))
+        .collect();
+    write_table(
+        g,
+        "tangent",
+        &tangent,
+        n + 1,
+        "SI",
+        "unit tangent of the branch: the state part, then the scaled parameter's",
+    )?;
+    let nc = b.points.first().map_or(0, |p| p.orbit.state.onset.len());
+    if nc > 0 {
+        let onset: Vec<f64> = b
+            .points
+            .iter()
+            .flat_map(|p| p.orbit.state.onset.clone())
+            .collect();
+        write_table(
+            g,
+            "onset",
+            &onset,
+            nc,
+            "m/s",
+            "approach velocity at the onset of each contact at the strobe point (NaN: out of contact)",
+        )?;
+    }
     if b.points.iter().any(|p| p.gap.is_some()) {
         write1(
             g,

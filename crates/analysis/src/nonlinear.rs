@@ -803,6 +803,7 @@ impl Loaded {
                 ));
             }
         }
+        crate::continuation::start_of(self)?;
         Ok(())
     }
 

@@ -270,6 +270,11 @@ pub fn shoot<F: Tangent>(
             "the number of periods k must be at least 1".into(),
         ));
     }
+    if flow.phase_dim() == 0 {
+        return Err(orbit_error(
+            "the flow has no free degree of freedom: the drives prescribe its whole motion, so there is no orbit to find".into(),
+        ));
+    }
     let mut state = start.for_new_run();
     flow.onto_manifold(state.t, &mut state.y)?;
     let mut ev = evaluate(flow, &state, k)?;

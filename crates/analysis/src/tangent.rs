@@ -124,6 +124,12 @@ pub trait Tangent: Flow {
     fn onto_manifold(&mut self, _t: f64, _y: &mut [f64]) -> crate::Result<()> {
         Ok(())
     }
+    /// How far `(t, y)` is off the phase space: the largest position constraint residual, the
+    /// largest velocity constraint residual (for a mechanism's joints in m and m/s) and the
+    /// largest `|e.e - 1|` of the Euler parameters; zeros for a flow without constraints.
+    fn off_manifold(&mut self, _t: f64, _y: &[f64]) -> [f64; 3] {
+        [0.0; 3]
+    }
 }
 
 /// The difference quotient of a mechanism's Jacobian-vector product (see the module overview).
@@ -455,6 +461,17 @@ impl Tangent for MechFlow<'_> {
         }
         Ok(Some(basis))
     }
+    fn off_manifold(&mut self, t: f64, y: &[f64]) -> [f64; 3] {
+        let mut r = Vec::new();
+        self.manifold_residual(t, y, &mut r);
+        let rows = self.mech.model.n_rows;
+        let max = |v: &[f64]| v.iter().fold(0.0f64, |m, x| m.max(x.abs()));
+        [
+            max(&r[..rows]),
+            max(&r[rows..2 * rows]),
+            max(&r[2 * rows..]),
+        ]
+    }
     fn onto_manifold(&mut self, t: f64, y: &mut [f64]) -> crate::Result<()> {
         let mut state = jointplay_solver::model::State { t, y: y.to_vec() };
         self.mech.model.assemble(&mut state)?;
@@ -513,6 +530,9 @@ impl Tangent for AnyFlow<'_> {
     }
     fn onto_manifold(&mut self, t: f64, y: &mut [f64]) -> crate::Result<()> {
         either!(self, f => f.onto_manifold(t, y))
+    }
+    fn off_manifold(&mut self, t: f64, y: &[f64]) -> [f64; 3] {
+        either!(self, f => f.off_manifold(t, y))
     }
     fn event_gradient(&self, i: usize, t: f64, y: &[f64], out: &mut [f64]) {
         either!(self, f => f.event_gradient(i, t, y, out))

@@ -3,7 +3,7 @@
 
 use std::path::Path;
 
-use jointplay_analysis::continuation::{Kind, Settings, continuation};
+use jointplay_analysis::continuation::{Begin, Continuation, Kind, Settings, continuation};
 use jointplay_analysis::flow::{Flow, Target};
 use jointplay_analysis::nonlinear::Loaded;
 use jointplay_analysis::periodic::{Newton, shoot};
@@ -211,7 +211,7 @@ fn duffing_first_period_doubling_by_continuation_agrees_with_brute_force() {
     let start = settle(&duffing(0.2), 20);
     let set = settings(0.2, 0.3, 0.01);
     let t = std::time::Instant::now();
-    let c = continuation(&make, &set, &start, &mut |_| {}).unwrap();
+    let c = continuation(&make, &set, &start, &mut |_| true).unwrap();
     let wall = t.elapsed();
     let pd: Vec<_> = c
         .specials
@@ -292,7 +292,7 @@ fn impact_oscillator_grazes_at_a_equal_0_1() {
     set.grazing = Some((0, 1.0));
     set.locate = 1e-9;
     let t = std::time::Instant::now();
-    let c = continuation(&make, &set, &start, &mut |_| {}).unwrap();
+    let c = continuation(&make, &set, &start, &mut |_| true).unwrap();
     for b in &c.branches {
         eprintln!(
             "branch k={} from {}: {} points, {} to {}, events {:?}, end: {}",
@@ -371,7 +371,7 @@ fn hardening_duffing_folds_bound_the_hysteresis_of_sweeps() {
     let mut set = settings(1.0, 3.0, 0.05);
     set.max_points = 400;
     let t = std::time::Instant::now();
-    let c = continuation(&make, &set, &start, &mut |_| {}).unwrap();
+    let c = continuation(&make, &set, &start, &mut |_| true).unwrap();
     let wall = t.elapsed();
     let folds: Vec<_> = c.specials.iter().filter(|s| s.kind == Kind::Fold).collect();
     assert_eq!(folds.len(), 2, "{:?}", c.specials);
@@ -487,7 +487,8 @@ fn continuation_is_written_to_the_analysis_file() {
         &|_| {},
     )
     .unwrap();
-    let c = jointplay_analysis::continuation::run_study(&st, &mut |_| {}).unwrap();
+    let c = jointplay_analysis::continuation::run_study(&st, Begin::Fresh(None), &mut |_| true)
+        .unwrap();
     jointplay_analysis::continuation::write(&o.file, &st, Ok(&c)).unwrap();
     // Written twice: the second replaces the first.
     jointplay_analysis::continuation::write(&o.file, &st, Ok(&c)).unwrap();
@@ -667,7 +668,7 @@ fn van_der_pol_loses_its_forced_response_to_a_torus_where_the_mean_of_x_squared_
     let st = Loaded::parse(text, Path::new("periodic-test.toml")).unwrap();
     let make = |f: f64| st.target_with(&[("forcing", f)]);
     let start = settle(&van_der_pol(0.8), 40);
-    let c = continuation(&make, &settings(0.8, 0.4, 0.02), &start, &mut |_| {}).unwrap();
+    let c = continuation(&make, &settings(0.8, 0.4, 0.02), &start, &mut |_| true).unwrap();
     let ns: Vec<_> = c
         .specials
         .iter()
@@ -701,4 +702,202 @@ fn van_der_pol_loses_its_forced_response_to_a_torus_where_the_mean_of_x_squared_
     eprintln!("strobe spread over the last 50 of 400 periods: {above:e} above, {below:e} below");
     assert!(above < 1e-6, "F + 0.02: spread {above}");
     assert!(below > 1e-2, "F - 0.02: spread {below}");
+}
+
+/// The Duffing continuation of `continuation_is_written_to_the_analysis_file` (period-1 branch,
+/// its period doubling and the period-2 branch switched to).
+fn duffing_continuation_study() -> Loaded {
+    let text = duffing_study(
+        "[continuation]\nparameter = \"gamma\"\nfrom = 0.2\nto = 0.28\nstep = 0.01\ntolerance = 1e-9\nmax_branches = 2\n",
+    );
+    Loaded::parse(&text, Path::new("t.toml")).unwrap()
+}
+
+fn same_points(a: &Continuation, b: &Continuation) {
+    assert_eq!(a.branches.len(), b.branches.len());
+    for (x, y) in a.branches.iter().zip(&b.branches) {
+        assert_eq!((x.k, &x.origin, &x.end), (y.k, &y.origin, &y.end));
+        assert_eq!(x.points.len(), y.points.len());
+        for (p, q) in x.points.iter().zip(&y.points) {
+            assert_eq!(p.parameter.to_bits(), q.parameter.to_bits());
+            assert_eq!(p.orbit.state.y, q.orbit.state.y);
+            assert_eq!(p.orbit.multipliers, q.orbit.multipliers);
+        }
+    }
+    assert_eq!(a.specials.len(), b.specials.len());
+    for (s, r) in a.specials.iter().zip(&b.specials) {
+        assert_eq!((s.kind, s.branch, s.after), (r.kind, r.branch, r.after));
+        assert_eq!(s.parameter.to_bits(), r.parameter.to_bits());
+    }
+}
+
+/// A continuation stopped after some points, written to its file (as the program does after
+/// every point) and read back, goes on to exactly the points of one never stopped: stopped on
+/// the first branch before and after its period doubling was located (the period-2 branch then
+/// waits in the file), and on the period-2 branch.
+#[test]
+fn a_stopped_continuation_resumes_to_the_points_of_one_never_stopped() {
+    use jointplay_analysis::continuation::{read_unfinished, run_study, write};
+    let st = duffing_continuation_study();
+    let full = run_study(&st, Begin::Fresh(None), &mut |_| true).unwrap();
+    assert_eq!(full.branches.len(), 2);
+    assert!(full.unfinished.is_none());
+    // Reports come after every point but a branch's first: the last one is on the period-2
+    // branch.
+    let n0 = full.branches[0].points.len();
+    let reports: usize = full.branches.iter().map(|b| b.points.len() - 1).sum();
+    assert!(reports > n0 - 1);
+    for stop in [2, n0 - 1, reports] {
+        let dir = tempfile::tempdir().unwrap();
+        let o = jointplay_analysis::nonlinear::execute(
+            &st,
+            dir.path(),
+            Default::default(),
+            "test",
+            &|_| {},
+        )
+        .unwrap();
+        let mut reports = 0;
+        let part = run_study(&st, Begin::Fresh(None), &mut |_| {
+            reports += 1;
+            reports < stop
+        })
+        .unwrap();
+        assert!(part.unfinished.is_some(), "stopped after {stop}");
+        write(&o.file, &st, Ok(&part)).unwrap();
+        {
+            let f = hdf5::File::open(&o.file).unwrap();
+            let g = f.group("continuation").unwrap();
+            assert_eq!(g.attr("finished").unwrap().read_scalar::<u8>().unwrap(), 0);
+            assert_eq!(g.attr("complete").unwrap().read_scalar::<u8>().unwrap(), 0);
+        }
+        let prior = read_unfinished(&o.file, &st).unwrap().expect("unfinished");
+        let rest = run_study(&st, Begin::Resume(prior), &mut |_| true).unwrap();
+        assert!(rest.unfinished.is_none());
+        same_points(&full, &rest);
+        write(&o.file, &st, Ok(&rest)).unwrap();
+        assert!(read_unfinished(&o.file, &st).unwrap().is_none());
+    }
+    // Another study text does not go on with it.
+    let dir = tempfile::tempdir().unwrap();
+    let o = jointplay_analysis::nonlinear::execute(
+        &st,
+        dir.path(),
+        Default::default(),
+        "test",
+        &|_| {},
+    )
+    .unwrap();
+    let part = run_study(&st, Begin::Fresh(None), &mut |_| false).unwrap();
+    write(&o.file, &st, Ok(&part)).unwrap();
+    let other = Loaded::parse(
+        &st.text.replace("to = 0.28", "to = 0.27"),
+        Path::new("t.toml"),
+    )
+    .unwrap();
+    let err = read_unfinished(&o.file, &other).unwrap_err().to_string();
+    assert!(err.contains("another study text"), "{err}");
+}
+
+/// `[continuation] start` takes a branch point of a file: shooting from it converges at once and
+/// the branch goes on from there; a point at another parameter than `from`, a missing point, a
+/// missing file and a state at another phase are refused naming the field.
+#[test]
+fn a_continuation_starts_from_a_branch_point_of_a_file() {
+    use jointplay_analysis::continuation::{run_study, write};
+    let st = duffing_continuation_study();
+    let dir = tempfile::tempdir().unwrap();
+    let o = jointplay_analysis::nonlinear::execute(
+        &st,
+        dir.path(),
+        Default::default(),
+        "test",
+        &|_| {},
+    )
+    .unwrap();
+    let full = run_study(&st, Begin::Fresh(None), &mut |_| true).unwrap();
+    write(&o.file, &st, Ok(&full)).unwrap();
+    let p3 = &full.branches[0].points[3];
+    let file = o.file.display().to_string();
+    let study = |from: f64, start: &str| {
+        duffing_study(&format!(
+            "[continuation]\nparameter = \"gamma\"\nfrom = {from:e}\nto = 0.28\nstep = 0.01\ntolerance = 1e-9\nmax_branches = 1\nmax_points = 3\nstart = {start}\n"
+        ))
+    };
+    let text = study(
+        p3.parameter,
+        &format!("{{ file = \"{file}\", branch = 0, point = 3 }}"),
+    );
+    let st2 = Loaded::parse(&text, Path::new("t.toml")).unwrap();
+    let c = run_study(
+        &st2,
+        Begin::Fresh(jointplay_analysis::continuation::start_of(&st2).unwrap()),
+        &mut |_| true,
+    )
+    .unwrap();
+    let first = &c.branches[0].points[0];
+    // The stored orbit is converged to 1e-9: Newton has nothing to do.
+    assert_eq!(first.iterations, 0);
+    assert!(first.orbit.residual <= 1e-9);
+    assert!(
+        first
+            .orbit
+            .state
+            .y
+            .iter()
+            .zip(&p3.orbit.state.y)
+            .all(|(a, b)| (a - b).abs() < 1e-12)
+    );
+    for (start, from, field, what) in [
+        (
+            format!("{{ file = \"{file}\", branch = 0, point = 3 }}"),
+            0.2,
+            "continuation.start.point",
+            "set from",
+        ),
+        (
+            format!("{{ file = \"{file}\", branch = 0, point = 99 }}"),
+            0.2,
+            "continuation.start.point",
+            "not one of them",
+        ),
+        (
+            format!("{{ file = \"{file}\", branch = 7 }}"),
+            0.2,
+            "continuation.start.branch",
+            "branch_7",
+        ),
+        (
+            "{ file = \"no-such-file.h5\" }".to_string(),
+            0.2,
+            "continuation.start.file",
+            "cannot open",
+        ),
+    ] {
+        let err = Loaded::parse(&study(from, &start), Path::new("t.toml"))
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains(field) && err.contains(what), "{field}: {err}");
+    }
+    // The analysis file's final state is 30 periods after the start: a strobe time. Moved by a
+    // tenth of a period it is not.
+    let f = hdf5::File::open_rw(&o.file).unwrap();
+    let t: f64 = f.dataset("final_time").unwrap().read_scalar().unwrap();
+    f.unlink("final_time").unwrap();
+    f.new_dataset::<f64>()
+        .create("final_time")
+        .unwrap()
+        .write_scalar(&(t + 0.5))
+        .unwrap();
+    drop(f);
+    let err = Loaded::parse(
+        &study(0.2, &format!("{{ file = \"{file}\" }}")),
+        Path::new("t.toml"),
+    )
+    .unwrap_err()
+    .to_string();
+    assert!(
+        err.contains("continuation.start.file") && err.contains("not at a strobe time"),
+        "{err}"
+    );
 }

@@ -382,10 +382,22 @@ fn branches_panel(d: &Data, f: &FigureSpec, y: &str, scale: f64, y_label: String
         p.title = format!("{} (no continuation in the file)", p.title);
         return p;
     };
-    p.x_label = if c.unit.is_empty() {
+    // The parameter in millimetres when it is a small length (a clearance), as the sweep's
+    // bifurcation diagrams draw it.
+    let all = c
+        .branches
+        .iter()
+        .flat_map(|b| b.parameter.iter().copied())
+        .chain(c.specials.iter().map(|s| s.1))
+        .chain(d.jobs.iter().map(|j| j.parameter));
+    let (px, punit) = match display_scale(&c.unit, all) {
+        Some((f, u)) => (f, u.to_string()),
+        None => (1.0, c.unit.clone()),
+    };
+    p.x_label = if punit.is_empty() {
         short(&c.parameter).to_string()
     } else {
-        format!("{} ({})", short(&c.parameter), c.unit)
+        format!("{} ({punit})", short(&c.parameter))
     };
     let (mut stable_seen, mut unstable_seen) = (false, false);
     for b in &c.branches {
@@ -414,7 +426,7 @@ fn branches_panel(d: &Data, f: &FigureSpec, y: &str, scale: f64, y_label: String
                 }
                 p.series.push(Series {
                     label: label.into(),
-                    x: b.parameter[start..=stop].to_vec(),
+                    x: b.parameter[start..=stop].iter().map(|v| v * px).collect(),
                     y: rows[start..=stop].iter().map(|r| r[j] * scale).collect(),
                 });
                 p.styles.push(crate::plot::LineStyle {
@@ -433,7 +445,7 @@ fn branches_panel(d: &Data, f: &FigureSpec, y: &str, scale: f64, y_label: String
         };
         for j in &d.jobs {
             let v = &j.sections["strobe"][y];
-            pts.x.extend(std::iter::repeat_n(j.parameter, v.len()));
+            pts.x.extend(std::iter::repeat_n(j.parameter * px, v.len()));
             pts.y.extend(v.iter().map(|a| a * scale));
         }
         p.points.push(pts);
@@ -452,7 +464,7 @@ fn branches_panel(d: &Data, f: &FigureSpec, y: &str, scale: f64, y_label: String
         }
         p.points.push(Series {
             label: kind.replace('-', " "),
-            x: sp.iter().map(|s| s.1).collect(),
+            x: sp.iter().map(|s| s.1 * px).collect(),
             y: sp.iter().map(|s| s.2[y] * scale).collect(),
         });
         p.point_colors.push(color);
