@@ -1339,12 +1339,7 @@ pub fn write(
         file.unlink("continuation").map_err(&e)?;
     }
     let spec = st.spec.continuation.as_ref().expect("asked for");
-    let obs: Vec<&str> = st
-        .spec
-        .observables
-        .iter()
-        .map(|o| o.name.as_str())
-        .collect();
+    let obs = observable_names(st);
     (|| -> hdf5::Result<()> {
         let g = file.create_group("continuation")?;
         str_attr(&g, "parameter", &spec.parameter)?;
@@ -1429,6 +1424,14 @@ pub fn write(
     file.close().map_err(&e)
 }
 
+fn observable_names(st: &crate::nonlinear::Loaded) -> Vec<&str> {
+    st.spec
+        .observables
+        .iter()
+        .map(|o| o.name.as_str())
+        .collect()
+}
+
 /// Reads back the continuation of the analysis file `path` when it stopped before its end
 /// (`finished = 0`, written by [`write`] from a [`Report`]'s snapshot or an interrupted run): the
 /// branches, the special points and where it stands. None when the file has no continuation or
@@ -1453,12 +1456,7 @@ pub fn read_unfinished(
             message: "written by another study text: a continuation goes on only with the study that began it".into(),
         });
     }
-    let obs: Vec<&str> = st
-        .spec
-        .observables
-        .iter()
-        .map(|o| o.name.as_str())
-        .collect();
+    let obs = observable_names(st);
     (|| -> hdf5::Result<Option<Continuation>> {
         let n: u64 = read_attr(&g, "branches")?;
         let mut branches = Vec::new();

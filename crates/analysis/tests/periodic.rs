@@ -706,6 +706,15 @@ fn van_der_pol_loses_its_forced_response_to_a_torus_where_the_mean_of_x_squared_
 
 /// The Duffing continuation of `continuation_is_written_to_the_analysis_file` (period-1 branch,
 /// its period doubling and the period-2 branch switched to).
+/// The study's analysis run, written into a new temporary directory (kept alive by the first).
+fn analysis_file(st: &Loaded) -> (tempfile::TempDir, std::path::PathBuf) {
+    let dir = tempfile::tempdir().unwrap();
+    let o =
+        jointplay_analysis::nonlinear::execute(st, dir.path(), Default::default(), "test", &|_| {})
+            .unwrap();
+    (dir, o.file)
+}
+
 fn duffing_continuation_study() -> Loaded {
     let text = duffing_study(
         "[continuation]\nparameter = \"gamma\"\nfrom = 0.2\nto = 0.28\nstep = 0.01\ntolerance = 1e-9\nmax_branches = 2\n",
@@ -748,15 +757,7 @@ fn a_stopped_continuation_resumes_to_the_points_of_one_never_stopped() {
     let reports: usize = full.branches.iter().map(|b| b.points.len() - 1).sum();
     assert!(reports > n0 - 1);
     for stop in [2, n0 - 1, reports] {
-        let dir = tempfile::tempdir().unwrap();
-        let o = jointplay_analysis::nonlinear::execute(
-            &st,
-            dir.path(),
-            Default::default(),
-            "test",
-            &|_| {},
-        )
-        .unwrap();
+        let (_dir, file) = analysis_file(&st);
         let mut reports = 0;
         let part = run_study(&st, Begin::Fresh(None), &mut |_| {
             reports += 1;
@@ -764,38 +765,30 @@ fn a_stopped_continuation_resumes_to_the_points_of_one_never_stopped() {
         })
         .unwrap();
         assert!(part.unfinished.is_some(), "stopped after {stop}");
-        write(&o.file, &st, Ok(&part)).unwrap();
+        write(&file, &st, Ok(&part)).unwrap();
         {
-            let f = hdf5::File::open(&o.file).unwrap();
+            let f = hdf5::File::open(&file).unwrap();
             let g = f.group("continuation").unwrap();
             assert_eq!(g.attr("finished").unwrap().read_scalar::<u8>().unwrap(), 0);
             assert_eq!(g.attr("complete").unwrap().read_scalar::<u8>().unwrap(), 0);
         }
-        let prior = read_unfinished(&o.file, &st).unwrap().expect("unfinished");
+        let prior = read_unfinished(&file, &st).unwrap().expect("unfinished");
         let rest = run_study(&st, Begin::Resume(prior), &mut |_| true).unwrap();
         assert!(rest.unfinished.is_none());
         same_points(&full, &rest);
-        write(&o.file, &st, Ok(&rest)).unwrap();
-        assert!(read_unfinished(&o.file, &st).unwrap().is_none());
+        write(&file, &st, Ok(&rest)).unwrap();
+        assert!(read_unfinished(&file, &st).unwrap().is_none());
     }
     // Another study text does not go on with it.
-    let dir = tempfile::tempdir().unwrap();
-    let o = jointplay_analysis::nonlinear::execute(
-        &st,
-        dir.path(),
-        Default::default(),
-        "test",
-        &|_| {},
-    )
-    .unwrap();
+    let (_dir, file) = analysis_file(&st);
     let part = run_study(&st, Begin::Fresh(None), &mut |_| false).unwrap();
-    write(&o.file, &st, Ok(&part)).unwrap();
+    write(&file, &st, Ok(&part)).unwrap();
     let other = Loaded::parse(
         &st.text.replace("to = 0.28", "to = 0.27"),
         Path::new("t.toml"),
     )
     .unwrap();
-    let err = read_unfinished(&o.file, &other).unwrap_err().to_string();
+    let err = read_unfinished(&file, &other).unwrap_err().to_string();
     assert!(err.contains("another study text"), "{err}");
 }
 
@@ -806,19 +799,11 @@ fn a_stopped_continuation_resumes_to_the_points_of_one_never_stopped() {
 fn a_continuation_starts_from_a_branch_point_of_a_file() {
     use jointplay_analysis::continuation::{run_study, write};
     let st = duffing_continuation_study();
-    let dir = tempfile::tempdir().unwrap();
-    let o = jointplay_analysis::nonlinear::execute(
-        &st,
-        dir.path(),
-        Default::default(),
-        "test",
-        &|_| {},
-    )
-    .unwrap();
+    let (_dir, file) = analysis_file(&st);
     let full = run_study(&st, Begin::Fresh(None), &mut |_| true).unwrap();
-    write(&o.file, &st, Ok(&full)).unwrap();
+    write(&file, &st, Ok(&full)).unwrap();
     let p3 = &full.branches[0].points[3];
-    let file = o.file.display().to_string();
+    let file = file.display().to_string();
     let study = |from: f64, start: &str| {
         duffing_study(&format!(
             "[continuation]\nparameter = \"gamma\"\nfrom = {from:e}\nto = 0.28\nstep = 0.01\ntolerance = 1e-9\nmax_branches = 1\nmax_points = 3\nstart = {start}\n"
@@ -881,7 +866,7 @@ fn a_continuation_starts_from_a_branch_point_of_a_file() {
     }
     // The analysis file's final state is 30 periods after the start: a strobe time. Moved by a
     // tenth of a period it is not.
-    let f = hdf5::File::open_rw(&o.file).unwrap();
+    let f = hdf5::File::open_rw(&file).unwrap();
     let t: f64 = f.dataset("final_time").unwrap().read_scalar().unwrap();
     f.unlink("final_time").unwrap();
     f.new_dataset::<f64>()
