@@ -2,7 +2,9 @@
 # Runs every 4-UPS/RPU study of docs/reproduction.md that takes minutes, not hours: sections
 # 2.2-2.5 of Chen et al. 2023, the geometry variants, the step-size check, the gravity-sign screen
 # and the short section-3 analysis; then regenerates the document's tables from their HDF5 files
-# and copies the figures the document shows into docs/figures.
+# and copies the figures the document shows into docs/figures. The ensembles of perturbed starts
+# (section2-ensemble, section3-ensemble-0.3 and -0.7) are run too and their summaries printed,
+# for the hand-kept tables of the document.
 #
 #   analyses/4ups-rpu/run-all.sh [OUT_DIR]      (default out/4ups-rpu)
 #
@@ -31,3 +33,16 @@ for f in section3-quick-bifurcation-S2_vy section3-quick-bifurcation-R1_vy \
   section3-quick-phase-platform_y-platform_vy section3-updown-bifurcation-platform_vy; do
   cp "$out/$f.png" docs/figures/
 done
+for s in section2-ensemble section3-ensemble-0.3 section3-ensemble-0.7; do
+  start=$SECONDS
+  "$JOINTPLAY" run "analyses/4ups-rpu/$s.toml" --out "$out" -q
+  echo "$s: $((SECONDS - start)) s wall"
+done
+python3 analyses/4ups-rpu/section2_ensemble_summary.py "$out/section2-ensemble.md"
+if python3 -c "import h5py, numpy" 2>/dev/null; then
+  for c in 0.3 0.7; do
+    python3 analyses/4ups-rpu/section3_ensemble_summary.py "$out/section3-ensemble-$c.h5"
+  done
+else
+  echo "section3_ensemble_summary.py needs h5py and numpy (pip install h5py): summaries skipped"
+fi

@@ -601,6 +601,25 @@ where
     Ok(())
 }
 
+/// The file of a figure: the extension of `format` appended to `stem`. A stem may hold a dot of
+/// its own (a study named "section3-ensemble-0.3"), which `with_extension` would take for an
+/// extension; a stem that already ends in .png or .svg has it replaced.
+fn file_of(stem: &Path, format: Format) -> std::path::PathBuf {
+    let ext = match format {
+        Format::Png => "png",
+        Format::Svg => "svg",
+    };
+    match stem.extension().and_then(|e| e.to_str()) {
+        Some("png" | "svg") => stem.with_extension(ext),
+        _ => {
+            let mut name = stem.as_os_str().to_owned();
+            name.push(".");
+            name.push(ext);
+            std::path::PathBuf::from(name)
+        }
+    }
+}
+
 /// Draws `panels` in a grid of `cols` columns to `path` (extension added from `format`).
 pub fn figure(
     path_stem: &Path,
@@ -612,10 +631,7 @@ pub fn figure(
     let cols = cols.max(1).min(panels.len().max(1));
     let rows = panels.len().div_ceil(cols).max(1);
     let size = (560 * cols as u32, 380 * rows as u32);
-    let path = path_stem.with_extension(match format {
-        Format::Png => "png",
-        Format::Svg => "svg",
-    });
+    let path = file_of(path_stem, format);
     let res = match format {
         Format::Png => draw(
             BitMapBackend::new(&path, size).into_drawing_area(),
@@ -638,6 +654,17 @@ pub fn figure(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_dot_in_a_figure_name_is_kept() {
+        let f = |s: &str, fmt| file_of(Path::new(s), fmt);
+        assert_eq!(
+            f("out/ens-0.3-bifurcation-S2_vy", Format::Png),
+            Path::new("out/ens-0.3-bifurcation-S2_vy.png")
+        );
+        assert_eq!(f("out/cmp.png", Format::Svg), Path::new("out/cmp.svg"));
+        assert_eq!(f("out/cmp", Format::Svg), Path::new("out/cmp.svg"));
+    }
 
     #[test]
     fn format_names_give_their_formats_in_order() {
