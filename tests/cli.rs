@@ -1511,3 +1511,24 @@ fn a_continuation_start_off_the_constraint_manifold_is_refused() {
     );
     assert!(!se.contains("panicked"), "{se}");
 }
+
+/// A drive's `ramp_time` must be zero or a positive number of seconds; a negative or non-finite
+/// one is refused naming the drive's field.
+#[test]
+fn a_bad_ramp_time_names_the_drive_field() {
+    let scene = std::fs::read_to_string(scenes().join("4ups-rpu-mixed.toml")).unwrap();
+    assert!(scene.contains("omega = 3.14 }"), "test setup");
+    for bad in ["-1.0", "nan"] {
+        let dir = tempfile::tempdir().unwrap();
+        let edited = scene.replacen(
+            "omega = 3.14 }",
+            &format!("omega = 3.14, ramp_time = {bad} }}"),
+            1,
+        );
+        let p = write_scene(dir.path(), "ramp.toml", &edited);
+        let o = bin().arg("check").arg(&p).output().unwrap();
+        let (_, se) = text(&o);
+        assert_eq!(o.status.code(), Some(1), "{se}");
+        assert!(se.contains("drives[0].profile.ramp_time"), "{se}");
+    }
+}

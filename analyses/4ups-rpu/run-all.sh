@@ -2,7 +2,8 @@
 # Runs every 4-UPS/RPU study of docs/reproduction.md that takes minutes, not hours: sections
 # 2.2-2.5 of Chen et al. 2023, the geometry variants, the step-size check, the gravity-sign screen
 # and the short section-3 analysis; then regenerates the document's tables from their HDF5 files
-# and copies the figures the document shows into docs/figures. The ensembles of perturbed starts
+# and copies the figures the document shows into docs/figures. The ramped start (ramp, its table
+# in OUT_DIR/ramp.md) and the ensembles of perturbed starts
 # (section2-ensemble, section3-ensemble-0.3 and -0.7) are run too and their summaries printed,
 # for the hand-kept tables of the document.
 #
@@ -11,8 +12,9 @@
 # JOINTPLAY=target/debug/jointplay uses the dev build instead of building the release one.
 # tests/reproduction_tables.rs checks that the committed tables of the cheap studies still match
 # what the program computes. The 50-period section-3 studies (section3-portraits,
-# section3-bifurcation, section3-chaos) take much longer and are run on their own (see the
-# document).
+# section3-bifurcation, section3-chaos) and the continuations of the period-1 orbit
+# (periodic-hanging, 8 minutes; periodic, 2.5 hours) take much longer and are run on their own
+# (see the document). The whole script takes about 10 minutes with the dev build on 2 cores.
 set -euo pipefail
 cd "$(dirname "${BASH_SOURCE[0]}")/../.."
 out=${1:-out/4ups-rpu}
@@ -33,7 +35,7 @@ for f in section3-quick-bifurcation-S2_vy section3-quick-bifurcation-R1_vy \
   section3-quick-phase-platform_y-platform_vy section3-updown-bifurcation-platform_vy; do
   cp "$out/$f.png" docs/figures/
 done
-for s in section2-ensemble section3-ensemble-0.3 section3-ensemble-0.7; do
+for s in ramp section2-ensemble section3-ensemble-0.3 section3-ensemble-0.7; do
   start=$SECONDS
   "$JOINTPLAY" run "analyses/4ups-rpu/$s.toml" --out "$out" -q
   echo "$s: $((SECONDS - start)) s wall"

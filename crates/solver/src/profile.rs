@@ -7,6 +7,20 @@
 //! * leg length: s = |p(t) - a| + s_off with p(t) = c + u cos(w t) + v sin(w t), the inverse
 //!   kinematics of a leg whose platform end translates on an ellipse; with d = p - a, L = |d|:
 //!   s' = d.p'/L, s'' = (p'.p' + d.p'' - s'^2)/L.
+//!
+//! **Ramped start** (`ramp_time` T_r > 0, harmonic and leg-length profiles): the phase
+//! `theta = omega t` is replaced by one whose rate rises from rest to omega with the C1
+//! smoothstep r(u) = 3u^2 - 2u^3, u = t / T_r:
+//!
+//! ```text
+//! theta' = omega r(u),  theta = omega T_r u^3 (1 - u/2),  theta'' = 6 omega u (1 - u) / T_r   (t < T_r)
+//! theta  = omega (t - T_r / 2),  theta' = omega,  theta'' = 0                                  (t >= T_r)
+//! ```
+//!
+//! so the drive starts at rest where the unramped one starts, with a continuous acceleration
+//! (no start-up jerk of the actuators' velocity), and runs after the ramp T_r / 2 behind the
+//! unramped motion. The chain rule gives p' = p_theta theta' and
+//! p'' = p_thetatheta theta'^2 + p_theta theta''.
 
 use nalgebra::Vector3;
 
@@ -22,6 +36,8 @@ pub enum Profile {
         amplitude: f64,
         omega: f64,
         phase: f64,
+        /// Ramp time (s; 0: none).
+        ramp: f64,
     },
     Spline(Spline),
     LegLength {
@@ -31,7 +47,25 @@ pub enum Profile {
         sin_amp: Vector3<f64>,
         omega: f64,
         offset: f64,
+        /// Ramp time (s; 0: none).
+        ramp: f64,
     },
+}
+
+/// The ramped phase (theta, theta', theta'') at time t (module overview); rest before t = 0.
+fn ramped(omega: f64, ramp: f64, t: f64) -> (f64, f64, f64) {
+    if t >= ramp {
+        return (omega * (t - 0.5 * ramp), omega, 0.0);
+    }
+    if t <= 0.0 {
+        return (0.0, 0.0, 0.0);
+    }
+    let u = t / ramp;
+    (
+        omega * ramp * u * u * u * (1.0 - 0.5 * u),
+        omega * u * u * (3.0 - 2.0 * u),
+        6.0 * omega * u * (1.0 - u) / ramp,
+    )
 }
 
 impl Profile {
@@ -51,7 +85,17 @@ impl Profile {
                 amplitude,
                 omega,
                 phase,
+                ramp,
             } => {
+                if *ramp > 0.0 {
+                    let (th, thd, thdd) = ramped(*omega, *ramp, t);
+                    let (s, c) = memo.sin_cos(th + phase);
+                    return (
+                        mean + amplitude * s,
+                        amplitude * c * thd,
+                        amplitude * (c * thdd - s * thd * thd),
+                    );
+                }
                 let (s, c) = memo.sin_cos(omega * t + phase);
                 (
                     mean + amplitude * s,
@@ -67,11 +111,26 @@ impl Profile {
                 sin_amp,
                 omega,
                 offset,
+                ramp,
             } => {
-                let (s, c) = memo.sin_cos(omega * t);
-                let p = center + cos_amp * c + sin_amp * s;
-                let pd = (-cos_amp * s + sin_amp * c) * *omega;
-                let pdd = -(cos_amp * c + sin_amp * s) * (omega * omega);
+                let (p, pd, pdd) = if *ramp > 0.0 {
+                    let (th, thd, thdd) = ramped(*omega, *ramp, t);
+                    let (s, c) = memo.sin_cos(th);
+                    let p_th = -cos_amp * s + sin_amp * c;
+                    let p_thth = -(cos_amp * c + sin_amp * s);
+                    (
+                        center + cos_amp * c + sin_amp * s,
+                        p_th * thd,
+                        p_thth * (thd * thd) + p_th * thdd,
+                    )
+                } else {
+                    let (s, c) = memo.sin_cos(omega * t);
+                    (
+                        center + cos_amp * c + sin_amp * s,
+                        (-cos_amp * s + sin_amp * c) * *omega,
+                        -(cos_amp * c + sin_amp * s) * (omega * omega),
+                    )
+                };
                 let d = p - anchor;
                 let l = d.norm();
                 let ld = d.dot(&pd) / l;
@@ -93,12 +152,19 @@ impl Profile {
                 amplitude,
                 omega,
                 phase,
+                ramp,
             } => {
-                format!("harmonic {mean} + {amplitude} sin({omega} t + {phase})")
+                format!(
+                    "harmonic {mean} + {amplitude} sin({omega} t + {phase}){}",
+                    ramp_words(*ramp)
+                )
             }
             Profile::Spline(_) => "tabulated (natural cubic spline)".into(),
-            Profile::LegLength { omega, .. } => {
-                format!("leg length of a harmonic path, omega {omega} rad/s")
+            Profile::LegLength { omega, ramp, .. } => {
+                format!(
+                    "leg length of a harmonic path, omega {omega} rad/s{}",
+                    ramp_words(*ramp)
+                )
             }
         }
     }
@@ -114,6 +180,14 @@ impl Profile {
             }
             _ => None,
         }
+    }
+}
+
+fn ramp_words(ramp: f64) -> String {
+    if ramp > 0.0 {
+        format!(", ramped up from rest over {ramp} s")
+    } else {
+        String::new()
     }
 }
 
@@ -237,12 +311,14 @@ mod tests {
             sin_amp: Vector3::new(0.0, 0.03, 0.0),
             omega: 2.5,
             offset: 0.0,
+            ramp: 0.0,
         };
         let harm = Profile::Harmonic {
             mean: 1.0,
             amplitude: 0.2,
             omega: 2.0,
             phase: 0.3,
+            ramp: 0.0,
         };
         let sp = Profile::Spline(Spline::new(
             vec![0.0, 0.5, 1.0, 2.0, 3.0],
@@ -253,6 +329,55 @@ mod tests {
             check_derivatives(&harm, t);
             check_derivatives(&sp, t);
         }
+    }
+
+    /// A ramped drive starts at rest where the unramped one starts, its derivatives are exact
+    /// (finite differences inside and after the ramp), its speed and acceleration are
+    /// continuous at the ramp's end, and after it the motion is the unramped one T_r / 2 later.
+    #[test]
+    fn a_ramped_drive_starts_at_rest_and_runs_half_the_ramp_behind() {
+        let leg = |ramp| Profile::LegLength {
+            anchor: Vector3::new(0.0, 0.456, 0.456),
+            center: Vector3::new(1.21, 0.143, 0.143),
+            cos_amp: Vector3::new(-0.03, 0.0, 0.0),
+            sin_amp: Vector3::new(0.0, 0.03, 0.0),
+            omega: 3.0,
+            offset: 0.0,
+            ramp,
+        };
+        let harm = |ramp| Profile::Harmonic {
+            mean: 1.0,
+            amplitude: 0.2,
+            omega: 2.0,
+            phase: 0.3,
+            ramp,
+        };
+        let tr = 0.8;
+        for (ramped, plain) in [(leg(tr), leg(0.0)), (harm(tr), harm(0.0))] {
+            let (s0, v0, _) = ramped.eval(0.0);
+            assert_eq!(s0, plain.eval(0.0).0);
+            assert_eq!(v0, 0.0);
+            for t in [0.05, 0.3, 0.61, 1.1, 2.7] {
+                check_derivatives(&ramped, t);
+            }
+            // Continuity at the ramp's end (the cubic's value, slope and curvature there).
+            let (a, b) = (ramped.eval(tr - 1e-9), ramped.eval(tr + 1e-9));
+            assert!((a.0 - b.0).abs() < 1e-8 && (a.1 - b.1).abs() < 1e-7);
+            assert!((a.2 - b.2).abs() < 1e-6, "{a:?} {b:?}");
+            // Half the ramp behind: the same state as the plain drive at t - T_r / 2 (to
+            // round-off in the phase, ~1e-15 rad).
+            for t in [tr, 1.7, 5.0] {
+                let (r, p) = (ramped.eval(t), plain.eval(t - 0.5 * tr));
+                assert!((r.0 - p.0).abs() < 1e-12 && (r.1 - p.1).abs() < 1e-12);
+                assert!((r.2 - p.2).abs() < 1e-11, "{r:?} {p:?}");
+            }
+            assert_eq!(ramped.period(), plain.period());
+        }
+        assert!(
+            leg(tr)
+                .describe()
+                .ends_with("ramped up from rest over 0.8 s")
+        );
     }
 
     #[test]
@@ -267,6 +392,7 @@ mod tests {
             amplitude: 0.2,
             omega: 2.5,
             phase: 0.0,
+            ramp: 0.0,
         };
         assert_eq!(harm.describe(), "harmonic 1 + 0.2 sin(2.5 t + 0)");
         let sp = Profile::Spline(Spline::new(vec![0.0, 1.0], vec![0.0, 1.0]));
@@ -278,6 +404,7 @@ mod tests {
             sin_amp: Vector3::zeros(),
             omega: 3.0,
             offset: 0.0,
+            ramp: 0.0,
         };
         assert_eq!(
             leg.describe(),

@@ -303,6 +303,10 @@ pub enum ProfileSpec {
         omega: f64,
         #[serde(default)]
         phase: f64,
+        /// Seconds over which the drive's speed rises from rest to omega (0: none; see
+        /// [`crate::profile`]).
+        #[serde(default)]
+        ramp_time: f64,
     },
     /// Natural cubic spline through (time, value); constant outside the table.
     Tabulated { time: Vec<f64>, value: Vec<f64> },
@@ -317,6 +321,10 @@ pub enum ProfileSpec {
         omega: f64,
         #[serde(default)]
         offset: f64,
+        /// Seconds over which the drive's speed rises from rest to omega (0: none; see
+        /// [`crate::profile`]).
+        #[serde(default)]
+        ramp_time: f64,
     },
 }
 

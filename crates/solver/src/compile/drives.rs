@@ -121,11 +121,13 @@ fn profile(p: &ProfileSpec, field: &str, cx: &Ctx) -> Result<Profile> {
             amplitude,
             omega,
             phase,
+            ramp_time,
         } => Profile::Harmonic {
             mean: *mean,
             amplitude: *amplitude,
             omega: *omega,
             phase: *phase,
+            ramp: ramp(*ramp_time, field, cx)?,
         },
         ProfileSpec::Tabulated { time, value } => {
             if time.len() != value.len() {
@@ -152,6 +154,7 @@ fn profile(p: &ProfileSpec, field: &str, cx: &Ctx) -> Result<Profile> {
             sin_amplitude,
             omega,
             offset,
+            ramp_time,
         } => {
             let (a, c, u, v) = (
                 v3(*anchor),
@@ -176,7 +179,20 @@ fn profile(p: &ProfileSpec, field: &str, cx: &Ctx) -> Result<Profile> {
                 sin_amp: v,
                 omega: *omega,
                 offset: *offset,
+                ramp: ramp(*ramp_time, field, cx)?,
             }
         }
     })
+}
+
+/// A profile's `ramp_time` (s): zero (no ramp) or positive and finite.
+fn ramp(t: f64, field: &str, cx: &Ctx) -> Result<f64> {
+    if t.is_finite() && t >= 0.0 {
+        Ok(t)
+    } else {
+        Err(cx.err(
+            format!("{field}.ramp_time"),
+            format!("must be zero (no ramp) or a positive number of seconds, not {t}"),
+        ))
+    }
 }
