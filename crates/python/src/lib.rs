@@ -1002,41 +1002,118 @@ fn analysis(
     progress: &(dyn Fn(Progress) + Sync),
     stop: &Stop,
 ) -> AnyResult<Done> {
+    use jointplay_analysis::continuation::{self, Begin};
     let st = Loaded::parse(text, path).map_err(|e| e.to_string())?;
-    if st.spec.sweep.is_none() && (opts.resume || opts.max_jobs.is_some()) {
+    // Without a sweep, resume and max_jobs apply to a continuation (its points).
+    let continuation_only = st.spec.sweep.is_none() && st.spec.continuation.is_some();
+    if st.spec.sweep.is_none() && !continuation_only && (opts.resume || opts.max_jobs.is_some()) {
         return Err(format!(
-            "{}: resume and max_jobs apply to studies with a [sweep]",
+            "{}: resume and max_jobs apply to studies with a [sweep] or a [continuation]",
             path.display()
         ));
     }
-    let o = execute_until(&st, out, opts, VERSION, progress, stop)
-        .map_err(|e| format!("running {}: {e}", path.display()))?;
-    let figures = if plots {
-        redraw(&o.file, out, &[Format::Png, Format::Svg]).map_err(|e| e.to_string())?
+    // The continuation's start state is read before the analysis rewrites the output file.
+    let start = continuation::start_of(&st).map_err(|e| e.to_string())?;
+    let (file, begin, mut done) = if continuation_only && opts.resume {
+        let file = out.join(format!("{}.h5", st.spec.study.name));
+        let prior = continuation::read_unfinished(&file, &st)
+            .map_err(|e| e.to_string())?
+            .ok_or_else(|| {
+                format!(
+                    "{}: nothing to resume: {} has no unfinished continuation",
+                    path.display(),
+                    file.display()
+                )
+            })?;
+        let done = Done {
+            kind: "analysis",
+            file: file.clone(),
+            complete: true,
+            failed: Vec::new(),
+            table: None,
+            figures: Vec::new(),
+            warnings: Vec::new(),
+            resumable: false,
+        };
+        (file, Some(Begin::Resume(prior)), done)
     } else {
-        Vec::new()
+        let o = execute_until(&st, out, opts, VERSION, progress, stop)
+            .map_err(|e| format!("running {}: {e}", path.display()))?;
+        let failed = o
+            .failed
+            .iter()
+            .map(|(j, m)| {
+                let label = match st.jobs.get(*j) {
+                    Some(v) if st.spec.sweep.is_some() => format!("{j} ({})", v.0),
+                    _ => j.to_string(),
+                };
+                (label, m.clone())
+            })
+            .collect();
+        // Periodic orbits are followed once the analysis is complete (as `jointplay run`).
+        let follow = st.spec.continuation.is_some() && o.complete && o.failed.is_empty();
+        let done = Done {
+            kind: "analysis",
+            file: o.file.clone(),
+            complete: o.complete && o.failed.is_empty(),
+            failed,
+            table: None,
+            figures: Vec::new(),
+            warnings: o.warnings,
+            resumable: o.interrupted && st.spec.sweep.is_some(),
+        };
+        (o.file, follow.then_some(Begin::Fresh(start)), done)
     };
-    let failed = o
-        .failed
-        .iter()
-        .map(|(j, m)| {
-            let label = match st.jobs.get(*j) {
-                Some(v) if st.spec.sweep.is_some() => format!("{j} ({})", v.0),
-                _ => j.to_string(),
-            };
-            (label, m.clone())
-        })
-        .collect();
-    Ok(Done {
-        kind: "analysis",
-        file: o.file,
-        complete: o.complete && o.failed.is_empty(),
-        failed,
-        table: None,
-        figures,
-        warnings: o.warnings,
-        resumable: o.interrupted && st.spec.sweep.is_some(),
-    })
+    if let Some(begin) = begin {
+        // Written after every point, so that a stop keeps what was computed.
+        let limit = opts.max_jobs.filter(|_| continuation_only);
+        let total = st
+            .spec
+            .continuation
+            .as_ref()
+            .map_or(1, |c| c.max_branches * c.max_points);
+        let mut points = 0usize;
+        let mut write_error = None;
+        let res = continuation::run_study(&st, begin, &mut |r| {
+            progress(Progress::Run {
+                done: points,
+                total,
+                what: &r.line,
+            });
+            if let Err(e) = continuation::write(&file, &st, Ok(&r.snapshot)) {
+                write_error = Some(e.to_string());
+                return false;
+            }
+            points += 1;
+            !stop.requested() && limit.is_none_or(|n| points < n)
+        });
+        if let Some(e) = write_error {
+            return Err(format!(
+                "writing the continuation of {}: {e}",
+                file.display()
+            ));
+        }
+        continuation::write(&file, &st, res.as_ref()).map_err(|e| e.to_string())?;
+        match res {
+            Ok(c) if c.unfinished.is_some() => {
+                done.complete = false;
+                done.resumable = true;
+            }
+            Ok(_) => {}
+            Err(e) => {
+                return Err(format!(
+                    "{}: the continuation could not start: {e} (the analysis is in {})",
+                    path.display(),
+                    file.display()
+                ));
+            }
+        }
+    }
+    if plots {
+        done.figures =
+            redraw(&file, out, &[Format::Png, Format::Svg]).map_err(|e| e.to_string())?;
+    }
+    Ok(done)
 }
 
 fn work_precision(
@@ -1085,9 +1162,11 @@ fn work_precision(
 /// ``source`` is a study file or its TOML text (scene paths in text are relative to the current
 /// directory). ``threads`` sets the cases or sweep values run at once (default: every core).
 /// ``resume`` keeps a sweep's finished values in an existing file and ``max_jobs`` stops after
-/// that many. ``plots`` draws the figures as the program does. Ctrl-C stops cleanly: a sweep
-/// keeps its finished values (``resume=True`` later runs the rest) and a single run is written
-/// with what it computed, marked incomplete; ``jointplay.Interrupted`` then carries the result.
+/// that many; for a ``[continuation]`` without a sweep they go on from where its branches
+/// stopped and stop after that many points. ``plots`` draws the figures as the program does.
+/// Ctrl-C stops cleanly: a sweep keeps its finished values (``resume=True`` later runs the
+/// rest), a continuation its points, and a single run is written with what it computed, marked
+/// incomplete; ``jointplay.Interrupted`` then carries the result.
 #[pyfunction]
 #[pyo3(signature = (source, out = PathBuf::from("out"), threads = None, progress = true, resume = false, max_jobs = None, plots = false, precision = false))]
 #[allow(clippy::too_many_arguments)]
@@ -1132,7 +1211,7 @@ fn run_study(
     }
     if (resume || max_jobs.is_some()) && !kind.is_analysis() {
         return Err(err(format!(
-            "{}: resume and max_jobs apply to analysis studies with a [sweep]",
+            "{}: resume and max_jobs apply to analysis studies with a [sweep] or a [continuation]",
             path.display()
         )));
     }

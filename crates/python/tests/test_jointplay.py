@@ -264,3 +264,42 @@ def test_ctrl_c_stops_a_lyapunov_run(tmp_path):
     part = e.value.partial
     assert not part.complete and part.data.attrs["complete"] == 0
     assert "chaos/lyapunov/exponents" not in part.data.datasets
+
+
+CONTINUATION = """
+[study]
+name = "duffing-continuation"
+system = { kind = "duffing", delta = 0.3, alpha = -1.0, beta = 1.0, gamma = 0.2, omega = 1.2, initial = [1.0, 0.0], solver = { integrator = "dopri5", rtol = 1e-11, atol = 1e-12 } }
+[analysis]
+periods = 30
+transient = 20
+samples_per_period = 0
+[[observables]]
+name = "x"
+path = "x"
+[continuation]
+parameter = "gamma"
+from = 0.2
+to = 0.28
+step = 0.01
+tolerance = 1e-9
+max_branches = 2
+"""
+
+
+def test_a_continuation_from_python_stops_and_resumes_to_the_programs_branches(program, tmp_path):
+    """A study's continuation runs from Python into the program's file; stopped after 3 points it
+    is marked unfinished and resumable, and resume=True ends on the program's branches."""
+    study = tmp_path / "c.toml"
+    study.write_text(CONTINUATION)
+    program("run", study, "--out", tmp_path / "cli", "--no-plots", "-q")
+    part = jointplay.run_study(study, out=tmp_path / "py", progress=False, max_jobs=3)
+    assert not part.complete
+    assert part.data.attrs["complete"] == 1  # the analysis itself is complete
+    rest = jointplay.run_study(study, out=tmp_path / "py", progress=False, resume=True)
+    assert rest.complete
+    a = jointplay.load(tmp_path / "cli" / "duffing-continuation.h5")
+    b = jointplay.load(rest.file)
+    for name in ["continuation/branch_0/parameter", "continuation/branch_0/state",
+                 "continuation/branch_1/state", "continuation/special/parameter"]:
+        assert np.array_equal(a[name].view(np.uint64), b[name].view(np.uint64)), name

@@ -155,5 +155,6 @@ def run_study(
     """Runs a comparison, analysis (sweep) or work-precision study (``source``: its file or its
     TOML text) as the program does and returns the written file loaded. ``threads``: cases or
     sweep values at once (default every core). ``resume``/``max_jobs``: as ``--resume`` and
-    ``--max-jobs``. ``plots``: draw the figures. A failed case or value raises
+    ``--max-jobs`` (sweep values, or a continuation's points). ``plots``: draw the figures. A
+    ``[continuation]`` is followed after the analysis, into the same file. A failed case or value raises
     ``JointplayError`` after the file is written. Ctrl-C raises ``Interrupted``."""
