@@ -1376,32 +1376,14 @@ fn a_single_run_reports_its_lyapunov_exponents_k_and_class() {
     }
 }
 
-const DUFFING_CONTINUATION: &str = r#"[study]
-name = "duffing-continuation"
-system = { kind = "duffing", delta = 0.3, alpha = -1.0, beta = 1.0, gamma = 0.2, omega = 1.2, initial = [1.0, 0.0], solver = { integrator = "dopri5", rtol = 1e-11, atol = 1e-12 } }
-[analysis]
-periods = 30
-transient = 20
-samples_per_period = 0
-[[observables]]
-name = "x"
-path = "x"
-[continuation]
-parameter = "gamma"
-from = 0.2
-to = 0.28
-step = 0.01
-tolerance = 1e-9
-max_branches = 2
-"#;
-
 /// A continuation stopped with `--max-jobs` (points) leaves its file marked unfinished, with a
 /// line per point when not on a terminal; `--resume` goes on to the file an uninterrupted run
 /// writes (its branches bit for bit), and a second `--resume` has nothing left to do.
 #[test]
 fn a_continuation_stopped_after_some_points_resumes_from_its_file() {
     let dir = tempfile::tempdir().unwrap();
-    let study = write_scene(dir.path(), "c.toml", DUFFING_CONTINUATION);
+    let study =
+        PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("analyses/duffing/continuation.toml");
     let run = |out: &str, extra: &[&str]| {
         bin()
             .arg("run")

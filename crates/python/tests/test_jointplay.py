@@ -266,32 +266,13 @@ def test_ctrl_c_stops_a_lyapunov_run(tmp_path):
     assert "chaos/lyapunov/exponents" not in part.data.datasets
 
 
-CONTINUATION = """
-[study]
-name = "duffing-continuation"
-system = { kind = "duffing", delta = 0.3, alpha = -1.0, beta = 1.0, gamma = 0.2, omega = 1.2, initial = [1.0, 0.0], solver = { integrator = "dopri5", rtol = 1e-11, atol = 1e-12 } }
-[analysis]
-periods = 30
-transient = 20
-samples_per_period = 0
-[[observables]]
-name = "x"
-path = "x"
-[continuation]
-parameter = "gamma"
-from = 0.2
-to = 0.28
-step = 0.01
-tolerance = 1e-9
-max_branches = 2
-"""
 
 
 def test_a_continuation_from_python_stops_and_resumes_to_the_programs_branches(program, tmp_path):
-    """A study's continuation runs from Python into the program's file; stopped after 3 points it
-    is marked unfinished and resumable, and resume=True ends on the program's branches."""
-    study = tmp_path / "c.toml"
-    study.write_text(CONTINUATION)
+    """The bundled continuation study runs from Python into the program's file; stopped after 3
+    points it is marked unfinished and resumable, and resume=True ends on the program's
+    branches."""
+    study = ROOT / "analyses" / "duffing" / "continuation.toml"
     program("run", study, "--out", tmp_path / "cli", "--no-plots", "-q")
     part = jointplay.run_study(study, out=tmp_path / "py", progress=False, max_jobs=3)
     assert not part.complete
