@@ -103,6 +103,10 @@ def rhs(t, y, v_on, damping=D_LN):
     """Equations of motion [M Phi_q^T; Phi_q 0] [q''; lambda] = [Q; gamma - 2a Phi' - b^2 Phi]."""
     q, qd = y[:9], y[9:]
     f1, f2 = q[2], q[5]
+    if not (math.isfinite(f1) and math.isfinite(f2)):
+        # A trial stage that overflowed: NaN makes solve_ivp reject the step and shrink it
+        # (math.cos would raise instead).
+        return np.full(len(y), np.nan)
     c1, s1, c2, s2 = math.cos(f1), math.sin(f1), math.cos(f2), math.sin(f2)
     w1, w2 = qd[2], qd[5]
 
