@@ -700,25 +700,17 @@ fn follow_orbits(
     if !quiet && std::io::stderr().is_terminal() {
         bar.set_draw_target(ProgressDrawTarget::stderr());
     }
-    let mut checkpoint_error = None;
     let mut points = 0usize;
-    let res = continuation::run_study(st, begin, &mut |r| {
+    let res = continuation::run_into(st, file, begin, limit, &mut |r| {
         bar.set_position((r.fraction * 1000.0) as u64);
         if !quiet && bar.is_hidden() {
             println!("point        {}", r.line);
         }
-        if let Err(e) = continuation::write(file, st, Ok(&r.snapshot)) {
-            checkpoint_error = Some(e);
-            return false;
-        }
         points += 1;
-        limit.is_none_or(|n| points < n)
+        true
     });
     bar.finish_and_clear();
-    if let Some(e) = checkpoint_error {
-        return Err(anyhow::Error::new(e).context("writing the continuation's checkpoint"));
-    }
-    continuation::write(file, st, res.as_ref())?;
+    let res = res.context("writing the continuation into the analysis file")?;
     match res {
         Ok(c) => {
             for line in continuation::summary(&c) {

@@ -543,20 +543,20 @@ pub fn resume(
     let Some(u) = prior.unfinished.take() else {
         return Ok(prior);
     };
-    let open = prior
-        .branches
-        .pop()
-        .filter(|b| !b.points.is_empty())
-        .map(|b| (b, u.step));
+    // The branch being followed, and its last point: the next step's anchor.
+    let open = prior.branches.pop().and_then(|b| {
+        let cur = b.points.last()?.clone();
+        Some((b, cur, u.step))
+    });
     follow(&ctx, prior, open, u.queue, u.points_done, progress)
 }
 
-/// The branches: `open` (a branch followed up to its last point, with its step) first, then the
-/// queue.
+/// The branches: `open` (a branch followed up to its last point, that point and its step) first,
+/// then the queue.
 fn follow(
     ctx: &Ctx,
     mut out: Continuation,
-    mut open: Option<(Branch, f64)>,
+    mut open: Option<(Branch, Point, f64)>,
     mut queue: Vec<Pending>,
     mut done_points: usize,
     progress: &mut dyn FnMut(&mut Report) -> bool,
@@ -567,13 +567,8 @@ fn follow(
     let total = (set.max_branches * set.max_points) as f64;
     let (hmin, hmax) = (set.min_step / ctx.range(), set.max_step / ctx.range());
     loop {
-        let (mut branch, mut h, mut cur) = if let Some((b, h)) = open.take() {
-            let cur = b
-                .points
-                .last()
-                .cloned()
-                .expect("an open branch has a point");
-            (b, h, cur)
+        let (mut branch, mut h, mut cur) = if let Some(open) = open.take() {
+            (open.0, open.2, open.1)
         } else {
             let Some(Pending {
                 start: p0,
@@ -755,13 +750,16 @@ fn follow(
             snapshot.branches.push(branch.clone());
             let mut report = Report {
                 fraction: (done_points as f64 / total).min(1.0),
-                line: point_line(bi, &branch, t0.elapsed().as_secs_f64()),
+                line: point_line(
+                    bi,
+                    branch.points.len() - 1,
+                    &cur,
+                    t0.elapsed().as_secs_f64(),
+                ),
                 snapshot,
             };
             if !progress(&mut report) {
-                let mut s = report.snapshot;
-                s.units.clear();
-                return Ok(s);
+                return Ok(report.snapshot);
             }
         }
         out.branches.push(branch);
@@ -770,12 +768,10 @@ fn follow(
     Ok(out)
 }
 
-/// A line on the last point of branch `bi`.
-fn point_line(bi: usize, b: &Branch, elapsed: f64) -> String {
-    let p = b.points.last().expect("called after a point");
+/// A line on point `i` of branch `bi`.
+fn point_line(bi: usize, i: usize, p: &Point, elapsed: f64) -> String {
     format!(
-        "branch {bi} point {}: parameter {:.6e}, {} corrector iterations, {} ({} multipliers outside the unit circle), {elapsed:.0} s",
-        b.points.len() - 1,
+        "branch {bi} point {i}: parameter {:.6e}, {} corrector iterations, {} ({} multipliers outside the unit circle), {elapsed:.0} s",
         p.parameter,
         p.iterations,
         if p.orbit.stable() {
@@ -1145,6 +1141,37 @@ pub fn run_study(
     Ok(c)
 }
 
+/// Runs the study's `[continuation]` ([`run_study`]) into its analysis file `file`: the file is
+/// rewritten after every point, marked unfinished, so that a stop or a kill keeps what was
+/// computed, and once more at the end with the result. `on_point` sees every [`Report`]; the
+/// continuation stops early when it returns `false` or after `limit` points. The outer error is
+/// one of writing the file; the inner one is a continuation that could not start, which is
+/// written into the file too.
+pub fn run_into(
+    st: &crate::nonlinear::Loaded,
+    file: &std::path::Path,
+    begin: Begin,
+    limit: Option<usize>,
+    on_point: &mut dyn FnMut(&Report) -> bool,
+) -> Result<std::result::Result<Continuation, crate::Error>> {
+    let mut points = 0usize;
+    let mut write_error = None;
+    let res = run_study(st, begin, &mut |r| {
+        let go = on_point(r);
+        if let Err(e) = write(file, st, Ok(&r.snapshot)) {
+            write_error = Some(e);
+            return false;
+        }
+        points += 1;
+        go && limit.is_none_or(|n| points < n)
+    });
+    if let Some(e) = write_error {
+        return Err(e);
+    }
+    write(file, st, res.as_ref())?;
+    Ok(res)
+}
+
 /// The strobe point the first branch is shot from (see [`run_study`]).
 fn start_state(
     st: &crate::nonlinear::Loaded,
@@ -1217,7 +1244,7 @@ fn read_start(
         .join(&s.file);
     let file = hdf5::File::open(&path)
         .map_err(|e| bad("file", format!("cannot open {}: {e}", path.display())))?;
-    let mut state = match s.branch {
+    let state = match s.branch {
         None => {
             if s.point.is_some() {
                 return Err(bad("point", "needs continuation.start.branch".into()));
@@ -1280,9 +1307,9 @@ fn read_start(
                 .ok()
                 .and_then(|mut o| (o.len() > j).then(|| o.swap_remove(j)))
                 .unwrap_or_default();
-            let mut st = HybridState::new(t, y);
-            st.onset = onset;
-            st
+            let mut point = HybridState::new(t, y);
+            point.onset = onset;
+            point
         }
     };
     use crate::tangent::Tangent;
@@ -1321,8 +1348,7 @@ fn read_start(
             ),
         ));
     }
-    state.warned.clear();
-    Ok(state.for_new_run())
+    Ok(state)
 }
 
 /// Writes `/continuation` into the analysis file `path` (replacing one written before); layout in

@@ -1073,27 +1073,16 @@ fn analysis(
             .as_ref()
             .map_or(1, |c| c.max_branches * c.max_points);
         let mut points = 0usize;
-        let mut write_error = None;
-        let res = continuation::run_study(&st, begin, &mut |r| {
+        let res = continuation::run_into(&st, &file, begin, limit, &mut |r| {
             progress(Progress::Run {
                 done: points,
                 total,
                 what: &r.line,
             });
-            if let Err(e) = continuation::write(&file, &st, Ok(&r.snapshot)) {
-                write_error = Some(e.to_string());
-                return false;
-            }
             points += 1;
-            !stop.requested() && limit.is_none_or(|n| points < n)
-        });
-        if let Some(e) = write_error {
-            return Err(format!(
-                "writing the continuation of {}: {e}",
-                file.display()
-            ));
-        }
-        continuation::write(&file, &st, res.as_ref()).map_err(|e| e.to_string())?;
+            !stop.requested()
+        })
+        .map_err(|e| format!("writing the continuation of {}: {e}", file.display()))?;
         match res {
             Ok(c) if c.unfinished.is_some() => {
                 done.complete = false;
