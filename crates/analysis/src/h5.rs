@@ -598,6 +598,11 @@ impl RunWriter {
         let _ = std::fs::remove_file(partial);
     }
 
+    /// The file's temporary name while it is written.
+    pub fn partial(&self) -> &Path {
+        &self.partial
+    }
+
     /// Samples written so far.
     pub fn rows(&self) -> usize {
         self.rows
