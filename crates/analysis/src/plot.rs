@@ -232,7 +232,10 @@ where
                 .map(|(x, y)| (*x, *y))
                 .collect();
         // Lines end at the frame: each piece inside it is drawn on its own.
-        let pieces = clip_polyline(&kept, frame, panel.log_x, panel.log_y);
+        let pieces: Vec<Vec<(f64, f64)>> = clip_polyline(&kept, frame, panel.log_x, panel.log_y)
+            .into_iter()
+            .flat_map(|p| split_sharp(p, |q| chart.backend_coord(q)))
+            .collect();
         let stroke = c.stroke_width(panel.line_width);
         let mut legend_done = s.label.is_empty();
         for piece in pieces {
@@ -385,6 +388,44 @@ pub fn clip_polyline(
         }
     }
     flush(&mut cur, &mut out);
+    out
+}
+
+/// A piece of a line as drawn: points that fall on the pixel of the point before are dropped,
+/// and the piece is cut where it turns back on itself on the page (the two segments at a point
+/// closer than 30 degrees). plotters draws a line wider than one pixel as a polygon whose corner
+/// at such a turn lies far outside the turn (its mitre is not capped on the inner side), so a
+/// force spike one pixel wide drew a stroke through the frame's bottom and out of the panel; cut
+/// there, each part ends with a square end instead.
+pub fn split_sharp(
+    piece: Vec<(f64, f64)>,
+    px: impl Fn(&(f64, f64)) -> (i32, i32),
+) -> Vec<Vec<(f64, f64)>> {
+    let mut out = Vec::new();
+    let mut cur: Vec<(f64, f64)> = Vec::new();
+    let mut cur_px: Vec<(i32, i32)> = Vec::new();
+    for p in piece {
+        let q = px(&p);
+        if cur_px.last() == Some(&q) {
+            continue;
+        }
+        if let [.., a, b] = cur_px[..] {
+            let u = ((a.0 - b.0) as f64, (a.1 - b.1) as f64);
+            let v = ((q.0 - b.0) as f64, (q.1 - b.1) as f64);
+            let cos = (u.0 * v.0 + u.1 * v.1) / (u.0.hypot(u.1) * v.0.hypot(v.1));
+            if cos > 30f64.to_radians().cos() {
+                let last = *cur.last().expect("two points");
+                out.push(std::mem::take(&mut cur));
+                cur.push(last);
+                cur_px = vec![b];
+            }
+        }
+        cur.push(p);
+        cur_px.push(q);
+    }
+    if cur.len() > 1 || (out.is_empty() && !cur.is_empty()) {
+        out.push(cur);
+    }
     out
 }
 
@@ -808,5 +849,34 @@ mod tests {
         assert_eq!((x, y), ((-0.5, 1.5), (0.0, 1.0)));
         let (x, y) = equal_aspect_ranges((0.0, 1.0), (0.0, 1.0), (200, 400));
         assert_eq!((x, y), ((0.0, 1.0), (-0.5, 1.5)));
+    }
+
+    #[test]
+    fn a_line_is_cut_where_it_turns_back_on_the_page() {
+        let px = |p: &(f64, f64)| (p.0.round() as i32, p.1.round() as i32);
+        // A spike one pixel wide: up 300 px and straight back down.
+        let spike = vec![
+            (0.0, 0.0),
+            (10.0, 0.0),
+            (11.0, -300.0),
+            (12.0, 0.0),
+            (20.0, 0.0),
+        ];
+        let parts = split_sharp(spike, px);
+        assert_eq!(
+            parts,
+            [
+                vec![(0.0, 0.0), (10.0, 0.0), (11.0, -300.0)],
+                vec![(11.0, -300.0), (12.0, 0.0), (20.0, 0.0)]
+            ]
+        );
+        // Points on the pixel of the one before are dropped; a right angle is kept whole.
+        let corner = vec![(0.0, 0.0), (0.2, 0.1), (5.0, 0.0), (5.0, 5.0)];
+        assert_eq!(
+            split_sharp(corner, px),
+            [vec![(0.0, 0.0), (5.0, 0.0), (5.0, 5.0)]]
+        );
+        // A single point stays a piece (drawn as nothing, as before).
+        assert_eq!(split_sharp(vec![(1.0, 1.0)], px), [vec![(1.0, 1.0)]]);
     }
 }
