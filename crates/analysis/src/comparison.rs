@@ -146,7 +146,8 @@ impl<'a> Comparison<'a> {
         Ok(path)
     }
 
-    /// Draws the study figures of the finished cases into `dir`; returns the files written.
+    /// Draws the study figures of the finished cases into `dir`: one set of every case, or one
+    /// per group of `report.figures` with the finished cases it names; returns the files written.
     pub fn figures(&self, dir: &Path) -> Result<Vec<PathBuf>> {
         let recs: Vec<(&str, &Recording)> = self
             .runs
@@ -154,7 +155,23 @@ impl<'a> Comparison<'a> {
             .map(|(r, _)| (r.label.as_str(), &r.result.recording))
             .collect();
         let spec = &self.study.spec;
-        study_figures(dir, &spec.study.name, &spec.report, &recs)
+        if spec.report.figures.is_empty() {
+            return study_figures(dir, &spec.study.name, &spec.report, &recs);
+        }
+        let mut files = Vec::new();
+        for g in &spec.report.figures {
+            let some: Vec<(&str, &Recording)> = g
+                .cases
+                .iter()
+                .filter_map(|c| recs.iter().find(|(l, _)| l == c).copied())
+                .collect();
+            if some.is_empty() {
+                continue;
+            }
+            let name = format!("{}-{}", spec.study.name, g.name);
+            files.extend(study_figures(dir, &name, &spec.report, &some)?);
+        }
+        Ok(files)
     }
 
     /// Fails when a case failed, naming each failure (the others are written by then).
@@ -260,6 +277,53 @@ set = { "solver.end_time" = 0.1 }
         assert!(md.contains("base") && md.contains("short"), "{md}");
         c.finish().unwrap();
         let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    #[test]
+    fn figure_groups_draw_one_set_of_figures_each_and_name_a_case_that_is_not_there() {
+        let cases = r#"
+[[cases]]
+label = "base"
+
+[[cases]]
+label = "short"
+set = { "solver.end_time" = 0.1 }
+
+[report]
+body = "bob"
+joints = ["pivot"]
+figures = [{ name = "both", cases = ["short", "base"] }, { name = "one", cases = ["base"] }]
+"#;
+        let st = study(cases);
+        let c = Comparison::run(&st, &|_| {}).unwrap();
+        let dir = tmp("groups");
+        std::fs::create_dir_all(&dir).unwrap();
+        // The pendulum has no clearance joint, so no orbit figures.
+        let files = c.figures(&dir).unwrap();
+        let names: Vec<String> = files
+            .iter()
+            .filter(|f| f.extension().is_some_and(|e| e == "png"))
+            .map(|f| f.file_name().unwrap().to_string_lossy().into_owned())
+            .collect();
+        assert_eq!(
+            names,
+            [
+                "pendulum-lengths-both-motion.png",
+                "pendulum-lengths-both-forces.png",
+                "pendulum-lengths-one-motion.png",
+                "pendulum-lengths-one-forces.png"
+            ]
+        );
+        let _ = std::fs::remove_dir_all(&dir);
+        let bad = cases.replace(r#"cases = ["base"]"#, r#"cases = ["bsae"]"#);
+        let text = format!("[study]\nname = \"x\"\nscene = \"pendulum.toml\"\n{bad}");
+        let msg = Study::parse(&text, &scenes().join("comparison-test.toml"))
+            .unwrap_err()
+            .to_string();
+        assert!(
+            msg.contains("report.figures[1].cases") && msg.contains("no case 'bsae'"),
+            "{msg}"
+        );
     }
 
     #[test]

@@ -15,6 +15,7 @@
 //! | `velocity_fluctuation_a` | m/s | `max_t |Δv_a|` |
 //! | `acceleration_jump_a` | m/s^2 | `Δa_a` where `|Δa_a|` is largest (signed) |
 //! | `acceleration_ripple_a` | m/s^2 | half the peak-to-peak range of `Δa_a` over the settled window |
+//! | `acceleration_settling_time_a` | s | the first time after which `Δa_a` stays inside its settled range widened on both sides by `tol` times `A`, the reference's acceleration amplitude along `a` (half its peak-to-peak range over the settled window); none ("-") when the settled range of `Δa_a` is wider than `2 A`: the clearance still shakes the body by more than the drive moves it |
 //!
 //! and for each report joint `J`, with `F(t)` the magnitude of the resultant contact force on the
 //! journal (clearance joints) or of the reaction force (ideal joints):
@@ -105,6 +106,21 @@ fn argmax(v: &[f64]) -> (usize, f64) {
 }
 
 /// Smallest and largest element.
+/// The first time after which `x` stays inside its range over the settled window (from index
+/// `s` on) widened on both sides by `tol * scale`; NaN when that range is wider than
+/// `2 * scale` (nothing has settled), the first time when `x` never leaves the band.
+fn settling(x: &[f64], time: &[f64], s: usize, scale: f64, tol: f64) -> f64 {
+    let (lo, hi) = range(&x[s..]);
+    if hi - lo > 2.0 * scale {
+        return f64::NAN;
+    }
+    let (blo, bhi) = (lo - tol * scale, hi + tol * scale);
+    match x[..s].iter().rposition(|&v| v < blo || v > bhi) {
+        Some(i) => time[i + 1],
+        None => time[0],
+    }
+}
+
 fn range(v: &[f64]) -> (f64, f64) {
     v.iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &x| {
@@ -222,12 +238,13 @@ pub fn compute(path: &Path) -> Result<Report> {
     let n = labels.len();
     let mut motion: Vec<Quantity> = Vec::new();
     if spec.report.body.is_some() {
-        let kinds: [(&str, &'static str); 5] = [
+        let kinds: [(&str, &'static str); 6] = [
             ("offset_max", "m"),
             ("offset_settled", "m"),
             ("velocity_fluctuation", "m/s"),
             ("acceleration_jump", "m/s^2"),
             ("acceleration_ripple", "m/s^2"),
+            ("acceleration_settling_time", "s"),
         ];
         for (a, ax) in spec.report.axis_list() {
             for (kind, unit) in kinds {
@@ -280,6 +297,11 @@ pub fn compute(path: &Path) -> Result<Report> {
                             .iter()
                             .copied()
                             .fold(0.0f64, |m, x| if x.abs() > m.abs() { x } else { m }),
+                        "acceleration_settling_time" => {
+                            let reference: Vec<f64> = rb[2][s..].iter().map(|x| x[a]).collect();
+                            let (rlo, rhi) = range(&reference);
+                            settling(&d, &c.time, s, 0.5 * (rhi - rlo), tol)
+                        }
                         _ => {
                             let (lo, hi) = range(&d[s..]);
                             0.5 * (hi - lo)
@@ -319,13 +341,7 @@ pub fn compute(path: &Path) -> Result<Report> {
             let win = &f[s..];
             let mean = win.iter().sum::<f64>() / win.len() as f64;
             let (lo, hi) = range(win);
-            let (blo, bhi) = (lo - tol * mean, hi + tol * mean);
-            let last_out = f[..s].iter().rposition(|&x| x < blo || x > bhi);
-            let settle = match last_out {
-                _ if hi - lo > 2.0 * mean => f64::NAN,
-                Some(i) => c.time[i + 1],
-                None => c.time[0],
-            };
+            let settle = settling(f, &c.time, s, mean, tol);
             let (t0, t1) = (c.time[0], c.time[c.time.len() - 1]);
             let su_end = t0 + 0.1 * c.period.unwrap_or(t1 - t0);
             let n_su = c.time.partition_point(|&t| t <= su_end).max(1);
@@ -477,7 +493,7 @@ pub fn markdown(r: &Report) -> String {
 
 #[cfg(test)]
 mod tests {
-    use super::num;
+    use super::{num, settling};
 
     #[test]
     fn numbers_keep_four_significant_digits() {
@@ -486,5 +502,19 @@ mod tests {
         assert_eq!(num(3.4e-3), "3.400e-3");
         assert_eq!(num(12345.0), "12345");
         assert_eq!(num(f64::NAN), "-");
+    }
+
+    #[test]
+    fn settling_is_the_first_time_after_the_last_excursion_from_the_widened_band() {
+        let time: Vec<f64> = (0..8).map(|i| 0.5 * i as f64).collect();
+        // Settled window from index 4: range 1.0-1.1, widened by 0.1 * scale = 0.1 on each side.
+        let x = [10.0, 0.0, 10.0, 1.15, 1.1, 1.05, 1.0, 1.1];
+        assert_eq!(settling(&x, &time, 4, 1.0, 0.1), time[3]);
+        // Never outside the band: settled from the start.
+        let calm = [1.0, 1.05, 0.95, 1.15, 1.1, 1.05, 1.0, 1.1];
+        assert_eq!(settling(&calm, &time, 4, 1.0, 0.1), time[0]);
+        // A settled range wider than twice the scale: nothing has settled.
+        let shaking = [0.0, 0.0, 0.0, 0.0, -1.5, 1.5, -1.5, 1.5];
+        assert!(settling(&shaking, &time, 4, 1.0, 0.1).is_nan());
     }
 }

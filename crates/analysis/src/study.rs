@@ -100,6 +100,20 @@ pub struct ReportSpec {
     /// Published values to set beside ours.
     #[serde(default)]
     pub published: Vec<Published>,
+    /// Groups of cases drawn together, one set of figures each (`<study>-<name>-motion`,
+    /// `-forces`, `-orbits`); without any, one set of every case (`<study>-motion`, ...).
+    #[serde(default)]
+    pub figures: Vec<FigureGroup>,
+}
+
+/// Cases drawn in one set of study figures.
+#[derive(Debug, Clone, Deserialize, serde::Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct FigureGroup {
+    /// Part of the figures' file names: letters, digits, '-' and '_'.
+    pub name: String,
+    /// Labels of the cases drawn, in this order.
+    pub cases: Vec<String>,
 }
 
 /// One published value of a quantity of the report (see [`crate::report`] for the names).
@@ -242,6 +256,42 @@ impl Study {
                     path,
                     format!("report.published[{i}].value"),
                     "must be finite",
+                ));
+            }
+        }
+        let mut names = std::collections::BTreeSet::new();
+        for (i, g) in spec.report.figures.iter().enumerate() {
+            if g.name.is_empty()
+                || !g
+                    .name
+                    .chars()
+                    .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
+            {
+                return Err(invalid(
+                    path,
+                    format!("report.figures[{i}].name"),
+                    format!("'{}': use letters, digits, '-' and '_'", g.name),
+                ));
+            }
+            if !names.insert(g.name.as_str()) {
+                return Err(invalid(
+                    path,
+                    format!("report.figures[{i}].name"),
+                    format!("duplicate name '{}'", g.name),
+                ));
+            }
+            if g.cases.is_empty() {
+                return Err(invalid(
+                    path,
+                    format!("report.figures[{i}].cases"),
+                    "name at least one case",
+                ));
+            }
+            if let Some(c) = g.cases.iter().find(|c| !labels(c)) {
+                return Err(invalid(
+                    path,
+                    format!("report.figures[{i}].cases"),
+                    format!("no case '{c}'"),
                 ));
             }
         }
