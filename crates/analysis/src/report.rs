@@ -121,6 +121,17 @@ fn settling(x: &[f64], time: &[f64], s: usize, scale: f64, tol: f64) -> f64 {
     }
 }
 
+/// A fraction as a percentage with at most three decimals and no trailing zeros (0.04: "4").
+fn percent(b: f64) -> String {
+    format!("{}", (1e5 * b).round() / 1e3)
+}
+
+/// Whether `ours` lies within `value * (1 ± band)` (the band taken about the magnitude, so that
+/// a negative published value has the same band).
+fn within(ours: f64, value: f64, band: f64) -> bool {
+    (ours - value).abs() <= band * value.abs()
+}
+
 fn range(v: &[f64]) -> (f64, f64) {
     v.iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &x| {
@@ -442,11 +453,18 @@ pub fn markdown(r: &Report) -> String {
     if !r.published.is_empty() {
         let _ = writeln!(s, "Published values beside ours:");
         let _ = writeln!(s);
+        // A column of verdicts only when some published value carries its band of agreement.
+        let banded = r.published.iter().any(|p| p.band.is_some());
         let _ = writeln!(
             s,
-            "| case | quantity | published | jointplay | ratio | source |"
+            "| case | quantity | published | jointplay | ratio | {}source |",
+            if banded { "within the band | " } else { "" }
         );
-        let _ = writeln!(s, "|---|---|---|---|---|---|");
+        let _ = writeln!(
+            s,
+            "|---|---|---|---|---|{}---|",
+            if banded { "---|" } else { "" }
+        );
         for p in &r.published {
             let ours = r.value(&p.case, &p.quantity);
             let unit = r
@@ -456,9 +474,19 @@ pub fn markdown(r: &Report) -> String {
                 .find(|q| q.name == p.quantity)
                 .map(|q| q.unit)
                 .unwrap_or("");
+            let verdict = match (banded, p.band, ours) {
+                (false, _, _) => String::new(),
+                (true, None, _) => " |".into(),
+                (true, Some(b), None) => format!(" - (±{} %) |", percent(b)),
+                (true, Some(b), Some(o)) => format!(
+                    " {} (±{} %) |",
+                    if within(o, p.value, b) { "yes" } else { "no" },
+                    percent(b)
+                ),
+            };
             let _ = writeln!(
                 s,
-                "| {} | `{}` ({unit}) | {} | {} | {} | {} |",
+                "| {} | `{}` ({unit}) | {} | {} | {} |{verdict} {} |",
                 p.case,
                 p.quantity,
                 num(p.value),
@@ -493,7 +521,7 @@ pub fn markdown(r: &Report) -> String {
 
 #[cfg(test)]
 mod tests {
-    use super::{num, settling};
+    use super::{num, settling, within};
 
     #[test]
     fn numbers_keep_four_significant_digits() {
@@ -516,5 +544,15 @@ mod tests {
         // A settled range wider than twice the scale: nothing has settled.
         let shaking = [0.0, 0.0, 0.0, 0.0, -1.5, 1.5, -1.5, 1.5];
         assert!(settling(&shaking, &time, 4, 1.0, 0.1).is_nan());
+    }
+
+    #[test]
+    fn a_value_is_within_its_band_about_the_published_magnitude() {
+        assert!(within(0.62 * 1.039, 0.62, 0.04));
+        assert!(!within(0.62 * 1.041, 0.62, 0.04));
+        assert!(within(-120.0, -122.7, 0.04));
+        assert!(!within(53.7, -122.7, 0.35));
+        assert_eq!(super::percent(0.04), "4");
+        assert_eq!(super::percent(0.025), "2.5");
     }
 }

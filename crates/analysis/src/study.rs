@@ -126,6 +126,10 @@ pub struct Published {
     /// Where it comes from, e.g. "Fig. 9".
     #[serde(default)]
     pub source: String,
+    /// Relative band of agreement, e.g. 0.04 for the paper's own ±4 % scatter: the table says
+    /// whether ours lies within `value * (1 ± band)`.
+    #[serde(default)]
+    pub band: Option<f64>,
 }
 
 /// A loaded study with its cases' scenes edited and parsed.
@@ -256,6 +260,15 @@ impl Study {
                     path,
                     format!("report.published[{i}].value"),
                     "must be finite",
+                ));
+            }
+            if let Some(b) = p.band
+                && !(b.is_finite() && b > 0.0)
+            {
+                return Err(invalid(
+                    path,
+                    format!("report.published[{i}].band"),
+                    format!("{b}: must be a positive fraction (0.04 for ±4 %)"),
                 ));
             }
         }
