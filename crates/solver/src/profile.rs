@@ -52,8 +52,12 @@ pub enum Profile {
     },
 }
 
-/// The ramped phase (theta, theta', theta'') at time t (module overview); rest before t = 0.
-fn ramped(omega: f64, ramp: f64, t: f64) -> (f64, f64, f64) {
+/// The phase (theta, theta', theta'') at time t: omega t without a ramp (`ramp` 0), else the
+/// ramped phase of the module overview, at rest before t = 0.
+fn drive_phase(omega: f64, ramp: f64, t: f64) -> (f64, f64, f64) {
+    if ramp <= 0.0 {
+        return (omega * t, omega, 0.0);
+    }
     if t >= ramp {
         return (omega * (t - 0.5 * ramp), omega, 0.0);
     }
@@ -87,20 +91,14 @@ impl Profile {
                 phase,
                 ramp,
             } => {
-                if *ramp > 0.0 {
-                    let (th, thd, thdd) = ramped(*omega, *ramp, t);
-                    let (s, c) = memo.sin_cos(th + phase);
-                    return (
-                        mean + amplitude * s,
-                        amplitude * c * thd,
-                        amplitude * (c * thdd - s * thd * thd),
-                    );
-                }
-                let (s, c) = memo.sin_cos(omega * t + phase);
+                // Unramped, theta'' is 0 and this is amplitude omega cos, -amplitude omega^2 sin
+                // to the bit.
+                let (th, thd, thdd) = drive_phase(*omega, *ramp, t);
+                let (s, c) = memo.sin_cos(th + phase);
                 (
                     mean + amplitude * s,
-                    amplitude * omega * c,
-                    -amplitude * omega * omega * s,
+                    amplitude * thd * c,
+                    -amplitude * thd * thd * s + amplitude * thdd * c,
                 )
             }
             Profile::Spline(sp) => sp.eval(t),
@@ -113,24 +111,12 @@ impl Profile {
                 offset,
                 ramp,
             } => {
-                let (p, pd, pdd) = if *ramp > 0.0 {
-                    let (th, thd, thdd) = ramped(*omega, *ramp, t);
-                    let (s, c) = memo.sin_cos(th);
-                    let p_th = -cos_amp * s + sin_amp * c;
-                    let p_thth = -(cos_amp * c + sin_amp * s);
-                    (
-                        center + cos_amp * c + sin_amp * s,
-                        p_th * thd,
-                        p_thth * (thd * thd) + p_th * thdd,
-                    )
-                } else {
-                    let (s, c) = memo.sin_cos(omega * t);
-                    (
-                        center + cos_amp * c + sin_amp * s,
-                        (-cos_amp * s + sin_amp * c) * *omega,
-                        -(cos_amp * c + sin_amp * s) * (omega * omega),
-                    )
-                };
+                let (th, thd, thdd) = drive_phase(*omega, *ramp, t);
+                let (s, c) = memo.sin_cos(th);
+                let p_th = -cos_amp * s + sin_amp * c;
+                let p = center + cos_amp * c + sin_amp * s;
+                let pd = p_th * thd;
+                let pdd = -(cos_amp * c + sin_amp * s) * (thd * thd) + p_th * thdd;
                 let d = p - anchor;
                 let l = d.norm();
                 let ld = d.dot(&pd) / l;
