@@ -720,10 +720,15 @@ impl Stream {
         // The writer thread has stopped at an error (or the stream was closed).
         match self.close() {
             Some(Err(e)) => Err(e),
-            _ => Err(crate::Error::Io {
-                file: self.partial.clone(),
-                message: "the file's writer stopped before the run's end".into(),
-            }),
+            _ => Err(self.ended_early()),
+        }
+    }
+
+    /// The error of a writer that is gone before the run's end without an error of its own.
+    fn ended_early(&self) -> crate::Error {
+        crate::Error::Io {
+            file: self.partial.clone(),
+            message: "the file's writer stopped before the run's end".into(),
         }
     }
 }
@@ -793,12 +798,7 @@ fn stream(
             return Err(e);
         }
         (Ok(_), Some(Err(e))) => return Err(e),
-        (Ok(_), None) => {
-            return Err(crate::Error::Io {
-                file: sink.partial.clone(),
-                message: "the file's writer stopped before the run's end".into(),
-            });
-        }
+        (Ok(_), None) => return Err(sink.ended_early()),
     };
     let Stream {
         thin,

@@ -347,15 +347,12 @@ fn chaos_panels(d: &Data, x_label: &str, px: f64) -> Vec<Panel> {
         // The two estimates usually agree to the width of a dot: the two-trajectory one is
         // drawn first and larger, the tangent one over it, smaller, so that both show.
         if rows.iter().any(|r| r[3].is_finite()) {
-            p.points = vec![
-                line("lambda_1 (two trajectories)", &|r| r[3]),
-                line("lambda_1 (tangent)", &|r| r[1]),
-            ];
+            p.points
+                .push(line("lambda_1 (two trajectories)", &|r| r[3]));
             p.point_radii = vec![4, 2];
             p.point_colors = vec![1, 0];
-        } else {
-            p.points = vec![line("lambda_1 (tangent)", &|r| r[1])];
         }
+        p.points.push(line("lambda_1 (tangent)", &|r| r[1]));
         out.push(p);
     }
     let krows: Vec<&[f64; 5]> = d.chaos.iter().filter(|r| r[4].is_finite()).collect();
