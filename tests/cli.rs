@@ -4,7 +4,14 @@ use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
 fn bin() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_jointplay"))
+    // The test process opens run files while other tests spawn the program;
+    // HDF5 opens files without close-on-exec, so a child spawned at that
+    // moment inherits the descriptor and its lock and holds it until it exits.
+    // A program run that writes the same file would then fail to lock it
+    // (errno 11). The tests run the program without HDF5's advisory locks.
+    let mut c = Command::new(env!("CARGO_BIN_EXE_jointplay"));
+    c.env("HDF5_USE_FILE_LOCKING", "FALSE");
+    c
 }
 
 fn scenes() -> PathBuf {

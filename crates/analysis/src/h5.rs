@@ -71,9 +71,19 @@ impl<'a> Meta<'a> {
 }
 
 pub(crate) fn h5err(file: &Path) -> impl Fn(hdf5::Error) -> Error + '_ {
-    move |e| Error::Hdf5 {
-        file: file.to_path_buf(),
-        message: e.to_string(),
+    move |e| {
+        let mut message = e.to_string();
+        // HDF5 locks a file while it is open; say what that means for the user.
+        if message.contains("unable to lock file") {
+            message.push_str(
+                " (another program has this file open: close it there, \
+                 or set HDF5_USE_FILE_LOCKING=FALSE when no two programs write it at once)",
+            );
+        }
+        Error::Hdf5 {
+            file: file.to_path_buf(),
+            message,
+        }
     }
 }
 
