@@ -48,6 +48,7 @@ pub mod precision;
 pub mod progress;
 pub mod report;
 pub mod run;
+pub mod schedule;
 pub mod sections;
 pub mod shards;
 pub mod slurm;

@@ -1317,6 +1317,20 @@ pub fn execute_until(
         // thread of its own writes each result as it comes.
         let (tx, rx) = mpsc::channel::<(usize, Result<JobResult>)>();
         threads = rayon::current_num_threads();
+        // The costs of the values a resumed file holds already seed the estimate.
+        let known: Vec<Option<f64>> = match file.dataset("sweep/wall_time") {
+            Ok(d) => {
+                let w = d.read_raw::<f64>().map_err(&e)?;
+                (0..n).map(|r| (done[r] == 1).then(|| w[r])).collect()
+            }
+            Err(_) => vec![None; n],
+        };
+        let todo: Vec<bool> = (0..n).map(|r| pending.contains(&r)).collect();
+        let queue = std::sync::Mutex::new(crate::schedule::Queue::new(
+            rows.iter().map(|&j| st.jobs[j].0).collect(),
+            &todo,
+            &known,
+        ));
         let busy = &busy;
         let write_err = std::thread::scope(|scope| {
             let (stop, done) = (&stop, &mut done);
@@ -1335,21 +1349,31 @@ pub fn execute_until(
                 }
                 write_err
             });
-            pending.par_iter().for_each_with(tx, |tx, &r| {
-                if stop.load(Ordering::SeqCst) || user_stop.requested() {
-                    return;
+            // Each thread takes the value the queue estimates costliest (crate::schedule).
+            let queue = &queue;
+            (0..threads).into_par_iter().for_each_with(tx, |tx, _| {
+                loop {
+                    if stop.load(Ordering::SeqCst) || user_stop.requested() {
+                        return;
+                    }
+                    let next = queue.lock().map(|mut q| q.take_next()).unwrap_or(None);
+                    let Some(r) = next else { return };
+                    let j = rows[r];
+                    let job_start = Instant::now();
+                    let res = st.run_job(
+                        Some(st.jobs[j].0),
+                        None,
+                        &mut throttled(j, progress),
+                        user_stop,
+                    );
+                    let took = job_start.elapsed();
+                    busy.fetch_add(took.as_nanos() as u64, Ordering::Relaxed);
+                    if let Ok(mut q) = queue.lock() {
+                        q.finished(r, took.as_secs_f64());
+                    }
+                    // The writer lives until every sender is gone.
+                    let _ = tx.send((r, res));
                 }
-                let j = rows[r];
-                let job_start = Instant::now();
-                let res = st.run_job(
-                    Some(st.jobs[j].0),
-                    None,
-                    &mut throttled(j, progress),
-                    user_stop,
-                );
-                busy.fetch_add(job_start.elapsed().as_nanos() as u64, Ordering::Relaxed);
-                // The writer lives until every sender is gone.
-                let _ = tx.send((r, res));
             });
             writer.join()
         });

@@ -1,0 +1,117 @@
+#!/usr/bin/env python3
+"""Which tolerance converges the section-3 bifurcation diagram?
+
+Runs the study section3-diagram.toml at four clearances (0.1, 0.3, 0.5, 0.7 mm; the paper's 50
+periods, the first 10 transient) with DOPRI5 at rtol 1e-5, 1e-6 and 1e-7 (atol = rtol x 1e-3 m),
+and a reference at rtol 1e-8 with contact onsets as events, then prints, for the velocities the
+paper's diagrams plot, how far each run's strobe points lie from the reference's, as a fraction
+of the diagram's height (the reference's range over all clearances and strobe points):
+
+- "settled": the last 10 strobe points of each clearance, what the diagram shows as the orbit;
+- "all": every strobe point after the transient, the approach to the orbit included;
+- "spread": the largest range of the last 10 strobe points of one clearance (m/s), which the
+  classification reads as one point per period when it is small.
+
+A fraction of 1e-3 is one pixel of a 1000-pixel-high figure. The runs are written to DIR
+(default out/section3-tolerance); a complete file already there is reused.
+
+    python3 analyses/4ups-rpu/section3_tolerance.py [--out DIR] [--jointplay BIN]
+
+BIN defaults to $JOINTPLAY, then target/release/jointplay (build it with cargo build --release).
+"""
+
+import argparse
+import os
+import re
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+HERE = Path(__file__).resolve().parent
+ROOT = HERE.parent.parent
+OBSERVABLES = ["platform_vx", "platform_vy", "S2_vx", "S2_vy", "R1_vx", "R1_vy"]
+RUNS = [("1e-5", False), ("1e-6", False), ("1e-7", False), ("1e-8", True)]
+
+
+def replace_once(text, old, new):
+    """`text` with its only occurrence of `old` replaced; an error if there is not exactly one."""
+    if text.count(old) != 1:
+        sys.exit(f"section3-diagram.toml: expected one '{old}', found {text.count(old)}")
+    return text.replace(old, new)
+
+
+def study(rtol, events):
+    """The text of section3-diagram.toml at four clearances and tolerance rtol."""
+    text = (HERE / "section3-diagram.toml").read_text()
+    scene = (HERE / "../../data/scenes/4ups-rpu-mixed.toml").resolve()
+    text = replace_once(text, '"../../data/scenes/4ups-rpu-mixed.toml"', f'"{scene}"')
+    solver = f'"solver.rtol" = {rtol}, "solver.atol" = {float(rtol) * 1e-3:.0e}'
+    if events:
+        solver += ', "solver.onset_events" = true'
+    text = replace_once(text, '"solver.rtol" = 1e-6, "solver.atol" = 1e-9', solver)
+    text = replace_once(text, 'name = "section3-diagram"', f'name = "{name(rtol, events)}"')
+    text = replace_once(text, "from = 2e-5\nto = 8e-4\ncount = 40", "from = 1e-4\nto = 7e-4\ncount = 4")
+    # The figures are not needed to compare the numbers.
+    return re.split(r"^\[\[figures\]\]", text, flags=re.M)[0]
+
+
+def name(rtol, events):
+    return f"tolerance-{rtol}" + ("-events" if events else "")
+
+
+def complete(path):
+    try:
+        with h5py.File(path, "r") as f:
+            return int(f.attrs["complete"]) == 1
+    except (OSError, KeyError):
+        return False
+
+
+def main():
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--out", default=str(ROOT / "out" / "section3-tolerance"))
+    ap.add_argument("--jointplay", default=os.environ.get("JOINTPLAY", str(ROOT / "target/release/jointplay")))
+    args = ap.parse_args()
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    files = []
+    for rtol, events in RUNS:
+        n = name(rtol, events)
+        h5 = out / f"{n}.h5"
+        if not complete(h5):
+            toml = out / f"{n}.toml"
+            toml.write_text(study(rtol, events))
+            t0 = time.monotonic()
+            r = subprocess.run([args.jointplay, "run", str(toml), "--out", str(out), "-q", "--no-plots"])
+            if r.returncode != 0:
+                sys.exit(f"{toml}: jointplay run failed (exit {r.returncode})")
+            print(f"ran {n} in {time.monotonic() - t0:.1f} s", file=sys.stderr)
+        files.append(h5)
+    ref = h5py.File(files[-1], "r")["sweep"]
+    height = {k: np.ptp(ref[k][()]) for k in OBSERVABLES}
+    print("| run | RHS evaluations | " + " | ".join(f"{k} settled / all" for k in OBSERVABLES) + " |")
+    print("|---|---|" + "---|" * len(OBSERVABLES))
+    for (rtol, events), h5 in zip(RUNS, files):
+        s = h5py.File(h5, "r")["sweep"]
+        cells = []
+        for k in OBSERVABLES:
+            a, r = s[k][()], ref[k][()]
+            settled = np.max(np.abs(a[:, -10:] - r[:, -10:])) / height[k]
+            every = np.max(np.abs(a - r)) / height[k]
+            cells.append(f"{settled:.1e} / {every:.1e}")
+        label = f"rtol {rtol}" + (" + onset events (reference)" if events else "")
+        print(f"| {label} | {int(s['rhs_evals'][()].sum()):,} | " + " | ".join(cells) + " |")
+    print()
+    print("diagram height (m/s): " + ", ".join(f"{k} {height[k]:.3e}" for k in OBSERVABLES))
+    for (rtol, events), h5 in zip(RUNS, files):
+        s = h5py.File(h5, "r")["sweep"]
+        spread = [np.max(np.ptp(s[k][()][:, -10:], axis=1)) for k in OBSERVABLES]
+        print(f"spread of the last 10 strobe points, rtol {rtol}: " + ", ".join(f"{v:.1e}" for v in spread))
+
+
+if __name__ == "__main__":
+    main()
