@@ -1792,7 +1792,13 @@ pub(crate) fn create_sweep_file(
             }
         }
         hybrid::create_rows(&g, n, l.shape)?;
-        g.new_dataset::<u64>().shape(n).create("rhs_evals")?;
+        let d = g.new_dataset::<u64>().shape(n).create("rhs_evals")?;
+        str_attr(
+            &d,
+            "description",
+            "right-hand-side evaluations of each job's analysis run (a Lyapunov run's are counted in its chaos attributes)",
+        )?;
+        str_attr(&d, "unit", "1")?;
         create_nan(
             &g,
             "wall_time",

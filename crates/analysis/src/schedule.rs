@@ -128,7 +128,11 @@ mod tests {
             if let Some(j) = busy[t].1.take() {
                 q.finished(j, costs[j]);
             }
-            let next = if listed { in_order.next() } else { q.take_next() };
+            let next = if listed {
+                in_order.next()
+            } else {
+                q.take_next()
+            };
             match next {
                 Some(j) => busy[t] = (now + costs[j], Some(j)),
                 None => {
