@@ -127,11 +127,24 @@ impl<'a> Comparison<'a> {
                 st.rhs_evals as f64 / w.max(1e-9)
             ));
         }
+        let threads = rayon::current_num_threads();
         out.push(format!(
             "wall time    {:.1} s for the study on {} threads",
-            self.wall,
-            rayon::current_num_threads()
+            self.wall, threads
         ));
+        if threads > 1 && self.runs.len() > 1 && self.wall > 0.0 {
+            // The finished cases' summed wall time over the threads' (failed cases not counted).
+            let busy: f64 = self
+                .runs
+                .iter()
+                .map(|(r, _)| r.result.stats.wall.as_secs_f64())
+                .sum();
+            out.push(format!(
+                "parallel     efficiency {:.0} % on {threads} threads (cases {busy:.1} s of {threads} x {:.1} s)",
+                100.0 * busy / (threads as f64 * self.wall),
+                self.wall
+            ));
+        }
         out
     }
 
@@ -264,7 +277,18 @@ set = { "solver.end_time" = 0.1 }
         assert!(lines[1].starts_with("  base           "), "{}", lines[1]);
         assert!(lines[2].starts_with("  short          "), "{}", lines[2]);
         assert!(lines[3].starts_with("wall time    "), "{}", lines[3]);
-        assert_eq!(lines.len(), 4);
+        // On more than one thread the efficiency follows.
+        if rayon::current_num_threads() > 1 {
+            assert!(
+                lines[4].starts_with("parallel     efficiency "),
+                "{}",
+                lines[4]
+            );
+            assert!(lines[4].contains(" % on ") && lines[4].contains("(cases "));
+            assert_eq!(lines.len(), 5);
+        } else {
+            assert_eq!(lines.len(), 4);
+        }
 
         let dir = tmp("ok");
         let file = c.write(&dir, "test").unwrap();

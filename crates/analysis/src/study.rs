@@ -413,9 +413,12 @@ impl Study {
             total: n,
             pending: n,
         });
+        // One case per task, so a free thread takes any case not yet started (an even split of
+        // the list left a thread idle while the other ran the costlier half).
         Ok(compiled
             .into_par_iter()
             .zip(self.cases.par_iter().enumerate())
+            .with_max_len(1)
             .map(|((model, state), (job, c))| {
                 let mut last = 0.0;
                 let mut fraction = |f: f64| {
