@@ -50,6 +50,7 @@ use nalgebra::{DMatrix, Dyn, LU};
 use crate::error::{Error, Result};
 use crate::state::{HybridState, StepperMemory};
 
+pub mod bs3;
 pub mod dop853;
 pub mod dopri5;
 pub mod rk4;
@@ -59,6 +60,7 @@ pub mod rosenbrock23;
 /// default work-precision runs): the registry.
 pub static INTEGRATORS: &[&Integrator] = &[
     &rk4::RK4,
+    &bs3::BS3,
     &dopri5::DOPRI5,
     &dop853::DOP853,
     &rosenbrock23::ROSENBROCK23,
@@ -482,6 +484,19 @@ fn polynomial(coeffs: &[f64], re: f64, im: f64) -> (f64, f64) {
         pr = r;
     }
     (pr, pi)
+}
+
+/// The cubic Hermite interpolant on [t, t + h] through (y0, f0) and (y1, f1) at t + theta h,
+/// into `out`: the dense output of the schemes whose own order it matches (RK4, BS3).
+fn hermite(y0: &[f64], y1: &[f64], f0: &[f64], f1: &[f64], h: f64, theta: f64, out: &mut [f64]) {
+    for i in 0..out.len() {
+        let dy = y1[i] - y0[i];
+        out[i] = (1.0 - theta) * y0[i]
+            + theta * y1[i]
+            + theta
+                * (theta - 1.0)
+                * ((1.0 - 2.0 * theta) * dy + (theta - 1.0) * h * f0[i] + theta * h * f1[i]);
+    }
 }
 
 /// Scratch memory of one integrator, allocated once per run.
@@ -1139,6 +1154,68 @@ mod tests {
         assert_eq!(s.rhs_evals, 2 + 6 * (s.accepted + s.rejected));
     }
 
+    fn bs3_fixed(step: f64) -> Method {
+        Method::fixed(&bs3::BS3, step).unwrap()
+    }
+
+    #[test]
+    fn bs3_fixed_step_converges_with_order_three() {
+        // Global error ~1e-6 at h = 0.05 on the harmonic oscillator: the asymptotic regime.
+        let p = observed_order(bs3_fixed, 0.05);
+        assert!((p - 3.0).abs() < 0.1, "observed order {p}");
+        for (p, a, b) in kepler_orders(&bs3::BS3, [100, 200, 400]) {
+            assert!(
+                (2.85..3.15).contains(&p),
+                "observed order {p} ({a:e} -> {b:e})"
+            );
+        }
+    }
+
+    #[test]
+    fn bs3_meets_its_tolerance_and_counts_work() {
+        let (e, s) = final_error(Method::adaptive(&bs3::BS3, 1e-8, 1e-10, f64::INFINITY).unwrap());
+        // Global error over ~1.6 periods within a small multiple of the local tolerance.
+        assert!(e < 1e-6, "error {e}");
+        // f(t0, y0), one evaluation of the initial-step heuristic, 3 per step (FSAL).
+        assert_eq!(s.rhs_evals, 2 + 3 * (s.accepted + s.rejected));
+    }
+
+    /// The embedded estimate is the local error of the 2nd-order solution, O(h^3) (the control
+    /// order); the propagated 3rd-order solution's local error is O(h^4), and so is the Hermite
+    /// dense output's at mid-step.
+    #[test]
+    fn bs3_error_estimate_is_of_order_three_and_its_dense_output_of_order_three() {
+        let t0 = 0.7;
+        let y0 = kepler_exact(0.0, t0);
+        let one_step = |h: f64| {
+            let mut w = Work::new(4, 4, &bs3::BS3);
+            let mut stats = Stats::default();
+            Kepler.rhs(t0, &y0, &mut w.k[0]);
+            bs3::BS3
+                .stepper
+                .step(&mut Kepler, t0, &y0, h, &mut w, &mut stats, false)
+                .unwrap();
+            assert_eq!(stats.rhs_evals, 3);
+            let mut mid = [0.0; 4];
+            bs3::BS3.stepper.eval(&y0, &w, h, 0.5, &mut mid);
+            (
+                dist(&w.tmp, &[0.0; 4]),
+                dist(&w.y_new, &kepler_exact(0.0, t0 + h)),
+                dist(&mid, &kepler_exact(0.0, t0 + 0.5 * h)),
+            )
+        };
+        let errs: Vec<(f64, f64, f64)> = [0.04, 0.02, 0.01].into_iter().map(one_step).collect();
+        for pair in errs.windows(2) {
+            let p_est = (pair[0].0 / pair[1].0).log2();
+            let p_end = (pair[0].1 / pair[1].1).log2();
+            let p_mid = (pair[0].2 / pair[1].2).log2();
+            // Leading terms dominate at these steps (local errors 1e-5 to 1e-9): within 0.15.
+            assert!((2.85..3.15).contains(&p_est), "estimate exponent {p_est}");
+            assert!((3.85..4.15).contains(&p_end), "step-end exponent {p_end}");
+            assert!((3.85..4.15).contains(&p_mid), "midpoint exponent {p_mid}");
+        }
+    }
+
     #[test]
     fn dense_output_is_accurate_between_steps() {
         let samples: Vec<f64> = (0..=1000).map(|i| i as f64 * 0.01).collect();
@@ -1209,7 +1286,7 @@ mod tests {
                 d[1] = -self.0 * self.0 * y[0];
             }
         }
-        for make in [rk4 as fn(f64) -> Method, dopri5_fixed] {
+        for make in [rk4 as fn(f64) -> Method, dopri5_fixed, bs3_fixed] {
             for hw in [0.3, 1.0, 2.0, 2.8, 2.9, 3.3] {
                 let w = 100.0;
                 let h = hw / w;

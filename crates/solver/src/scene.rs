@@ -792,7 +792,7 @@ clearance = {{ ball_radius = 0.01, radial_clearance = 1e-4, normal = {normal} }}
             assert!(
                 err.starts_with("solver.toml: solver.integrator: TOML parse error at line 2, column 14")
                     && err.contains(&format!(
-                        "unknown variant `{name}`, expected one of `rk4`, `dopri5`, `dop853`, `rosenbrock23`"
+                        "unknown variant `{name}`, expected one of `rk4`, `bs3`, `dopri5`, `dop853`, `rosenbrock23`"
                     )),
                 "{name}: {err}"
             );

@@ -3,7 +3,7 @@
 //! (local interpolation error O(h^4), the order of the method itself). 4 right-hand-side
 //! evaluations per step (the 5th, f at the new state, is the next step's first).
 
-use super::{Fixed, Integrator, OdeSystem, Stats, Stepper, Work, polynomial};
+use super::{Fixed, Integrator, OdeSystem, Stats, Stepper, Work, hermite, polynomial};
 use crate::error::Result;
 
 /// RK4: fixed step only; the family `rk4` in studies.
@@ -69,15 +69,6 @@ impl Stepper for Rk4 {
 
     /// Cubic Hermite interpolation on [t, t+h] from y0, f0 (k[0]) and y1, f1 (k[4]).
     fn eval(&self, y0: &[f64], w: &Work, h: f64, theta: f64, out: &mut [f64]) {
-        let f0 = &w.k[0];
-        let f1 = &w.k[4];
-        for i in 0..out.len() {
-            let dy = w.y_new[i] - y0[i];
-            out[i] = (1.0 - theta) * y0[i]
-                + theta * w.y_new[i]
-                + theta
-                    * (theta - 1.0)
-                    * ((1.0 - 2.0 * theta) * dy + (theta - 1.0) * h * f0[i] + theta * h * f1[i]);
-        }
+        hermite(y0, &w.y_new, &w.k[0], &w.k[4], h, theta, out);
     }
 }
