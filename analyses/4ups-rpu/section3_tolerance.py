@@ -2,8 +2,9 @@
 """Which tolerance converges the section-3 bifurcation diagram?
 
 Runs the study section3-diagram.toml at four clearances (0.1, 0.3, 0.5, 0.7 mm; the paper's 50
-periods, the first 10 transient) with DOPRI5 at rtol 1e-5, 1e-6 and 1e-7 (atol = rtol x 1e-3 m),
-and a reference at rtol 1e-8 with contact onsets as events, then prints, for the velocities the
+periods, the first 10 transient) with DOPRI5 (or, with --integrator bs3, the Bogacki-Shampine
+3(2) pair) at rtol 1e-5, 1e-6 and 1e-7 (atol = rtol x 1e-3 m), and a reference (DOPRI5 at rtol
+1e-8 with contact onsets as events), then prints, for the velocities the
 paper's diagrams plot, how far each run's strobe points lie from the reference's, as a fraction
 of the diagram's height (the reference's range over all clearances and strobe points):
 
@@ -15,7 +16,7 @@ of the diagram's height (the reference's range over all clearances and strobe po
 A fraction of 1e-3 is one pixel of a 1000-pixel-high figure. The runs are written to DIR
 (default out/section3-tolerance); a complete file already there is reused.
 
-    python3 analyses/4ups-rpu/section3_tolerance.py [--out DIR] [--jointplay BIN]
+    python3 analyses/4ups-rpu/section3_tolerance.py [--integrator bs3] [--out DIR] [--jointplay BIN]
 
 BIN defaults to $JOINTPLAY, then target/release/jointplay (build it with cargo build --release).
 """
@@ -34,7 +35,9 @@ import numpy as np
 HERE = Path(__file__).resolve().parent
 ROOT = HERE.parent.parent
 OBSERVABLES = ["platform_vx", "platform_vy", "S2_vx", "S2_vy", "R1_vx", "R1_vy"]
-RUNS = [("1e-5", False), ("1e-6", False), ("1e-7", False), ("1e-8", True)]
+# (integrator, rtol, onset events); the last is the reference.
+TOLERANCES = ["1e-5", "1e-6", "1e-7"]
+REFERENCE = ("dopri5", "1e-8", True)
 
 
 def replace_once(text, old, new):
@@ -44,23 +47,25 @@ def replace_once(text, old, new):
     return text.replace(old, new)
 
 
-def study(rtol, events):
-    """The text of section3-diagram.toml at four clearances and tolerance rtol."""
+def study(integrator, rtol, events):
+    """The text of section3-diagram.toml at four clearances, with `integrator` at tolerance rtol."""
     text = (HERE / "section3-diagram.toml").read_text()
     scene = (HERE / "../../data/scenes/4ups-rpu-mixed.toml").resolve()
     text = replace_once(text, '"../../data/scenes/4ups-rpu-mixed.toml"', f'"{scene}"')
-    solver = f'"solver.rtol" = {rtol}, "solver.atol" = {float(rtol) * 1e-3:.0e}'
+    solver = f'"solver.integrator" = "{integrator}", "solver.rtol" = {rtol}, "solver.atol" = {float(rtol) * 1e-3:.0e}'
     if events:
         solver += ', "solver.onset_events" = true'
-    text = replace_once(text, '"solver.rtol" = 1e-6, "solver.atol" = 1e-9', solver)
-    text = replace_once(text, 'name = "section3-diagram"', f'name = "{name(rtol, events)}"')
+    text = replace_once(text, '"solver.integrator" = "dopri5", "solver.rtol" = 1e-6, "solver.atol" = 1e-9', solver)
+    text = replace_once(text, 'name = "section3-diagram"', f'name = "{name(integrator, rtol, events)}"')
     text = replace_once(text, "from = 2e-5\nto = 8e-4\ncount = 40", "from = 1e-4\nto = 7e-4\ncount = 4")
     # The figures are not needed to compare the numbers.
     return re.split(r"^\[\[figures\]\]", text, flags=re.M)[0]
 
 
-def name(rtol, events):
-    return f"tolerance-{rtol}" + ("-events" if events else "")
+def name(integrator, rtol, events):
+    # The DOPRI5 files keep their first names, so that earlier runs are reused.
+    prefix = "tolerance-" if integrator == "dopri5" else f"tolerance-{integrator}-"
+    return f"{prefix}{rtol}" + ("-events" if events else "")
 
 
 def complete(path):
@@ -73,18 +78,20 @@ def complete(path):
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--integrator", default="dopri5", choices=["dopri5", "bs3"])
     ap.add_argument("--out", default=str(ROOT / "out" / "section3-tolerance"))
     ap.add_argument("--jointplay", default=os.environ.get("JOINTPLAY", str(ROOT / "target/release/jointplay")))
     args = ap.parse_args()
     out = Path(args.out)
     out.mkdir(parents=True, exist_ok=True)
+    runs = [(args.integrator, rtol, False) for rtol in TOLERANCES] + [REFERENCE]
     files = []
-    for rtol, events in RUNS:
-        n = name(rtol, events)
+    for integrator, rtol, events in runs:
+        n = name(integrator, rtol, events)
         h5 = out / f"{n}.h5"
         if not complete(h5):
             toml = out / f"{n}.toml"
-            toml.write_text(study(rtol, events))
+            toml.write_text(study(integrator, rtol, events))
             t0 = time.monotonic()
             r = subprocess.run([args.jointplay, "run", str(toml), "--out", str(out), "-q", "--no-plots"])
             if r.returncode != 0:
@@ -95,7 +102,7 @@ def main():
     height = {k: np.ptp(ref[k][()]) for k in OBSERVABLES}
     print("| run | RHS evaluations | " + " | ".join(f"{k} settled / all" for k in OBSERVABLES) + " |")
     print("|---|---|" + "---|" * len(OBSERVABLES))
-    for (rtol, events), h5 in zip(RUNS, files):
+    for (integrator, rtol, events), h5 in zip(runs, files):
         s = h5py.File(h5, "r")["sweep"]
         cells = []
         for k in OBSERVABLES:
@@ -103,14 +110,14 @@ def main():
             settled = np.max(np.abs(a[:, -10:] - r[:, -10:])) / height[k]
             every = np.max(np.abs(a - r)) / height[k]
             cells.append(f"{settled:.1e} / {every:.1e}")
-        label = f"rtol {rtol}" + (" + onset events (reference)" if events else "")
+        label = f"{integrator} rtol {rtol}" + (" + onset events (reference)" if events else "")
         print(f"| {label} | {int(s['rhs_evals'][()].sum()):,} | " + " | ".join(cells) + " |")
     print()
     print("diagram height (m/s): " + ", ".join(f"{k} {height[k]:.3e}" for k in OBSERVABLES))
-    for (rtol, events), h5 in zip(RUNS, files):
+    for (integrator, rtol, events), h5 in zip(runs, files):
         s = h5py.File(h5, "r")["sweep"]
         spread = [np.max(np.ptp(s[k][()][:, -10:], axis=1)) for k in OBSERVABLES]
-        print(f"spread of the last 10 strobe points, rtol {rtol}: " + ", ".join(f"{v:.1e}" for v in spread))
+        print(f"spread of the last 10 strobe points, {integrator} rtol {rtol}: " + ", ".join(f"{v:.1e}" for v in spread))
 
 
 if __name__ == "__main__":
