@@ -17,9 +17,11 @@ fn main() {
     divan::main();
 }
 
-const SETTINGS: [&str; 7] = [
+const SETTINGS: [&str; 9] = [
     "rk4 1e-4",
     "rk4 5e-5",
+    "bs3 1e-3",
+    "bs3 1e-4",
     "dopri5 1e-3",
     "dopri5 1e-6",
     "dop853 1e-6",
