@@ -6,7 +6,7 @@ periods, the first 10 transient) with DOPRI5 (or, with --integrator bs3, the Bog
 3(2) pair) at rtol 1e-5, 1e-6 and 1e-7 (atol = rtol x 1e-3 m), and a reference (DOPRI5 at rtol
 1e-8 with contact onsets as events), then prints, for the velocities the
 paper's diagrams plot, how far each run's strobe points lie from the reference's, as a fraction
-of the diagram's height (the reference's range over all clearances and strobe points):
+of the diagram's height (the reference's range over its four clearances and all strobe points):
 
 - "settled": the last 10 strobe points of each clearance, what the diagram shows as the orbit;
 - "all": every strobe point after the transient, the approach to the orbit included;
@@ -14,7 +14,8 @@ of the diagram's height (the reference's range over all clearances and strobe po
   classification reads as one point per period when it is small.
 
 A fraction of 1e-3 is one pixel of a 1000-pixel-high figure. The runs are written to DIR
-(default out/section3-tolerance); a complete file already there is reused.
+(default out/section3-tolerance); a complete file already there from the same study text is
+reused.
 
     python3 analyses/4ups-rpu/section3_tolerance.py [--integrator bs3] [--out DIR] [--jointplay BIN]
 
@@ -68,12 +69,22 @@ def name(integrator, rtol, events):
     return f"{prefix}{rtol}" + ("-events" if events else "")
 
 
-def complete(path):
+def reusable(path, text):
+    """Whether `path` is a complete run of the study `text`."""
     try:
         with h5py.File(path, "r") as f:
-            return int(f.attrs["complete"]) == 1
+            study = f.attrs["study"]
+            study = study.decode() if isinstance(study, bytes) else str(study)
+            return int(f.attrs["complete"]) == 1 and study == text
     except (OSError, KeyError):
         return False
+
+
+def sweep(path):
+    """The strobe-point datasets and evaluation counts of a sweep file, read into memory."""
+    with h5py.File(path, "r") as f:
+        s = f["sweep"]
+        return {k: s[k][()] for k in OBSERVABLES + ["rhs_evals"]}
 
 
 def main():
@@ -89,34 +100,35 @@ def main():
     for integrator, rtol, events in runs:
         n = name(integrator, rtol, events)
         h5 = out / f"{n}.h5"
-        if not complete(h5):
+        text = study(integrator, rtol, events)
+        if not reusable(h5, text):
             toml = out / f"{n}.toml"
-            toml.write_text(study(integrator, rtol, events))
+            toml.write_text(text)
             t0 = time.monotonic()
             r = subprocess.run([args.jointplay, "run", str(toml), "--out", str(out), "-q", "--no-plots"])
             if r.returncode != 0:
                 sys.exit(f"{toml}: jointplay run failed (exit {r.returncode})")
             print(f"ran {n} in {time.monotonic() - t0:.1f} s", file=sys.stderr)
         files.append(h5)
-    ref = h5py.File(files[-1], "r")["sweep"]
-    height = {k: np.ptp(ref[k][()]) for k in OBSERVABLES}
+    ref = sweep(files[-1])
+    height = {k: np.ptp(ref[k]) for k in OBSERVABLES}
     print("| run | RHS evaluations | " + " | ".join(f"{k} settled / all" for k in OBSERVABLES) + " |")
     print("|---|---|" + "---|" * len(OBSERVABLES))
     for (integrator, rtol, events), h5 in zip(runs, files):
-        s = h5py.File(h5, "r")["sweep"]
+        s = sweep(h5)
         cells = []
         for k in OBSERVABLES:
-            a, r = s[k][()], ref[k][()]
+            a, r = s[k], ref[k]
             settled = np.max(np.abs(a[:, -10:] - r[:, -10:])) / height[k]
             every = np.max(np.abs(a - r)) / height[k]
             cells.append(f"{settled:.1e} / {every:.1e}")
         label = f"{integrator} rtol {rtol}" + (" + onset events (reference)" if events else "")
-        print(f"| {label} | {int(s['rhs_evals'][()].sum()):,} | " + " | ".join(cells) + " |")
+        print(f"| {label} | {int(s['rhs_evals'].sum()):,} | " + " | ".join(cells) + " |")
     print()
     print("diagram height (m/s): " + ", ".join(f"{k} {height[k]:.3e}" for k in OBSERVABLES))
     for (integrator, rtol, events), h5 in zip(runs, files):
-        s = h5py.File(h5, "r")["sweep"]
-        spread = [np.max(np.ptp(s[k][()][:, -10:], axis=1)) for k in OBSERVABLES]
+        s = sweep(h5)
+        spread = [np.max(np.ptp(s[k][:, -10:], axis=1)) for k in OBSERVABLES]
         print(f"spread of the last 10 strobe points, {integrator} rtol {rtol}: " + ", ".join(f"{v:.1e}" for v in spread))
 
 

@@ -1325,7 +1325,7 @@ pub fn execute_until(
             }
             Err(_) => vec![None; n],
         };
-        let todo: Vec<bool> = (0..n).map(|r| pending.contains(&r)).collect();
+        let todo: Vec<bool> = done.iter().map(|&d| d == 0).collect();
         let queue = std::sync::Mutex::new(crate::schedule::Queue::new(
             rows.iter().map(|&j| st.jobs[j].0).collect(),
             &todo,
@@ -1368,7 +1368,10 @@ pub fn execute_until(
                     );
                     let took = job_start.elapsed();
                     busy.fetch_add(took.as_nanos() as u64, Ordering::Relaxed);
-                    if let Ok(mut q) = queue.lock() {
+                    // A failed or interrupted run's time says little about the value's cost.
+                    if res.is_ok()
+                        && let Ok(mut q) = queue.lock()
+                    {
                         q.finished(r, took.as_secs_f64());
                     }
                     // The writer lives until every sender is gone.
