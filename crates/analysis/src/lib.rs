@@ -110,3 +110,12 @@ pub enum Error {
 }
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// Whether `name` is non-empty and made of ASCII letters, digits and the characters of `also`:
+/// the names that become HDF5 paths or parts of file names.
+pub(crate) fn plain_name(name: &str, also: &str) -> bool {
+    !name.is_empty()
+        && name
+            .chars()
+            .all(|c| c.is_ascii_alphanumeric() || also.contains(c))
+}

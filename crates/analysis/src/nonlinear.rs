@@ -273,13 +273,7 @@ const RESERVED: [&str; 12] = [
 ];
 
 fn check_name(file: &Path, field: &str, name: &str) -> Result<()> {
-    if name.is_empty()
-        || !name
-            .chars()
-            .all(|c| c.is_ascii_alphanumeric() || "-_.".contains(c))
-        || name == "time"
-        || RESERVED.contains(&name)
-    {
+    if !crate::plain_name(name, "-_.") || name == "time" || RESERVED.contains(&name) {
         return Err(invalid(
             file,
             field,

@@ -105,7 +105,6 @@ fn argmax(v: &[f64]) -> (usize, f64) {
     )
 }
 
-/// Smallest and largest element.
 /// The first time after which `x` stays inside its range over the settled window (from index
 /// `s` on) widened on both sides by `tol * scale`; NaN when that range is wider than
 /// `2 * scale` (nothing has settled), the first time when `x` never leaves the band.
@@ -132,6 +131,7 @@ fn within(ours: f64, value: f64, band: f64) -> bool {
     (ours - value).abs() <= band * value.abs()
 }
 
+/// Smallest and largest element.
 fn range(v: &[f64]) -> (f64, f64) {
     v.iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), &x| {

@@ -207,12 +207,7 @@ impl Study {
         let mut seen = BTreeMap::new();
         for (i, c) in spec.cases.iter().enumerate() {
             let field = format!("cases[{i}].label");
-            if c.label.is_empty()
-                || !c
-                    .label
-                    .chars()
-                    .all(|ch| ch.is_ascii_alphanumeric() || "-_.".contains(ch))
-            {
+            if !crate::plain_name(&c.label, "-_.") {
                 return Err(invalid(
                     path,
                     field,
@@ -274,12 +269,7 @@ impl Study {
         }
         let mut names = std::collections::BTreeSet::new();
         for (i, g) in spec.report.figures.iter().enumerate() {
-            if g.name.is_empty()
-                || !g
-                    .name
-                    .chars()
-                    .all(|c| c.is_ascii_alphanumeric() || c == '-' || c == '_')
-            {
+            if !crate::plain_name(&g.name, "-_") {
                 return Err(invalid(
                     path,
                     format!("report.figures[{i}].name"),
