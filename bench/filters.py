@@ -48,8 +48,9 @@ def main():
             sizes["rows"] += len(zlib.compress(shuffle(c), 4))
             for j in range(c.shape[1]):
                 col = np.ascontiguousarray(c[:, j])
-                sizes["columns"] += len(zlib.compress(shuffle(col), 4))
-                sizes["columns-9"] += len(zlib.compress(shuffle(col), 9))
+                shuffled = shuffle(col)
+                sizes["columns"] += len(zlib.compress(shuffled, 4))
+                sizes["columns-9"] += len(zlib.compress(shuffled, 9))
                 u = col.view(np.uint64)
                 d = u.copy()
                 d[1:] ^= u[:-1]
