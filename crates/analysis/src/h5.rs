@@ -235,11 +235,27 @@ pub(crate) fn create_nan(
     unit: &str,
     desc: &str,
 ) -> hdf5::Result<()> {
+    create_nan_chunked(g, name, shape, usize::MAX, unit, desc)
+}
+
+/// [`create_nan`] whose chunks hold at most `cols` columns of a row: a row written block by block
+/// while its job runs (its time histories) is written in whole chunks.
+pub(crate) fn create_nan_chunked(
+    g: &hdf5::Group,
+    name: &str,
+    shape: &[usize],
+    cols: usize,
+    unit: &str,
+    desc: &str,
+) -> hdf5::Result<()> {
     let b = g.new_dataset::<f64>().shape(shape).fill_value(f64::NAN);
     let ds = match chunk_shape(shape, 8) {
         // One row (one job) per chunk: a job's results are written, and compressed, at once.
         Some(mut c) => {
             c[0] = 1;
+            if let Some(w) = c.get_mut(1) {
+                *w = (*w).min(cols);
+            }
             b.chunk(c).shuffle().deflate(DEFLATE).create(name)?
         }
         None => b.create(name)?,
@@ -319,6 +335,74 @@ pub(crate) fn write_table<T: hdf5::H5Type + Clone>(
     describe(&ds, Some(unit), desc)
 }
 
+/// A file written under the temporary name `<name>.h5.partial` and moved to `<name>.h5` only once
+/// it is complete and closed.
+pub(crate) struct PartialFile {
+    pub file: hdf5::File,
+    partial: PathBuf,
+    path: PathBuf,
+}
+
+impl PartialFile {
+    /// Creates `dir/<name>.h5.partial` with the program's root attributes.
+    pub fn create(dir: &Path, name: &str, program_version: &str) -> Result<PartialFile> {
+        std::fs::create_dir_all(dir).map_err(|e| Error::Io {
+            file: dir.to_path_buf(),
+            message: format!("cannot create output directory: {e}"),
+        })?;
+        let path = dir.join(format!("{name}.h5"));
+        let partial = dir.join(format!("{name}.h5.partial"));
+        let file = hdf5::File::create(&partial).map_err(h5err(&partial))?;
+        let out = PartialFile {
+            file,
+            partial,
+            path,
+        };
+        let attrs = || -> hdf5::Result<()> {
+            str_attr(&out.file, "program", "jointplay")?;
+            str_attr(&out.file, "program_version", program_version)?;
+            str_attr(&out.file, "units", "SI: m, kg, s, rad, N, N m, J")
+        };
+        match attrs() {
+            Ok(()) => Ok(out),
+            Err(err) => {
+                let err = h5err(out.partial())(err);
+                out.discard();
+                Err(err)
+            }
+        }
+    }
+
+    /// The temporary name, for errors.
+    pub fn partial(&self) -> &Path {
+        &self.partial
+    }
+
+    /// Closes the file and moves it into place; on an error the partial file is removed.
+    pub fn finish(self) -> Result<PathBuf> {
+        let PartialFile {
+            file,
+            partial,
+            path,
+        } = self;
+        if let Err(err) = file.close() {
+            let _ = std::fs::remove_file(&partial);
+            return Err(h5err(&partial)(err));
+        }
+        std::fs::rename(&partial, &path).map_err(|e| Error::Io {
+            file: path.clone(),
+            message: format!("cannot move the finished file into place: {e}"),
+        })?;
+        Ok(path)
+    }
+
+    /// Closes and removes the partial file.
+    pub fn discard(self) {
+        let _ = self.file.close();
+        let _ = std::fs::remove_file(&self.partial);
+    }
+}
+
 /// Creates `dir/<name>.h5` under the temporary name `<name>.h5.partial`, writes the program's
 /// root attributes and then `body`, and renames the file only once it is complete and closed; on
 /// any error the partial file is removed.
@@ -328,32 +412,15 @@ pub(crate) fn write_atomically(
     program_version: &str,
     body: impl FnOnce(&hdf5::File) -> hdf5::Result<()>,
 ) -> Result<PathBuf> {
-    std::fs::create_dir_all(dir).map_err(|e| Error::Io {
-        file: dir.to_path_buf(),
-        message: format!("cannot create output directory: {e}"),
-    })?;
-    let path = dir.join(format!("{name}.h5"));
-    let partial = dir.join(format!("{name}.h5.partial"));
-    let e = h5err(&partial);
-    let res = hdf5::File::create(&partial).map_err(&e).and_then(|file| {
-        (|| -> hdf5::Result<()> {
-            str_attr(&file, "program", "jointplay")?;
-            str_attr(&file, "program_version", program_version)?;
-            str_attr(&file, "units", "SI: m, kg, s, rad, N, N m, J")?;
-            body(&file)
-        })()
-        .map_err(&e)?;
-        file.close().map_err(&e)
-    });
-    if let Err(err) = res {
-        let _ = std::fs::remove_file(&partial);
-        return Err(err);
+    let out = PartialFile::create(dir, name, program_version)?;
+    match body(&out.file) {
+        Ok(()) => out.finish(),
+        Err(err) => {
+            let err = h5err(out.partial())(err);
+            out.discard();
+            Err(err)
+        }
     }
-    std::fs::rename(&partial, &path).map_err(|e| Error::Io {
-        file: path.clone(),
-        message: format!("cannot move the finished file into place: {e}"),
-    })?;
-    Ok(path)
 }
 
 /// Writes `run` to `dir/<scene_name>.h5` and returns the path.
@@ -531,7 +598,7 @@ fn extendable<T: hdf5::H5Type>(
 }
 
 /// Appends `rows` samples of `values` (`width` per sample) to `ds` after its first `from` rows.
-fn append<T: hdf5::H5Type>(
+pub(crate) fn append<T: hdf5::H5Type>(
     ds: &hdf5::Dataset,
     from: usize,
     rows: usize,

@@ -37,13 +37,16 @@ use toml::{Table, Value};
 
 use crate::flow::{Flow, Target};
 use crate::h5::{
-    create_nan, f64_attr, f64_attr_set, h5err, read_attr, read_str, str_attr, u8_attr_set,
-    u64_attr, write_atomically, write_column, write_element, write_row, write1,
+    DEFLATE, PartialFile, append, create_nan, create_nan_chunked, describe, f64_attr, f64_attr_set,
+    h5err, read_attr, read_str, str_attr, u8_attr_set, u64_attr, write_column, write_element,
+    write_row, write1,
 };
 use crate::hybrid;
 use crate::observe::Observable;
 use crate::progress::{Progress, Stop};
-use crate::sections::{Direction, Hyperplane, Plan, Trace, trace_partial};
+use crate::sections::{
+    Direction, HISTORY_BLOCK, HistorySink, Hyperplane, Plan, Trace, trace_partial,
+};
 use crate::shards::Shard;
 use crate::study::{edit, edited_scene, invalid};
 use crate::systems::SystemSpec;
@@ -851,8 +854,9 @@ impl Loaded {
         start: Option<&HybridState>,
         progress: &mut dyn FnMut(f64),
         stop: &Stop,
+        history: Option<HistorySink>,
     ) -> Result<JobResult> {
-        let (r, failure) = self.run_job_partial(value, start, progress, stop)?;
+        let (r, failure) = self.run_job_partial(value, start, progress, stop, history)?;
         match failure {
             Some(e) => Err(e),
             None => Ok(r),
@@ -867,12 +871,16 @@ impl Loaded {
     /// state and its contact-onset history (a contact that carries on through the hand-over
     /// keeps the approach velocity of its onset); the integrator's step memory and the guard's
     /// warnings start afresh, since each value is a run of its own with its own warnings.
+    ///
+    /// With `history` the time histories go there while the job runs (see [`trace_partial`]);
+    /// without, they are kept in the result.
     fn run_job_partial(
         &self,
         value: Option<f64>,
         start: Option<&HybridState>,
         progress: &mut dyn FnMut(f64),
         stop: &Stop,
+        history: Option<HistorySink>,
     ) -> Result<(JobResult, Option<Error>)> {
         let t0 = Instant::now();
         let target = self.target(value)?;
@@ -898,6 +906,7 @@ impl Loaded {
             &mut state,
             &mut |x| progress(x * share),
             stop,
+            history,
         );
         let (chaos, res) = match res {
             Ok(()) => match self.chaos(
@@ -1004,12 +1013,12 @@ impl Loaded {
 
     /// Runs the single run of a study without a sweep and returns its result.
     pub fn run_single(&self, progress: &mut dyn FnMut(f64)) -> Result<JobResult> {
-        self.run_job(None, None, progress, &Stop::new())
+        self.run_job(None, None, progress, &Stop::new(), None)
     }
 
     /// Runs the job with parameter `value` alone (tests, scripting).
     pub fn run_value(&self, value: f64, progress: &mut dyn FnMut(f64)) -> Result<JobResult> {
-        self.run_job(Some(value), None, progress, &Stop::new())
+        self.run_job(Some(value), None, progress, &Stop::new(), None)
     }
 
     /// Runs the job with parameter `value` from `start`, another job's final state, as a
@@ -1021,7 +1030,7 @@ impl Loaded {
         start: &HybridState,
         progress: &mut dyn FnMut(f64),
     ) -> Result<JobResult> {
-        self.run_job(Some(value), Some(start), progress, &Stop::new())
+        self.run_job(Some(value), Some(start), progress, &Stop::new(), None)
     }
 }
 
@@ -1120,15 +1129,49 @@ pub fn execute_until(
             total: 1,
             pending: 1,
         });
-        // A run that fails keeps what it recorded, in a file marked incomplete.
+        // A run that fails keeps what it recorded, in a file marked incomplete. The time
+        // histories are appended to the file while the run goes.
+        let out = PartialFile::create(dir, name, version)?;
+        let partial = out.partial().to_path_buf();
+        let e = h5err(&partial);
+        let history = if st.spec.analysis.samples_per_period > 0 {
+            match SingleHistory::create(&out.file, &st.spec.observables) {
+                Ok(h) => Some(h),
+                Err(err) => {
+                    out.discard();
+                    return Err(e(err));
+                }
+            }
+        } else {
+            None
+        };
+        let mut append = |from: usize, time: &[f64], values: &[Vec<f64>]| -> Result<()> {
+            match &history {
+                Some(h) => h.append(from, time, values).map_err(&e),
+                None => Ok(()),
+            }
+        };
         let job_start = Instant::now();
-        let (r, failure) =
-            st.run_job_partial(None, None, &mut throttled(0, progress), user_stop)?;
+        let ran = st.run_job_partial(
+            None,
+            None,
+            &mut throttled(0, progress),
+            user_stop,
+            history.is_some().then_some(&mut append as HistorySink),
+        );
+        let (r, failure) = match ran {
+            Ok(x) => x,
+            Err(err) => {
+                out.discard();
+                return Err(err);
+            }
+        };
         progress(Progress::Done {
             job: 0,
             ok: failure.is_none(),
         });
-        let file = write_atomically(dir, name, version, |file| {
+        let written = (|| -> hdf5::Result<()> {
+            let file = &out.file;
             Root::of(st, &r.integrator, r.start, r.period)
                 .write(file, u8::from(failure.is_none()))?;
             if !r.warnings.is_empty() {
@@ -1145,7 +1188,13 @@ pub fn execute_until(
                 }
             }
             write_single(file, st, &r)
-        })?;
+        })();
+        if let Err(err) = written {
+            out.discard();
+            return Err(e(err));
+        }
+        drop(history);
+        let file = out.finish()?;
         let interrupted = matches!(failure, Some(Error::Interrupted { .. }));
         return Ok(Outcome {
             file,
@@ -1301,6 +1350,9 @@ pub fn execute_until(
                 prev.as_ref(),
                 &mut throttled(j, progress),
                 user_stop,
+                Some(&mut |from, time: &[f64], values: &[Vec<f64>]| {
+                    write_history_block(&file, st, j, from, time, values).map_err(&e)
+                }),
             );
             busy.fetch_add(job_start.elapsed().as_nanos() as u64, Ordering::Relaxed);
             prev = res.as_ref().ok().map(|r| r.trace.final_state.clone());
@@ -1309,7 +1361,7 @@ pub fn execute_until(
     } else {
         // The jobs run on the caller's rayon pool (the global one, or one it installed); a
         // thread of its own writes each result as it comes.
-        let (tx, rx) = mpsc::channel::<(usize, Result<JobResult>)>();
+        let (tx, rx) = mpsc::channel::<Message>();
         threads = rayon::current_num_threads();
         // The costs of the values a resumed file holds already seed the estimate.
         let known: Vec<Option<f64>> = match file.dataset("sweep/wall_time") {
@@ -1327,15 +1379,24 @@ pub fn execute_until(
         ));
         let busy = &busy;
         let write_err = std::thread::scope(|scope| {
-            let (stop, done) = (&stop, &mut done);
+            let (stop, done, file, e) = (&stop, &mut done, &file, &e);
             let writer = scope.spawn(move || {
                 let mut write_err = None;
-                for (r, res) in rx {
+                for message in rx {
                     // Jobs that were running when the limit was reached are dropped unwritten.
-                    if write_err.is_none()
-                        && !stop.load(Ordering::SeqCst)
-                        && let Err(err) = write(r, res, done)
-                    {
+                    if write_err.is_some() || stop.load(Ordering::SeqCst) {
+                        continue;
+                    }
+                    let written = match message {
+                        Message::History {
+                            row,
+                            from,
+                            time,
+                            values,
+                        } => write_history_block(file, st, row, from, &time, &values).map_err(e),
+                        Message::Done(r, res) => write(r, *res, done),
+                    };
+                    if let Err(err) = written {
                         // Stop the other jobs: their results could not be written.
                         stop.store(true, Ordering::SeqCst);
                         write_err = Some(err);
@@ -1354,11 +1415,25 @@ pub fn execute_until(
                     let Some(r) = next else { return };
                     let j = rows[r];
                     let job_start = Instant::now();
+                    // The time histories go to the writer block by block.
+                    let mut hand = |from: usize, time: &[f64], values: &[Vec<f64>]| {
+                        let block = Message::History {
+                            row: r,
+                            from,
+                            time: time.to_vec(),
+                            values: values.to_vec(),
+                        };
+                        tx.send(block).map_err(|_| Error::Io {
+                            file: path.clone(),
+                            message: "the thread writing the sweep's results stopped".into(),
+                        })
+                    };
                     let res = st.run_job(
                         Some(st.jobs[j].0),
                         None,
                         &mut throttled(j, progress),
                         user_stop,
+                        Some(&mut hand),
                     );
                     let took = job_start.elapsed();
                     busy.fetch_add(took.as_nanos() as u64, Ordering::Relaxed);
@@ -1369,7 +1444,7 @@ pub fn execute_until(
                         q.finished(r, took.as_secs_f64());
                     }
                     // The writer lives until every sender is gone.
-                    let _ = tx.send((r, res));
+                    let _ = tx.send(Message::Done(r, Box::new(res)));
                 }
             });
             writer.join()
@@ -1669,6 +1744,47 @@ pub(crate) fn write_crossings(
     obs_datasets(&gp, observables, units, values, "at the crossings")
 }
 
+/// The time histories of a single run's file, `/history/time` and `/history/<observable>`:
+/// extendable, appended block by block while the run goes, described by [`write_single`] once it
+/// is over (the units are the flow's).
+struct SingleHistory {
+    time: hdf5::Dataset,
+    values: Vec<hdf5::Dataset>,
+}
+
+impl SingleHistory {
+    fn create(file: &hdf5::File, observables: &[ObservableSpec]) -> hdf5::Result<SingleHistory> {
+        let g = file.create_group("history")?;
+        // One chunk per block, written whole; no chunk cache.
+        let create = |name: &str| {
+            g.new_dataset::<f64>()
+                .chunk_cache(0, 0, 1.0)
+                .shape(0..)
+                .chunk(HISTORY_BLOCK)
+                .shuffle()
+                .deflate(DEFLATE)
+                .create(name)
+        };
+        Ok(SingleHistory {
+            time: create("time")?,
+            values: observables
+                .iter()
+                .map(|o| create(&o.name))
+                .collect::<hdf5::Result<_>>()?,
+        })
+    }
+
+    /// Appends the samples `from..` of a block.
+    fn append(&self, from: usize, time: &[f64], values: &[Vec<f64>]) -> hdf5::Result<()> {
+        let n = time.len();
+        append(&self.time, from, n, 1, true, time.to_vec())?;
+        for (ds, v) in self.values.iter().zip(values) {
+            append(ds, from, n, 1, true, v.clone())?;
+        }
+        Ok(())
+    }
+}
+
 fn write_single(file: &hdf5::File, st: &Loaded, r: &JobResult) -> hdf5::Result<()> {
     let t = &r.trace;
     let obs = &st.spec.observables;
@@ -1676,15 +1792,18 @@ fn write_single(file: &hdf5::File, st: &Loaded, r: &JobResult) -> hdf5::Result<(
     u64_attr(file, "accepted_steps", t.stats.accepted)?;
     f64_attr(file, "wall_time", r.wall)?;
     if st.spec.analysis.samples_per_period > 0 {
-        let g = file.create_group("history")?;
-        write1(
-            &g,
-            "time",
-            &t.history_time,
-            "s",
+        // Written while the run went (SingleHistory).
+        let g = file.group("history")?;
+        describe(
+            &g.dataset("time")?,
+            Some("s"),
             "sample times over the kept window",
         )?;
-        obs_datasets(&g, obs, &r.units, &t.history, "over the kept window")?;
+        for (o, u) in obs.iter().zip(&r.units) {
+            let ds = g.dataset(&o.name)?;
+            describe(&ds, Some(u), &format!("{} over the kept window", o.path))?;
+            str_attr(&ds, "path", &o.path)?;
+        }
     }
     let g = file.create_group("sections")?;
     let s0 = g.create_group("strobe")?;
@@ -1771,18 +1890,21 @@ pub(crate) fn create_sweep_file(
         }
         if hl > 0 {
             let h = g.create_group("history")?;
-            create_nan(
+            // Chunks of one block of a row: each job writes its histories block by block.
+            create_nan_chunked(
                 &h,
                 "time",
                 &[n, hl],
+                HISTORY_BLOCK,
                 "s",
                 "sample times over the kept window, per job",
             )?;
             for (o, u) in l.observables.iter().zip(&l.units) {
-                create_nan(
+                create_nan_chunked(
                     &h,
                     &o.name,
                     &[n, hl],
+                    HISTORY_BLOCK,
                     u,
                     &format!("{} over the kept window, per job", o.path),
                 )?;
@@ -1828,6 +1950,41 @@ pub(crate) fn create_sweep_file(
     Ok(file)
 }
 
+/// What a sweep's jobs hand to the thread writing its file.
+enum Message {
+    /// Samples `from..` of the time histories of the job in row `row`.
+    History {
+        row: usize,
+        from: usize,
+        time: Vec<f64>,
+        values: Vec<Vec<f64>>,
+    },
+    /// The job in the row is over.
+    Done(usize, Box<Result<JobResult>>),
+}
+
+/// Writes samples `from..from + time.len()` of the time histories of the job in row `row`, while
+/// it runs: whole chunks of the history datasets (see [`create_sweep_file`]) but the last.
+fn write_history_block(
+    file: &hdf5::File,
+    st: &Loaded,
+    row: usize,
+    from: usize,
+    time: &[f64],
+    values: &[Vec<f64>],
+) -> hdf5::Result<()> {
+    let h = file.group("sweep/history")?;
+    let put = |name: &str, v: &[f64]| {
+        h.dataset(name)?
+            .write_slice(&Array1::from(v.to_vec()), s![row, from..from + v.len()])
+    };
+    put("time", time)?;
+    for (o, v) in st.spec.observables.iter().zip(values) {
+        put(&o.name, v)?;
+    }
+    Ok(())
+}
+
 /// Writes the result of the job in row `row` of the file.
 fn write_job(file: &hdf5::File, st: &Loaded, row: usize, r: &JobResult) -> hdf5::Result<()> {
     let g = file.group("sweep")?;
@@ -1836,13 +1993,7 @@ fn write_job(file: &hdf5::File, st: &Loaded, row: usize, r: &JobResult) -> hdf5:
     for (o, v) in st.spec.observables.iter().zip(&t.strobe) {
         write_row(&g, &o.name, row, v)?;
     }
-    if st.spec.analysis.samples_per_period > 0 {
-        let h = g.group("history")?;
-        write_row(&h, "time", row, &t.history_time)?;
-        for (o, v) in st.spec.observables.iter().zip(&t.history) {
-            write_row(&h, &o.name, row, v)?;
-        }
-    }
+    // The time histories were written while the job ran (write_history_block).
     hybrid::write_row(&g, row, &t.final_state)?;
     write_element(&g, "rhs_evals", row, t.stats.rhs_evals)?;
     write_element(&g, "wall_time", row, r.wall)?;

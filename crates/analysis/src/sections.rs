@@ -19,7 +19,7 @@
 //! The flow only has to be an [`OdeSystem`] that can evaluate observables ([`Observed`]);
 //! nothing here knows mechanics.
 
-use jointplay_solver::ode::{Flow, Method, OdeSystem, Stats, Step, advance};
+use jointplay_solver::ode::{Flow, Method, OdeSystem, SampleTimes, Stats, Step, advance_on};
 use jointplay_solver::state::HybridState;
 
 use crate::Result;
@@ -141,32 +141,89 @@ impl Plan {
         }
     }
 
-    /// The sample times, each with (is a strobe time, is a history sample).
-    fn samples(&self) -> Vec<(f64, bool, bool)> {
-        let base = self.start + self.phase;
+    /// The sample times, computed on demand: a long run holds none of them.
+    fn samples(&self) -> Samples {
         let n = self.samples_per_period;
-        let first_history = if n == 0 {
-            usize::MAX
+        let (first_history, strobe_only, history) = if n == 0 {
+            (usize::MAX, self.kept(), 0)
         } else {
-            (self.periods - self.history_span()) * n
+            let first = (self.periods - self.history_span()) * n;
+            // Strobe points before the history window: k = transient + 1, ... while k n < first.
+            let strobe_only =
+                (self.periods - self.history_span()).saturating_sub(self.transient + 1);
+            (first, strobe_only, self.periods * n - first + 1)
         };
-        let mut v = Vec::new();
-        for k in self.transient + 1..=self.periods {
-            if n > 0 && k * n >= first_history {
-                break;
-            }
-            v.push((base + k as f64 * self.period, true, false));
+        Samples {
+            base: self.start + self.phase,
+            period: self.period,
+            n,
+            transient: self.transient,
+            first_history,
+            strobe_only,
+            history,
         }
-        if n > 0 {
-            // (k n) / n is exactly k in floating point, so history samples at whole periods are
-            // base + k T exactly, the strobe times.
-            for i in first_history..=self.periods * n {
-                let strobe = i % n == 0 && i > self.transient * n;
-                v.push((base + (i as f64 / n as f64) * self.period, strobe, true));
-            }
-        }
-        v
     }
+}
+
+/// The sample times of a [`Plan`]: first the strobe times before the history window, then every
+/// history sample (some of them strobe times too).
+struct Samples {
+    base: f64,
+    period: f64,
+    n: usize,
+    transient: usize,
+    first_history: usize,
+    /// Strobe times before the history window.
+    strobe_only: usize,
+    /// History samples.
+    history: usize,
+}
+
+impl Samples {
+    /// Sample `i`: its time, whether it is a strobe time and whether a history sample.
+    fn at(&self, i: usize) -> (f64, bool, bool) {
+        if i < self.strobe_only {
+            let k = self.transient + 1 + i;
+            return (self.base + k as f64 * self.period, true, false);
+        }
+        let j = self.first_history + (i - self.strobe_only);
+        let n = self.n;
+        // (k n) / n is exactly k in floating point, so history samples at whole periods are
+        // base + k T exactly, the strobe times.
+        let strobe = j.is_multiple_of(n) && j > self.transient * n;
+        (
+            self.base + (j as f64 / n as f64) * self.period,
+            strobe,
+            true,
+        )
+    }
+}
+
+impl SampleTimes for Samples {
+    fn count(&self) -> usize {
+        self.strobe_only + self.history
+    }
+
+    fn time(&self, i: usize) -> f64 {
+        self.at(i).0
+    }
+}
+
+/// Hands the samples of `time` and `values` to `sink` as the block starting at sample `handed`,
+/// and empties them.
+fn hand_over(
+    sink: &mut HistorySink,
+    handed: &mut usize,
+    time: &mut Vec<f64>,
+    values: &mut [Vec<f64>],
+) -> Result<()> {
+    sink(*handed, time, values)?;
+    *handed += time.len();
+    time.clear();
+    for v in values {
+        v.clear();
+    }
+    Ok(())
 }
 
 fn nonfinite<S: Observed>(sys: &S, i: usize, t: f64) -> crate::Error {
@@ -186,23 +243,37 @@ pub fn trace<S: Observed>(
     state: &mut HybridState,
     progress: &mut dyn FnMut(f64),
 ) -> Result<Trace> {
-    let (tr, res) = trace_partial(sys, plan, state, progress, &Stop::new());
+    let (tr, res) = trace_partial(sys, plan, state, progress, &Stop::new(), None);
     res.map(|()| tr)
 }
+
+/// Samples of time history a run hands to its [`HistorySink`] at once: one chunk of each history
+/// dataset of its file (64 kB of values, as [`crate::h5::CHUNK_BYTES`]).
+pub const HISTORY_BLOCK: usize = crate::h5::CHUNK_BYTES / 8;
+
+/// Where a run's time histories go while it runs, so that a long run holds at most
+/// [`HISTORY_BLOCK`] samples of them: called with the index of a block's first sample, the
+/// block's times and, per observable, its values. An error stops the run with that error.
+pub type HistorySink<'a> = &'a mut dyn FnMut(usize, &[f64], &[Vec<f64>]) -> Result<()>;
 
 /// [`trace`] that returns what was recorded also when the run fails (with the error): samples,
 /// strobe points and crossings up to the failure, and the last accepted state. It also ends,
 /// with [`crate::Error::Interrupted`], after the first accepted step once `stop` is requested.
+///
+/// With a `sink` the time histories go to it block by block, the last (partial) block when the
+/// run ends or fails, and the returned trace holds none; without one they are kept in the trace.
 pub fn trace_partial<S: Observed>(
     sys: &mut S,
     plan: &Plan,
     state: &mut HybridState,
     progress: &mut dyn FnMut(f64),
     stop: &Stop,
+    mut sink: Option<HistorySink>,
 ) -> (Trace, Result<()>) {
     let no = sys.n_obs();
     let samples = plan.samples();
-    let times: Vec<f64> = samples.iter().map(|s| s.0).collect();
+    // History samples handed to the sink so far.
+    let mut handed = 0usize;
     let mut history_time = Vec::new();
     let mut history = vec![Vec::new(); no];
     let mut strobe_time = Vec::new();
@@ -216,13 +287,21 @@ pub fn trace_partial<S: Observed>(
             fail = Some(nonfinite(sys, i, t));
             return Flow::Stop;
         }
-        if samples[next].2 {
+        let (_, is_strobe, is_history) = samples.at(next);
+        if is_history {
             history_time.push(t);
             for (h, v) in history.iter_mut().zip(&obs) {
                 h.push(*v);
             }
+            if let Some(sink) = sink.as_mut()
+                && history_time.len() >= HISTORY_BLOCK
+                && let Err(e) = hand_over(sink, &mut handed, &mut history_time, &mut history)
+            {
+                fail = Some(e);
+                return Flow::Stop;
+            }
         }
-        if samples[next].1 {
+        if is_strobe {
             strobe_time.push(t);
             for (s, v) in strobe.iter_mut().zip(&obs) {
                 s.push(*v);
@@ -338,19 +417,26 @@ pub fn trace_partial<S: Observed>(
         g_prev = Some(st.t1);
         Flow::Continue
     };
-    let (stats, res) = advance(
+    let (stats, res) = advance_on(
         sys,
         plan.method,
         state,
         t_end,
-        &times,
+        &samples,
         observer,
         Some(&mut on_step),
     );
-    let res = match fail.or(step_fail) {
+    let mut res = match fail.or(step_fail) {
         Some(e) => Err(e),
         None => res.map_err(Into::into),
     };
+    // The last block, also of a run that failed: a sink that cannot take it fails the run.
+    if let Some(sink) = sink.as_mut()
+        && !history_time.is_empty()
+        && let Err(e) = hand_over(sink, &mut handed, &mut history_time, &mut history)
+    {
+        res = Err(e);
+    }
     let tr = Trace {
         history_time,
         history,
@@ -361,4 +447,170 @@ pub fn trace_partial<S: Observed>(
         final_state: state.clone(),
     };
     (tr, res)
+}
+
+#[cfg(test)]
+mod tests {
+    use jointplay_solver::ode::dopri5::DOPRI5;
+
+    use super::*;
+
+    /// x'' = -x from (1, 0); observes x and x'.
+    struct Oscillator;
+
+    impl OdeSystem for Oscillator {
+        fn dim(&self) -> usize {
+            2
+        }
+
+        fn rhs(&mut self, _t: f64, y: &[f64], dydt: &mut [f64]) {
+            dydt[0] = y[1];
+            dydt[1] = -y[0];
+        }
+    }
+
+    impl Observed for Oscillator {
+        fn n_obs(&self) -> usize {
+            2
+        }
+
+        fn observe(&mut self, _t: f64, y: &[f64], out: &mut [f64]) {
+            out.copy_from_slice(y);
+        }
+
+        fn obs_name(&self, i: usize) -> String {
+            ["x", "v"][i].into()
+        }
+    }
+
+    fn plan(periods: usize, transient: usize, n: usize, history: Option<usize>) -> Plan {
+        Plan {
+            method: Method::adaptive(&DOPRI5, 1e-8, 1e-10, f64::INFINITY).unwrap(),
+            start: 0.25,
+            period: std::f64::consts::TAU,
+            phase: 0.5,
+            periods,
+            transient,
+            samples_per_period: n,
+            history_periods: history,
+            hyperplanes: Vec::new(),
+        }
+    }
+
+    /// The sample list as it reads in words: the strobe times t0 + phase + k T of the kept
+    /// periods before the history window, then every history sample, a strobe time where it
+    /// falls on a whole kept period.
+    fn listed(p: &Plan) -> Vec<(f64, bool, bool)> {
+        let base = p.start + p.phase;
+        let n = p.samples_per_period;
+        let first = p.periods - p.history_span();
+        let mut v = Vec::new();
+        for k in p.transient + 1..=p.periods {
+            if n == 0 || k < first {
+                v.push((base + k as f64 * p.period, true, false));
+            }
+        }
+        if n > 0 {
+            for i in first * n..=p.periods * n {
+                let strobe = i % n == 0 && i > p.transient * n;
+                v.push((base + (i as f64 / n as f64) * p.period, strobe, true));
+            }
+        }
+        v
+    }
+
+    #[test]
+    fn sample_times_computed_on_demand_are_the_listed_ones() {
+        for (periods, transient, n, history) in [
+            (10, 0, 0, None),
+            (10, 3, 0, Some(2)),
+            (10, 3, 7, None),
+            (10, 3, 7, Some(2)),
+            (10, 3, 7, Some(0)),
+            (10, 3, 7, Some(7)),
+            (10, 3, 7, Some(50)),
+            (10, 0, 1, None),
+            (5, 5, 4, None),
+        ] {
+            let p = plan(periods, transient, n, history);
+            let s = p.samples();
+            let list = listed(&p);
+            let got: Vec<_> = (0..s.count()).map(|i| s.at(i)).collect();
+            // Bit for bit: the integrator samples the same times.
+            assert_eq!(got, list, "{periods} {transient} {n} {history:?}");
+            assert_eq!(
+                got.iter().filter(|x| x.1).count(),
+                p.kept(),
+                "one strobe time per kept period"
+            );
+            assert_eq!(got.iter().filter(|x| x.2).count(), p.history_len());
+        }
+    }
+
+    #[test]
+    fn histories_handed_over_in_blocks_are_those_kept_in_memory() {
+        // 2.5 blocks of samples: two whole blocks and a partial one at the end.
+        let n = 1000;
+        let periods = 2 * HISTORY_BLOCK / n + HISTORY_BLOCK / (2 * n);
+        let p = plan(periods, 0, n, None);
+        let mut st = HybridState::new(p.start, vec![1.0, 0.0]);
+        let kept = trace(&mut Oscillator, &p, &mut st, &mut |_| {}).unwrap();
+        assert_eq!(kept.history_time.len(), p.history_len());
+
+        let mut blocks = Vec::new();
+        let (mut time, mut values) = (Vec::new(), vec![Vec::new(); 2]);
+        let mut sink = |from: usize, t: &[f64], v: &[Vec<f64>]| -> Result<()> {
+            assert_eq!(from, time.len(), "blocks follow each other");
+            blocks.push(t.len());
+            time.extend_from_slice(t);
+            for (all, b) in values.iter_mut().zip(v) {
+                all.extend_from_slice(b);
+            }
+            Ok(())
+        };
+        let mut st = HybridState::new(p.start, vec![1.0, 0.0]);
+        let (streamed, res) = trace_partial(
+            &mut Oscillator,
+            &p,
+            &mut st,
+            &mut |_| {},
+            &Stop::new(),
+            Some(&mut sink),
+        );
+        res.unwrap();
+        let last = p.history_len() - 2 * HISTORY_BLOCK;
+        assert_eq!(blocks, vec![HISTORY_BLOCK, HISTORY_BLOCK, last]);
+        assert!(streamed.history_time.is_empty() && streamed.history.iter().all(Vec::is_empty));
+        assert_eq!(time, kept.history_time);
+        assert_eq!(values, kept.history);
+        assert_eq!(streamed.strobe, kept.strobe);
+    }
+
+    #[test]
+    fn a_sink_that_fails_stops_the_run_with_its_error() {
+        let p = plan(30, 0, 1000, None);
+        let mut sink = |_: usize, _: &[f64], _: &[Vec<f64>]| -> Result<()> {
+            Err(crate::Error::Io {
+                file: "h.h5".into(),
+                message: "disk full".into(),
+            })
+        };
+        let mut st = HybridState::new(p.start, vec![1.0, 0.0]);
+        let (tr, res) = trace_partial(
+            &mut Oscillator,
+            &p,
+            &mut st,
+            &mut |_| {},
+            &Stop::new(),
+            Some(&mut sink),
+        );
+        let err = res.unwrap_err().to_string();
+        assert!(err.contains("disk full"), "{err}");
+        // It stopped at the first block, not at the end.
+        assert!(
+            tr.final_state.t < p.end_time() / 2.0,
+            "{}",
+            tr.final_state.t
+        );
+    }
 }

@@ -389,3 +389,66 @@ fn an_interrupted_sweep_resumed_equals_an_uninterrupted_one() {
         let _ = std::fs::remove_dir_all(&b);
     }
 }
+
+#[test]
+fn histories_written_block_by_block_equal_those_of_a_run_kept_in_memory() {
+    // 200 periods of 100 samples: 20 001 samples, more than two blocks of the file's writer
+    // (jointplay_analysis::sections::HISTORY_BLOCK), so every row is written in pieces while its
+    // job runs. The file's rows must be the run's own histories, bit for bit.
+    let text = DUFFING
+        .replace("periods = 264", "periods = 200")
+        .replace("transient = 200", "transient = 0")
+        .replace("samples_per_period = 0", "samples_per_period = 100")
+        .replace("values = [0.20, 0.28, 0.29, 0.50]", "values = [0.28, 0.5]");
+    const { assert!(200 * 100 > 2 * jointplay_analysis::sections::HISTORY_BLOCK) };
+    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    for continuation in [false, true] {
+        let text = if continuation {
+            text.clone() + "continuation = true\n"
+        } else {
+            text.clone()
+        };
+        let st = study(&text);
+        let dir = tmp_dir(&format!("blocks-{continuation}"));
+        let out = execute(&st, &dir, Options::default(), "test", &|_| {}).unwrap();
+        let file = hdf5::File::open(&out.file).unwrap();
+        let (time, x) = (
+            read2(&file, "sweep/history/time"),
+            read2(&file, "sweep/history/x"),
+        );
+        let mut from = None;
+        for (row, g) in [0.28, 0.5].into_iter().enumerate() {
+            let r = match &from {
+                Some(prev) => st.run_value_from(g, prev, &mut |_| {}).unwrap(),
+                None => st.run_value(g, &mut |_| {}).unwrap(),
+            };
+            assert_eq!(r.trace.history_time.len(), 20_001);
+            assert_eq!(bits(&time[row]), bits(&r.trace.history_time), "{row}");
+            assert_eq!(bits(&x[row]), bits(&r.trace.history[0]), "{row}");
+            if continuation {
+                from = Some(r.trace.final_state.clone());
+            }
+        }
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+    // The single run's histories: extendable datasets appended block by block.
+    let single = text.replace("[sweep]", "[unused]");
+    let single = &single[..single.find("[unused]").unwrap()];
+    let st = study(single);
+    let dir = tmp_dir("blocks-single");
+    let out = execute(&st, &dir, Options::default(), "test", &|_| {}).unwrap();
+    let file = hdf5::File::open(&out.file).unwrap();
+    let r = st.run_single(&mut |_| {}).unwrap();
+    for (name, kept) in [
+        ("history/time", &r.trace.history_time),
+        ("history/v", &r.trace.history[1]),
+    ] {
+        let ds = file.dataset(name).unwrap();
+        assert_eq!(bits(&ds.read_raw::<f64>().unwrap()), bits(kept), "{name}");
+        assert!(
+            ds.attr("unit").is_ok() && ds.attr("description").is_ok(),
+            "{name}"
+        );
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}

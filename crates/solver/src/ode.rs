@@ -729,7 +729,7 @@ pub fn integrate_partial<S: OdeSystem>(
         y,
         &mut memory,
         t_end,
-        samples,
+        &samples,
         observer,
         on_step,
         &mut stats,
@@ -753,6 +753,20 @@ pub fn advance<S: OdeSystem>(
     observer: impl FnMut(&mut S, f64, &[f64]) -> Flow,
     on_step: Option<StepObserver<S>>,
 ) -> (Stats, Result<()>) {
+    advance_on(sys, method, state, t_end, &samples, observer, on_step)
+}
+
+/// [`advance`] with sample times computed on demand, so that a long run holds none of them.
+#[allow(clippy::too_many_arguments)]
+pub fn advance_on<S: OdeSystem>(
+    sys: &mut S,
+    method: Method,
+    state: &mut HybridState,
+    t_end: f64,
+    samples: &dyn SampleTimes,
+    observer: impl FnMut(&mut S, f64, &[f64]) -> Flow,
+    on_step: Option<StepObserver<S>>,
+) -> (Stats, Result<()>) {
     let start = Instant::now();
     let mut stats = Stats::default();
     if let Err(e) = sys.load_memory(state) {
@@ -765,6 +779,23 @@ pub fn advance<S: OdeSystem>(
     sys.save_memory(state);
     stats.wall = start.elapsed();
     (stats, res)
+}
+
+/// Sample times for the step loop: the `i`-th of [`SampleTimes::count`], non-decreasing in `i`.
+/// A slice is one; a long run computes its times instead of holding them.
+pub trait SampleTimes {
+    fn count(&self) -> usize;
+    fn time(&self, i: usize) -> f64;
+}
+
+impl SampleTimes for &[f64] {
+    fn count(&self) -> usize {
+        self.len()
+    }
+
+    fn time(&self, i: usize) -> f64 {
+        self[i]
+    }
 }
 
 /// The first event of the step from `(t, y)` over `h` whose function crosses from positive to
@@ -810,7 +841,7 @@ fn step_loop<S: OdeSystem>(
     y: &mut [f64],
     memory: &mut StepperMemory,
     t_end: f64,
-    samples: &[f64],
+    samples: &dyn SampleTimes,
     mut observer: impl FnMut(&mut S, f64, &[f64]) -> Flow,
     mut on_step: Option<StepObserver<S>>,
     stats: &mut Stats,
@@ -829,7 +860,7 @@ fn step_loop<S: OdeSystem>(
     let mut ys = vec![0.0; n];
     let mut next_sample = 0usize;
     // Samples at t0 itself.
-    while next_sample < samples.len() && samples[next_sample] <= t0 {
+    while next_sample < samples.count() && samples.time(next_sample) <= t0 {
         if observer(sys, t0, y) == Flow::Stop {
             return Ok(());
         }
@@ -1010,13 +1041,14 @@ fn step_loop<S: OdeSystem>(
                     message,
                 });
             }
-            let has_dense_sample = next_sample < samples.len() && samples[next_sample] < t_new;
+            let has_dense_sample =
+                next_sample < samples.count() && samples.time(next_sample) < t_new;
             if (has_dense_sample || on_step.is_some()) && !dense_ready {
                 stepper.dense(sys, t, y, h_try, &mut w, stats);
             }
             // Emit the samples inside (t, t_new].
-            while next_sample < samples.len() && samples[next_sample] <= t_new {
-                let ts = samples[next_sample];
+            while next_sample < samples.count() && samples.time(next_sample) <= t_new {
+                let ts = samples.time(next_sample);
                 let theta = ((ts - t) / h_try).clamp(0.0, 1.0);
                 let flow = if ts == t_new {
                     observer(sys, ts, y_end!())
