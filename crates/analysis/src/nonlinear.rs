@@ -1361,8 +1361,10 @@ pub fn execute_until(
     } else {
         // The jobs run on the caller's rayon pool (the global one, or one it installed); a
         // thread of its own writes each result as it comes.
-        let (tx, rx) = mpsc::channel::<Message>();
         threads = rayon::current_num_threads();
+        // Bounded, so that a job that produces its histories faster than the writer compresses
+        // them waits for it instead of piling blocks up in memory.
+        let (tx, rx) = mpsc::sync_channel::<Message>(2 * threads);
         // The costs of the values a resumed file holds already seed the estimate.
         let known: Vec<Option<f64>> = match file.dataset("sweep/wall_time") {
             Ok(d) => {

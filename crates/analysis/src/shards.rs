@@ -308,7 +308,11 @@ fn copy_rows<T: hdf5::H5Type + Clone>(
     let out = dst.dataset(name)?;
     match shape.len() {
         1 => out.write_slice(&ds.read_1d::<T>()?, s![a..b;step]),
-        2 => out.write_slice(&ds.read_2d::<T>()?, s![a..b;step, ..]),
+        // Row by row: a row of time histories may be long, and the merge holds one at a time.
+        2 => (0..shape[0]).try_for_each(|r| {
+            let row = ds.read_slice_1d::<T, _>(s![r, ..])?;
+            out.write_slice(&row, s![a + r * step, ..])
+        }),
         d => Err(format!("{name}: {d} dimensions, expected 1 or 2").into()),
     }
 }
