@@ -557,9 +557,7 @@ fn write_recording(g: &hdf5::Group, rec: &Recording) -> hdf5::Result<()> {
 /// the file lies under its temporary name with `complete = 0`, readable up to the last
 /// appended samples.
 pub struct RunWriter {
-    file: hdf5::File,
-    path: PathBuf,
-    partial: PathBuf,
+    out: PartialFile,
     time: hdf5::Dataset,
     /// One per channel of the recording, in its order.
     sets: Vec<hdf5::Dataset>,
@@ -621,30 +619,22 @@ impl RunWriter {
     /// Creates `dir/<scene_name>.h5.partial` with the run's metadata, the groups and the empty
     /// datasets of `rec` (a recording declared by [`Recording::of`]), marked incomplete.
     pub fn create(dir: &Path, meta: &Meta, rec: &Recording) -> Result<RunWriter> {
-        std::fs::create_dir_all(dir).map_err(|e| Error::Io {
-            file: dir.to_path_buf(),
-            message: format!("cannot create output directory: {e}"),
-        })?;
-        let path = dir.join(format!("{}.h5", meta.scene_name));
-        let partial = dir.join(format!("{}.h5.partial", meta.scene_name));
-        let file = hdf5::File::create(&partial).map_err(h5err(&partial))?;
+        let out = PartialFile::create(dir, meta.scene_name, meta.program_version)?;
+        let file = &out.file;
         let made = (|| -> hdf5::Result<(hdf5::Dataset, Vec<hdf5::Dataset>)> {
-            str_attr(&file, "program", "jointplay")?;
-            str_attr(&file, "program_version", meta.program_version)?;
-            str_attr(&file, "units", "SI: m, kg, s, rad, N, N m, J")?;
-            write_meta(&file, meta)?;
-            u8_attr_set(&file, "complete", 0)?;
-            let time = extendable::<f64>(&file, "time", 1, true, "s", "sample times")?;
-            write_groups(&file, rec)?;
+            write_meta(file, meta)?;
+            u8_attr_set(file, "complete", 0)?;
+            let time = extendable::<f64>(file, "time", 1, true, "s", "sample times")?;
+            write_groups(file, rec)?;
             let sets = rec
                 .channels
                 .iter()
                 .map(|c: &Channel| {
                     let (name, unit, desc) = (&c.dataset, &c.unit, &c.description);
                     if c.flag {
-                        extendable::<u8>(&file, name, c.width(), false, unit, desc)
+                        extendable::<u8>(file, name, c.width(), false, unit, desc)
                     } else {
-                        extendable::<f64>(&file, name, c.width(), c.scalar, unit, desc)
+                        extendable::<f64>(file, name, c.width(), c.scalar, unit, desc)
                     }
                 })
                 .collect::<hdf5::Result<Vec<_>>>()?;
@@ -653,31 +643,31 @@ impl RunWriter {
         })();
         match made {
             Ok((time, sets)) => Ok(RunWriter {
-                file,
-                path,
-                partial,
+                out,
                 time,
                 sets,
                 rows: 0,
             }),
             Err(err) => {
-                drop(file);
-                let _ = std::fs::remove_file(&partial);
-                Err(h5err(&partial)(err))
+                let err = h5err(out.partial())(err);
+                out.discard();
+                Err(err)
             }
         }
     }
 
     /// Closes and removes the partial file (a run that could not be recorded).
     pub fn discard(self) {
-        let partial = self.partial.clone();
-        drop(self);
-        let _ = std::fs::remove_file(partial);
+        let RunWriter {
+            out, time, sets, ..
+        } = self;
+        drop((time, sets));
+        out.discard();
     }
 
     /// The file's temporary name while it is written.
     pub fn partial(&self) -> &Path {
-        &self.partial
+        self.out.partial()
     }
 
     /// Samples written so far.
@@ -688,7 +678,7 @@ impl RunWriter {
     /// Appends the samples `rec` holds (all its channels, the same number of samples each) and
     /// flushes the file.
     pub fn append(&mut self, rec: &Recording) -> Result<()> {
-        let e = h5err(&self.partial);
+        let e = h5err(self.out.partial());
         let n = rec.time.len();
         if n == 0 {
             return Ok(());
@@ -704,7 +694,7 @@ impl RunWriter {
                     append(ds, from, n, c.width(), c.scalar, c.values.clone())?;
                 }
             }
-            self.file.flush()
+            self.out.file.flush()
         })()
         .map_err(&e)?;
         self.rows += n;
@@ -716,24 +706,15 @@ impl RunWriter {
     /// file and moves it into place; on an error the partial file is removed.
     pub fn finish(self, meta: &Meta, run: &RunResult) -> Result<PathBuf> {
         let RunWriter {
-            file,
-            path,
-            partial,
-            time,
-            sets,
-            ..
+            out, time, sets, ..
         } = self;
         drop((time, sets));
-        let res = write_outcome(&file, meta, run).and_then(|()| file.close());
-        if let Err(err) = res {
-            let _ = std::fs::remove_file(&partial);
-            return Err(h5err(&partial)(err));
+        if let Err(err) = write_outcome(&out.file, meta, run) {
+            let err = h5err(out.partial())(err);
+            out.discard();
+            return Err(err);
         }
-        std::fs::rename(&partial, &path).map_err(|e| Error::Io {
-            file: path.clone(),
-            message: format!("cannot move the finished file into place: {e}"),
-        })?;
-        Ok(path)
+        out.finish()
     }
 }
 

@@ -1783,7 +1783,7 @@ impl SingleHistory {
         for (ds, v) in self.values.iter().zip(values) {
             append(ds, from, n, 1, true, v.clone())?;
         }
-        Ok(())
+        self.time.file()?.flush()
     }
 }
 
@@ -1966,7 +1966,8 @@ enum Message {
 }
 
 /// Writes samples `from..from + time.len()` of the time histories of the job in row `row`, while
-/// it runs: whole chunks of the history datasets (see [`create_sweep_file`]) but the last.
+/// it runs: whole chunks of the history datasets (see [`create_sweep_file`]) but the last; and
+/// flushes the file.
 fn write_history_block(
     file: &hdf5::File,
     st: &Loaded,
@@ -1984,7 +1985,9 @@ fn write_history_block(
     for (o, v) in st.spec.observables.iter().zip(values) {
         put(&o.name, v)?;
     }
-    Ok(())
+    // On disk before the job goes on: a sweep killed while a job runs leaves a file that
+    // `--resume` can open, as one killed between jobs does.
+    file.flush()
 }
 
 /// Writes the result of the job in row `row` of the file.
