@@ -8,11 +8,14 @@
 //! The run is `data/scenes/4ups-rpu-mixed.toml` over its first 10 s (five drive periods, five
 //! blocks of samples for the file's writer thread; over 2 s the one block was compressed after
 //! the integration, not beside it) with DOPRI5 at rtol 1e-6 (atol 1e-9) and the scene's 1 ms
-//! output, with contact onsets as events off and on. Divan
-//! reports each as items per second, one item being one right-hand-side evaluation (the run's
-//! count, fixed: the run is deterministic); the `rhs` bench is one evaluation at the state the
-//! run reaches after 0.15 s. The ratio of the two rates is the share of the run's time spent in
-//! its evaluations.
+//! output, with contact onsets as events off and on, and (`whole_run_unrecorded`) with one sample
+//! a second instead, which leaves out the recording's own evaluation at each sample, its
+//! observables and its compression. Divan reports each as items per second, one item being one
+//! right-hand-side evaluation of the integrator (the run's count, fixed: the run is
+//! deterministic); the `rhs` bench is one evaluation at the state the run reaches after 0.15 s,
+//! repeated, and `rhs_along_the_run` one at each of 1 000 states along the run, in turn (the
+//! check that the one state stands for the run's). The ratio of a whole run's rate to the
+//! right-hand side's is the share of the run's time spent in its integrator's evaluations.
 
 use std::path::PathBuf;
 
@@ -31,6 +34,11 @@ const EVENTS: [bool; 2] = [false, true];
 
 /// The scene with the benchmark's solver settings.
 fn scene(events: bool) -> (Model, State, SceneFile) {
+    scene_sampled(events, None)
+}
+
+/// [`scene`] with its output interval set to `interval` (s) when given.
+fn scene_sampled(events: bool, interval: Option<f64>) -> (Model, State, SceneFile) {
     let path =
         PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("../../data/scenes/4ups-rpu-mixed.toml");
     let text = std::fs::read_to_string(&path).unwrap();
@@ -41,6 +49,14 @@ fn scene(events: bool) -> (Model, State, SceneFile) {
         &text[..start],
         &text[end..]
     );
+    let text = match interval {
+        Some(i) => {
+            let at = "[output]\ninterval = 1e-3";
+            assert!(text.contains(at), "the scene's output interval has moved");
+            text.replace(at, &format!("[output]\ninterval = {i}"))
+        }
+        None => text,
+    };
     let spec = SceneSpec::parse(&text, &path).unwrap();
     let file = SceneFile { path, text, spec };
     let (model, state) = Model::compile(&file).unwrap();
@@ -58,6 +74,19 @@ fn run(model: &Model, state: &State, file: &SceneFile, dir: &std::path::Path) ->
 #[divan::bench(args = EVENTS, sample_count = 5)]
 fn whole_run(bencher: divan::Bencher, events: bool) {
     let (model, state, file) = scene(events);
+    let dir = tempfile::tempdir().unwrap();
+    let evals = run(&model, &state, &file, dir.path());
+    bencher
+        .counter(divan::counter::ItemsCount::new(evals))
+        .bench_local(|| run(&model, &state, &file, dir.path()));
+}
+
+/// [`whole_run`] (onset events off) sampled once a second instead of every millisecond: what the
+/// run costs besides its evaluations without the recording's own evaluation at each sample, its
+/// observables and its file's compression.
+#[divan::bench(sample_count = 5)]
+fn whole_run_unrecorded(bencher: divan::Bencher) {
+    let (model, state, file) = scene_sampled(false, Some(1.0));
     let dir = tempfile::tempdir().unwrap();
     let evals = run(&model, &state, &file, dir.path());
     bencher
@@ -87,5 +116,41 @@ fn rhs(bencher: divan::Bencher) {
         .bench_local(|| {
             sys.rhs(0.15, divan::black_box(&y), &mut dy);
             divan::black_box(&dy);
+        });
+}
+
+/// One right-hand side at each of 1 000 states along the run's first 10 s (every 10 ms), in
+/// turn, with the one system the run ends with: the evaluations of a run meet states that change
+/// from one to the next, with closed and open contacts in their own proportions, where the `rhs`
+/// bench repeats one state.
+#[divan::bench(sample_count = 20)]
+fn rhs_along_the_run(bencher: divan::Bencher) {
+    let (model, mut state, _) = scene(false);
+    model.assemble(&mut state).unwrap();
+    let mut sys = Mechanism::new(&model);
+    let times: Vec<f64> = (1..=1000).map(|i| i as f64 * 0.01).collect();
+    let mut states: Vec<(f64, Vec<f64>)> = Vec::new();
+    let y0 = state.y.clone();
+    integrate(
+        &mut sys,
+        model.settings.method,
+        0.0,
+        &mut state.y,
+        10.0,
+        &times,
+        |_, t, y| {
+            states.push((t, y.to_vec()));
+            Flow::Continue
+        },
+    )
+    .unwrap();
+    let mut dy = vec![0.0; y0.len()];
+    bencher
+        .counter(divan::counter::ItemsCount::new(states.len() as u64))
+        .bench_local(|| {
+            for (t, y) in &states {
+                sys.rhs(*t, divan::black_box(y), &mut dy);
+                divan::black_box(&dy);
+            }
         });
 }
