@@ -8,7 +8,10 @@
 //!   time (the step sequence does not depend on the sampling, and a fixed-step method whose grid
 //!   contains `t_k` hands over the step end point itself);
 //! * **time histories**: `samples_per_period` samples per period on `t0 + phase + (i / n) T`
-//!   over the kept window (the strobe times are among them, computed by the same expression);
+//!   over the kept window (the strobe times are among them, computed by the same expression).
+//!   The sample times are computed as the integrator reaches them, and a run given a
+//!   [`HistorySink`] hands its histories over every [`HISTORY_BLOCK`] samples, so that its memory
+//!   does not grow with them;
 //! * **hyperplane sections**: the times where `g = sum_i c_i o_i(t) - value` of the observables
 //!   `o_i` changes sign in the chosen direction. Every accepted step is checked at both ends; a
 //!   sign change is refined by the Illinois variant of regula falsi (Dowell & Jarratt, BIT 11:168,
