@@ -1077,7 +1077,8 @@ impl OdeSystem for Mechanism<'_> {
     }
 }
 
-/// The derivative of [`onset_rate`] along a perturbation `(dd0, dr0, dd1, dr1)` of its data: the
+/// The derivative of `onset_rate` (the approach velocity read from the cubic through the step's
+/// end points) along a perturbation `(dd0, dr0, dd1, dr1)` of its data: the
 /// first-order change of the approach velocity stored at an onset when the trajectory is
 /// perturbed. The crossing moves with the perturbation (implicit differentiation of
 /// `p(s*) = 0`), which is the saltation rule of the onset-velocity reset (Mueller, Chaos Solitons
