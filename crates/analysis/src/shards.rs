@@ -33,6 +33,7 @@ use crate::h5::{f64_attr_set, h5err, read_attr, read_str, u8_attr_set};
 use crate::nonlinear::{
     AnalysisStudy, Loaded, Root, SweepLayout, create_sweep_file, sweep_jobs, write_crossings,
 };
+use crate::sections::HISTORY_BLOCK;
 use crate::study::invalid;
 use crate::{Error, Result};
 
@@ -308,10 +309,14 @@ fn copy_rows<T: hdf5::H5Type + Clone>(
     let out = dst.dataset(name)?;
     match shape.len() {
         1 => out.write_slice(&ds.read_1d::<T>()?, s![a..b;step]),
-        // Row by row: a row of time histories may be long, and the merge holds one at a time.
+        // A block of a row at a time (a sweep's history rows are chunked so): a row of time
+        // histories may be long.
         2 => (0..shape[0]).try_for_each(|r| {
-            let row = ds.read_slice_1d::<T, _>(s![r, ..])?;
-            out.write_slice(&row, s![a + r * step, ..])
+            (0..shape[1]).step_by(HISTORY_BLOCK).try_for_each(|c0| {
+                let c1 = (c0 + HISTORY_BLOCK).min(shape[1]);
+                let block = ds.read_slice_1d::<T, _>(s![r, c0..c1])?;
+                out.write_slice(&block, s![a + r * step, c0..c1])
+            })
         }),
         d => Err(format!("{name}: {d} dimensions, expected 1 or 2").into()),
     }

@@ -416,6 +416,28 @@ fn histories_written_block_by_block_equal_those_of_a_run_kept_in_memory() {
             read2(&file, "sweep/history/time"),
             read2(&file, "sweep/history/x"),
         );
+        if !continuation {
+            // Two shards merged: the rows are copied a block at a time.
+            use jointplay_analysis::shards::{Shard, merge};
+            let shards: Vec<_> = (0..2)
+                .map(|index| {
+                    let shard = Some(Shard { index, count: 2 });
+                    let o = Options {
+                        shard,
+                        ..Options::default()
+                    };
+                    execute(&st, &dir, o, "test", &|_| {}).unwrap().file
+                })
+                .collect();
+            let merged = dir.join("merged.h5");
+            merge(&shards, &merged, "test", false).unwrap();
+            let m = hdf5::File::open(&merged).unwrap();
+            for name in ["sweep/history/time", "sweep/history/x", "sweep/x"] {
+                let (a, b) = (read2(&file, name), read2(&m, name));
+                let same = a.iter().zip(&b).all(|(p, q)| bits(p) == bits(q));
+                assert!(a.len() == b.len() && same, "{name} differs after the merge");
+            }
+        }
         let mut from = None;
         for (row, g) in [0.28, 0.5].into_iter().enumerate() {
             let r = match &from {
