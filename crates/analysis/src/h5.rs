@@ -6,12 +6,14 @@
 //! complete and closed, so a crash or an error never leaves a file that looks finished.
 //! Every dataset carries a `unit` attribute (SI) and a `description`.
 //!
-//! **Compression.** Every numeric dataset of more than [`SMALL`] values is chunked and
+//! **Compression.** Every numeric dataset of more than [`SMALL`] values, and every dataset
+//! written while its run goes (extendable, so chunked whatever its final size), is chunked and
 //! compressed with the shuffle filter followed by deflate ([`DEFLATE`]): the shuffle regroups
 //! the bytes of the values by significance (all sign-and-exponent bytes, then the high mantissa
 //! bytes, ...), and since neighbouring samples of a smooth signal share their exponent and high
 //! mantissa bytes, deflate finds long repeats in the first planes. Values are stored exactly;
-//! only the file's bytes change. Chunks hold about [`CHUNK_BYTES`] (whole rows), small enough
+//! only the file's bytes change. Chunks hold about [`CHUNK_BYTES`] (whole rows, but a sweep's
+//! history rows, chunked by the block its jobs write them in), small enough
 //! that reading one column of a long recording decompresses little beyond it, large enough that
 //! the per-chunk index and deflate's start-up cost stay negligible. Datasets of strings are not
 //! compressed (their values live on the file's heap, out of the filters' reach).
@@ -250,7 +252,8 @@ pub(crate) fn create_nan_chunked(
 ) -> hdf5::Result<()> {
     let b = g.new_dataset::<f64>().shape(shape).fill_value(f64::NAN);
     let ds = match chunk_shape(shape, 8) {
-        // One row (one job) per chunk: a job's results are written, and compressed, at once.
+        // One row (one job) per chunk: a job's results are written, and compressed, at once;
+        // time histories, written block by block while the job runs, in chunks of a block.
         Some(mut c) => {
             c[0] = 1;
             if let Some(w) = c.get_mut(1) {

@@ -1090,9 +1090,11 @@ pub struct Options {
     pub shard: Option<Shard>,
 }
 
-/// Runs the study and writes `dir/<name>.h5`: atomically at the end for a single run; streamed
-/// job by job for a sweep (with `resume`, only the jobs the existing file lacks). With a shard,
-/// only the shard's values, into `dir/<name>.shard-I-of-N.h5`.
+/// Runs the study and writes `dir/<name>.h5`: for a single run under `<name>.h5.partial`, renamed
+/// once complete; for a sweep job by job (with `resume`, only the jobs the existing file lacks).
+/// Time histories go to the file block by block while each run goes. With a shard, only the
+/// shard's values, into `dir/<name>.shard-I-of-N.h5`. A history block that cannot be written
+/// ends the study with that error, as any other write does.
 pub fn execute(
     st: &Loaded,
     dir: &Path,
@@ -1145,9 +1147,15 @@ pub fn execute_until(
         } else {
             None
         };
+        // A block that cannot be written stops the run and, below, the study: it is the file
+        // that failed, not the run.
+        let mut write_failure = None;
         let mut append = |from: usize, time: &[f64], values: &[Vec<f64>]| -> Result<()> {
             match &history {
-                Some(h) => h.append(from, time, values).map_err(&e),
+                Some(h) => h.append(from, time, values).map_err(|err| {
+                    write_failure = Some(e(err));
+                    Error::Interrupted { time: None }
+                }),
                 None => Ok(()),
             }
         };
@@ -1159,9 +1167,10 @@ pub fn execute_until(
             user_stop,
             history.is_some().then_some(&mut append as HistorySink),
         );
-        let (r, failure) = match ran {
-            Ok(x) => x,
-            Err(err) => {
+        let (r, failure) = match (ran, write_failure) {
+            (Ok(x), None) => x,
+            (_, Some(err)) | (Err(err), None) => {
+                drop(history);
                 out.discard();
                 return Err(err);
             }
@@ -1189,11 +1198,11 @@ pub fn execute_until(
             }
             write_single(file, st, &r)
         })();
+        drop(history);
         if let Err(err) = written {
             out.discard();
             return Err(e(err));
         }
-        drop(history);
         let file = out.finish()?;
         let interrupted = matches!(failure, Some(Error::Interrupted { .. }));
         return Ok(Outcome {
@@ -1345,15 +1354,24 @@ pub fn execute_until(
                 continue;
             }
             let job_start = Instant::now();
+            // A block that cannot be written ends the sweep (as a result that cannot be written
+            // does), not the value.
+            let mut write_failure = None;
             let res = st.run_job(
                 Some(st.jobs[j].0),
                 prev.as_ref(),
                 &mut throttled(j, progress),
                 user_stop,
                 Some(&mut |from, time: &[f64], values: &[Vec<f64>]| {
-                    write_history_block(&file, st, j, from, time, values).map_err(&e)
+                    write_history_block(&file, st, j, from, time, values).map_err(|err| {
+                        write_failure = Some(e(err));
+                        Error::Interrupted { time: None }
+                    })
                 }),
             );
+            if let Some(err) = write_failure {
+                return Err(err);
+            }
             busy.fetch_add(job_start.elapsed().as_nanos() as u64, Ordering::Relaxed);
             prev = res.as_ref().ok().map(|r| r.trace.final_state.clone());
             write(j, res, &mut done)?;

@@ -264,7 +264,8 @@ pub type HistorySink<'a> = &'a mut dyn FnMut(usize, &[f64], &[Vec<f64>]) -> Resu
 /// with [`crate::Error::Interrupted`], after the first accepted step once `stop` is requested.
 ///
 /// With a `sink` the time histories go to it block by block, the last (partial) block when the
-/// run ends or fails, and the returned trace holds none; without one they are kept in the trace.
+/// run ends or fails, and the returned trace holds none (but a block the sink refused); without
+/// one they are kept in the trace.
 pub fn trace_partial<S: Observed>(
     sys: &mut S,
     plan: &Plan,
@@ -433,10 +434,12 @@ pub fn trace_partial<S: Observed>(
         Some(e) => Err(e),
         None => res.map_err(Into::into),
     };
-    // The last block, also of a run that failed: a sink that cannot take it fails the run.
+    // The last block, also of a run that failed: a sink that cannot take it fails a run that
+    // had not failed before (a run's own failure is kept).
     if let Some(sink) = sink.as_mut()
         && !history_time.is_empty()
         && let Err(e) = hand_over(sink, &mut handed, &mut history_time, &mut history)
+        && res.is_ok()
     {
         res = Err(e);
     }

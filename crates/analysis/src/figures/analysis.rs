@@ -10,6 +10,10 @@
 //! first six done). Without `[[figures]]`, every observable gets a time history and, in a sweep,
 //! a bifurcation diagram.
 //!
+//! Time histories and phase portraits draw at most the last [`FIGURE_HISTORY`] history samples of
+//! each run, read from the file as such: a long run's figures cost no more memory than a short
+//! one's (the file keeps every sample).
+//!
 //! When the study computed the chaos measures ([`crate::chaos`]), a bifurcation diagram gets
 //! panels below it on the same parameter axis: lambda_1 with its 3-standard-error band (and the
 //! two-trajectory estimate), and the 0-1 test's K; a single run gets a convergence figure of the
@@ -112,6 +116,34 @@ fn read_continuation(g: &hdf5::Group, spec: &AnalysisStudy) -> hdf5::Result<Cont
 /// two-trajectory estimate.
 type Convergence = (Vec<f64>, Vec<Vec<f64>>, Vec<f64>);
 
+/// History samples a figure draws per run, at most: the last ones.
+pub const FIGURE_HISTORY: usize = 20_000;
+
+/// The last [`FIGURE_HISTORY`] values of the one-dimensional dataset `name`.
+fn read_tail(g: &hdf5::Group, name: &str) -> hdf5::Result<Vec<f64>> {
+    let ds = g.dataset(name)?;
+    let n = ds.shape().first().copied().unwrap_or(0);
+    let v = ds.read_slice_1d::<f64, _>(ndarray::s![n.saturating_sub(FIGURE_HISTORY)..n])?;
+    Ok(v.to_vec())
+}
+
+/// The last [`FIGURE_HISTORY`] values of each row of the two-dimensional dataset `name` whose
+/// job is done (`done` 1); an empty row for the others.
+fn read_tail_rows(g: &hdf5::Group, name: &str, done: &[u8]) -> hdf5::Result<Vec<Vec<f64>>> {
+    let ds = g.dataset(name)?;
+    let shape = ds.shape();
+    let cols = shape.get(1).copied().unwrap_or(0);
+    (0..shape.first().copied().unwrap_or(0))
+        .map(|r| {
+            if done.get(r) != Some(&1) {
+                return Ok(Vec::new());
+            }
+            let range = cols.saturating_sub(FIGURE_HISTORY)..cols;
+            Ok(ds.read_slice_1d::<f64, _>(ndarray::s![r, range])?.to_vec())
+        })
+        .collect()
+}
+
 fn read_group(g: &hdf5::Group, spec: &AnalysisStudy) -> hdf5::Result<BTreeMap<String, Vec<f64>>> {
     let mut m = BTreeMap::new();
     for o in &spec.observables {
@@ -162,9 +194,10 @@ fn read(path: &Path) -> Result<Data> {
         let htime = match &hg {
             Some(h) => {
                 for o in &spec.observables {
-                    hist.insert(o.name.clone(), read_rows(h, &o.name).map_err(&e)?);
+                    let rows = read_tail_rows(h, &o.name, &done).map_err(&e)?;
+                    hist.insert(o.name.clone(), rows);
                 }
-                read_rows(h, "time").map_err(&e)?
+                read_tail_rows(h, "time", &done).map_err(&e)?
             }
             None => Vec::new(),
         };
@@ -248,8 +281,13 @@ fn read(path: &Path) -> Result<Data> {
             ..Default::default()
         };
         if let Ok(h) = file.group("history") {
-            job.history_time = h.dataset("time").and_then(|d| d.read_raw()).map_err(&e)?;
-            job.history = read_group(&h, &spec).map_err(&e)?;
+            job.history_time = read_tail(&h, "time").map_err(&e)?;
+            job.history = spec
+                .observables
+                .iter()
+                .map(|o| Ok((o.name.clone(), read_tail(&h, &o.name)?)))
+                .collect::<hdf5::Result<_>>()
+                .map_err(&e)?;
         }
         let sg = file.group("sections").map_err(&e)?;
         let strobe = sg.group("strobe").map_err(&e)?;
@@ -860,7 +898,30 @@ pub fn render(path: &Path, out: &Path, formats: &[Format]) -> Result<Vec<PathBuf
 
 #[cfg(test)]
 mod tests {
-    use super::display_scale;
+    use super::{FIGURE_HISTORY, display_scale, read_tail, read_tail_rows};
+
+    #[test]
+    fn figures_read_the_last_history_samples_of_the_runs_that_are_done() {
+        let dir = tempfile::tempdir().unwrap();
+        let file = hdf5::File::create(dir.path().join("h.h5")).unwrap();
+        let n = FIGURE_HISTORY + 5_000;
+        let rows: Vec<f64> = (0..2 * n).map(|i| i as f64).collect();
+        let arr = ndarray::Array2::from_shape_vec((2, n), rows).unwrap();
+        file.new_dataset_builder()
+            .with_data(&arr)
+            .create("x")
+            .unwrap();
+        let got = read_tail_rows(&file, "x", &[1, 0]).unwrap();
+        let want: Vec<f64> = (5_000..n).map(|i| i as f64).collect();
+        assert_eq!(got, vec![want, Vec::new()]);
+        // A short run: every sample.
+        let short = ndarray::Array1::from(vec![1.0, 2.0, 3.0]);
+        file.new_dataset_builder()
+            .with_data(&short)
+            .create("t")
+            .unwrap();
+        assert_eq!(read_tail(&file, "t").unwrap(), vec![1.0, 2.0, 3.0]);
+    }
 
     #[test]
     fn small_lengths_are_drawn_in_millimetres() {
