@@ -1997,7 +1997,7 @@ fn write_history_block(
     let h = file.group("sweep/history")?;
     let put = |name: &str, v: &[f64]| {
         h.dataset(name)?
-            .write_slice(&Array1::from(v.to_vec()), s![row, from..from + v.len()])
+            .write_slice(v, s![row, from..from + v.len()])
     };
     put("time", time)?;
     for (o, v) in st.spec.observables.iter().zip(values) {

@@ -553,6 +553,19 @@ mod tests {
         }
     }
 
+    /// The oscillator from (1, 0) run on `p`, its histories handed to `sink`.
+    fn streamed(p: &Plan, sink: HistorySink) -> (Trace, Result<()>) {
+        let mut st = HybridState::new(p.start, vec![1.0, 0.0]);
+        trace_partial(
+            &mut Oscillator,
+            p,
+            &mut st,
+            &mut |_| {},
+            &Stop::new(),
+            Some(sink),
+        )
+    }
+
     #[test]
     fn histories_handed_over_in_blocks_are_those_kept_in_memory() {
         // 2.5 blocks of samples: two whole blocks and a partial one at the end.
@@ -574,15 +587,7 @@ mod tests {
             }
             Ok(())
         };
-        let mut st = HybridState::new(p.start, vec![1.0, 0.0]);
-        let (streamed, res) = trace_partial(
-            &mut Oscillator,
-            &p,
-            &mut st,
-            &mut |_| {},
-            &Stop::new(),
-            Some(&mut sink),
-        );
+        let (streamed, res) = streamed(&p, &mut sink);
         res.unwrap();
         let last = p.history_len() - 2 * HISTORY_BLOCK;
         assert_eq!(blocks, vec![HISTORY_BLOCK, HISTORY_BLOCK, last]);
@@ -601,15 +606,7 @@ mod tests {
                 message: "disk full".into(),
             })
         };
-        let mut st = HybridState::new(p.start, vec![1.0, 0.0]);
-        let (tr, res) = trace_partial(
-            &mut Oscillator,
-            &p,
-            &mut st,
-            &mut |_| {},
-            &Stop::new(),
-            Some(&mut sink),
-        );
+        let (tr, res) = streamed(&p, &mut sink);
         let err = res.unwrap_err().to_string();
         assert!(err.contains("disk full"), "{err}");
         // It stopped at the first block, not at the end.
