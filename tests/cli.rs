@@ -243,6 +243,21 @@ fn bad_input_gets_an_error_naming_file_and_field() {
         ("end_time = 10.0", "end_time = -1.0", "solver.end_time"),
         ("end_time = 10.0", "periods = 2", "solver.periods"),
         (
+            "interval = 1e-3",
+            "interval = 1e-3\nsignificant_bits = 0",
+            "output.significant_bits",
+        ),
+        (
+            "interval = 1e-3",
+            "interval = 1e-3\nsignificant_bits = 53",
+            "output.significant_bits",
+        ),
+        (
+            "interval = 1e-3",
+            "interval = 1e-3\nsignificant_bits = -3",
+            "output.significant_bits",
+        ),
+        (
             "axis_b = \"z\"\n",
             "axis_b = \"z\"\nclearance = { journal_radius = 0.01, radial_clearance = -1e-4, bushing_length = 0.02, normal = { law = \"hertz\", stiffness = 1e10 } }\n",
             "joints[0].clearance.radial_clearance",

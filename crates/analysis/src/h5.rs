@@ -540,18 +540,47 @@ fn write_groups(g: &hdf5::Group, rec: &Recording) -> hdf5::Result<()> {
 fn write_recording(g: &hdf5::Group, rec: &Recording) -> hdf5::Result<()> {
     write1(g, "time", &rec.time, "s", "sample times")?;
     write_groups(g, rec)?;
+    mark_bits(g, rec.significant_bits)?;
     for c in &rec.channels {
         let (name, unit, desc) = (&c.dataset, &c.unit, &c.description);
         if c.flag {
             let v: Vec<u8> = c.values.iter().map(|&x| x as u8).collect();
             write_table(g, name, &v, c.width(), unit, desc)?;
-        } else if c.scalar {
-            write1(g, name, &c.values, unit, desc)?;
+            continue;
+        }
+        let values = rounded(&c.values, rec.significant_bits);
+        if c.scalar {
+            write1(g, name, &values, unit, desc)?;
         } else {
-            write_table(g, name, &c.values, c.width(), unit, desc)?;
+            write_table(g, name, &values, c.width(), unit, desc)?;
+        }
+        if rec.significant_bits.is_some() {
+            let ds = g.dataset(name)?;
+            mark_bits(&ds, rec.significant_bits)?;
         }
     }
     Ok(())
+}
+
+/// `values` rounded to `bits` mantissa bits ([`crate::bitround`]), or as they are for `None`.
+fn rounded(values: &[f64], bits: Option<u32>) -> std::borrow::Cow<'_, [f64]> {
+    match bits {
+        Some(b) => {
+            let mut v = values.to_vec();
+            crate::bitround::round(&mut v, b);
+            std::borrow::Cow::Owned(v)
+        }
+        None => std::borrow::Cow::Borrowed(values),
+    }
+}
+
+/// The `significant_bits` attribute of a run's group and of its rounded datasets; nothing for
+/// `None` (every bit kept).
+fn mark_bits(loc: &hdf5::Location, bits: Option<u32>) -> hdf5::Result<()> {
+    match bits {
+        Some(b) => u64_attr(loc, "significant_bits", u64::from(b)),
+        None => Ok(()),
+    }
 }
 
 /// A run file written while the run goes (see the module documentation): the layout of
@@ -566,6 +595,8 @@ pub struct RunWriter {
     sets: Vec<hdf5::Dataset>,
     /// Samples written.
     rows: usize,
+    /// Mantissa bits the channels' values keep ([`Recording::significant_bits`]).
+    bits: Option<u32>,
 }
 
 /// Creates an empty extendable dataset of `width` columns (one-dimensional when `scalar`).
@@ -629,6 +660,7 @@ impl RunWriter {
             u8_attr_set(file, "complete", 0)?;
             let time = extendable::<f64>(file, "time", 1, true, "s", "sample times")?;
             write_groups(file, rec)?;
+            mark_bits(file, rec.significant_bits)?;
             let sets = rec
                 .channels
                 .iter()
@@ -637,7 +669,9 @@ impl RunWriter {
                     if c.flag {
                         extendable::<u8>(file, name, c.width(), false, unit, desc)
                     } else {
-                        extendable::<f64>(file, name, c.width(), c.scalar, unit, desc)
+                        let ds = extendable::<f64>(file, name, c.width(), c.scalar, unit, desc)?;
+                        mark_bits(&ds, rec.significant_bits)?;
+                        Ok(ds)
                     }
                 })
                 .collect::<hdf5::Result<Vec<_>>>()?;
@@ -650,6 +684,7 @@ impl RunWriter {
                 time,
                 sets,
                 rows: 0,
+                bits: rec.significant_bits,
             }),
             Err(err) => {
                 let err = h5err(out.partial())(err);
@@ -694,7 +729,11 @@ impl RunWriter {
                     let v: Vec<u8> = c.values.iter().map(|&x| x as u8).collect();
                     append(ds, from, n, c.width(), false, v)?;
                 } else {
-                    append(ds, from, n, c.width(), c.scalar, c.values.clone())?;
+                    let mut v = c.values.clone();
+                    if let Some(b) = self.bits {
+                        crate::bitround::round(&mut v, b);
+                    }
+                    append(ds, from, n, c.width(), c.scalar, v)?;
                 }
             }
             self.out.file.flush()

@@ -31,6 +31,7 @@
 //! HDF5 output (a file is complete or absent, and the same run writes the same bits); errors that
 //! name the file and the field.
 
+pub mod bitround;
 pub mod chaos;
 pub mod comparison;
 pub mod continuation;

@@ -130,6 +130,9 @@ pub struct Recording {
     pub groups: Vec<Group>,
     /// The recorded joints with clearance.
     pub clearances: Vec<Clearance>,
+    /// Mantissa bits the channels' values keep in the file (`output.significant_bits`, see
+    /// [`crate::bitround`]); `None`: all. The values held here are never rounded.
+    pub significant_bits: Option<u32>,
 }
 
 /// Declares the channels of a recording, group by group.
@@ -201,7 +204,10 @@ impl Recording {
         let out = &model.outputs;
         let mut d = Declare {
             model,
-            rec: Recording::default(),
+            rec: Recording {
+                significant_bits: out.significant_bits,
+                ..Recording::default()
+            },
             stage: 0,
         };
         d.group("bodies".into(), Vec::new());
@@ -1232,6 +1238,75 @@ mod tests {
                 max("diagnostics/velocity_drift")
             ))
         );
+    }
+
+    /// With `output.significant_bits`, both writers (the run written at its end, as a study case
+    /// is, and the run written as it goes) store every recorded value rounded to that many bits,
+    /// exactly [`crate::bitround::round`] of the value computed, and mark the file and each rounded
+    /// dataset; the sample times and the final state are written exactly.
+    #[test]
+    fn recorded_values_keep_the_significant_bits_asked_for_in_both_writers() {
+        let (mut m, state) = model("pendulum.toml");
+        // 5 001 samples: three appended blocks.
+        m.settings.end_time = 5.0;
+        m.outputs.significant_bits = Some(20);
+        let dir = tempfile::tempdir().unwrap();
+        let file = PathBuf::from("pendulum.toml");
+        let meta = Meta::of(&m, &file, "scene text", "test");
+        let whole = simulate(&m, state.clone(), &mut |_| {}).unwrap();
+        assert_eq!(whole.recording.significant_bits, Some(20));
+        let a = crate::h5::write_run(&dir.path().join("a"), &meta, &whole).unwrap();
+        let (_, w) =
+            simulate_to_file(&m, state, &mut |_| {}, &dir.path().join("b"), &meta).unwrap();
+        let mut exact = whole.clone();
+        exact.recording.significant_bits = None;
+        let c = crate::h5::write_run(&dir.path().join("c"), &meta, &exact).unwrap();
+        let read = |p: &Path| {
+            let f = hdf5::File::open(p).unwrap();
+            let mut d = Vec::new();
+            datasets(&f, "", &mut d);
+            d.sort_by(|x, y| x.0.cmp(&y.0));
+            (f, d)
+        };
+        let ((fa, da), (fb, db), (fc, dc)) = (read(&a), read(&w.path), read(&c));
+        let bits = |l: &hdf5::Location| {
+            l.attr("significant_bits")
+                .and_then(|a| a.read_scalar::<u64>())
+                .ok()
+        };
+        assert_eq!(
+            (bits(&fa), bits(&fb), bits(&fc)),
+            (Some(20), Some(20), None)
+        );
+        let mut rounded = 0;
+        for (((na, _, va), (nb, _, vb)), (nc, _, vc)) in da.iter().zip(&db).zip(&dc) {
+            assert_eq!((na, na), (nb, nc));
+            let flag = fc.dataset(nc).unwrap().dtype().unwrap().size() == 1;
+            let want = match whole.recording.channel(nc) {
+                Some(_) if !flag => {
+                    rounded += 1;
+                    let mut v = vc.clone();
+                    crate::bitround::round(&mut v, 20);
+                    assert!(bits(&fa.dataset(na).unwrap()) == Some(20), "{na}");
+                    assert!(bits(&fb.dataset(nb).unwrap()) == Some(20), "{nb}");
+                    v
+                }
+                _ => vc.clone(),
+            };
+            for (got, name) in [(va, na), (vb, nb)] {
+                assert!(
+                    got.iter()
+                        .zip(&want)
+                        .all(|(x, y)| x.to_bits() == y.to_bits()),
+                    "{name} differs"
+                );
+            }
+        }
+        assert!(rounded >= 10, "{rounded}");
+        assert!(da.iter().any(|d| d.0 == "time") && da.iter().any(|d| d.0 == "final_state"));
+        // What the rounding is for: the zeroed low bytes compress to almost nothing.
+        let size = |p: &Path| std::fs::metadata(p).unwrap().len();
+        assert!(size(&a) < size(&c), "{} {}", size(&a), size(&c));
     }
 
     /// A stop requested halfway ends the run at the next sample: the samples before it are

@@ -46,7 +46,8 @@ pub struct DriveSummary {
 }
 
 /// What is recorded: the sample interval (s), how many bodies, joints and drives, and whether
-/// accelerations and diagnostics are kept.
+/// accelerations and diagnostics are kept, and the mantissa bits the values keep in the file
+/// (`None`: all).
 #[derive(Debug, Clone, PartialEq)]
 pub struct OutputSummary {
     pub interval: f64,
@@ -55,6 +56,7 @@ pub struct OutputSummary {
     pub drives: usize,
     pub accelerations: bool,
     pub diagnostics: bool,
+    pub significant_bits: Option<u32>,
 }
 
 /// The compiled summary of a scene at its assembled initial state.
@@ -164,6 +166,7 @@ impl Summary {
                 drives: o.drives.len(),
                 accelerations: o.accelerations,
                 diagnostics: o.diagnostics,
+                significant_bits: o.significant_bits,
             },
         })
     }
@@ -284,7 +287,7 @@ impl Summary {
         ));
         let o = &self.output;
         out.push(format!(
-            "output       every {:e} s: {} bodies, {} joints, {} drives{}{}",
+            "output       every {:e} s: {} bodies, {} joints, {} drives{}{}{}",
             o.interval,
             o.bodies,
             o.joints,
@@ -294,7 +297,11 @@ impl Summary {
             } else {
                 ""
             },
-            if o.diagnostics { ", diagnostics" } else { "" }
+            if o.diagnostics { ", diagnostics" } else { "" },
+            match o.significant_bits {
+                Some(b) => format!(", values rounded to {b} significant bits"),
+                None => String::new(),
+            }
         ));
         out
     }

@@ -273,6 +273,8 @@ pub struct Outputs {
     pub diagnostics: bool,
     /// Energy with the diagnostics.
     pub energy: bool,
+    /// Mantissa bits the recorded values keep in the file; `None`: all of them.
+    pub significant_bits: Option<u32>,
 }
 
 /// The immutable simulation model.

@@ -547,6 +547,12 @@ pub struct OutputSpec {
     /// Record the mechanical energy with the diagnostics (default true).
     #[serde(default = "yes")]
     pub energy: bool,
+    /// Mantissa bits each recorded value keeps in the file (1 to 52); the value is rounded to
+    /// the nearest double with that many, a relative error of at most 2^-(bits+1). Default:
+    /// every bit, the values exactly as computed. Sample times and the final state are never
+    /// rounded.
+    #[serde(default)]
+    pub significant_bits: Option<u32>,
 }
 
 fn yes() -> bool {
@@ -563,6 +569,7 @@ impl Default for OutputSpec {
             accelerations: true,
             diagnostics: true,
             energy: true,
+            significant_bits: None,
         }
     }
 }

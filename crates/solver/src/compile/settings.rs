@@ -155,6 +155,14 @@ pub(crate) fn outputs(
             format!("{interval} s over a span of {span} s gives {n_samples:.3e} samples; at most 1e8 are recorded"),
         ));
     }
+    if let Some(b) = out.significant_bits
+        && !(1..=52).contains(&b)
+    {
+        return Err(cx.err(
+            "output.significant_bits",
+            format!("{b} is not between 1 and 52 (the mantissa bits of a double)"),
+        ));
+    }
     let pick = |sel: &Option<Vec<String>>, field: &str, all: &[&str]| -> Result<Vec<usize>> {
         match sel {
             None => Ok((0..all.len()).collect()),
@@ -183,6 +191,7 @@ pub(crate) fn outputs(
         accelerations: out.accelerations,
         diagnostics: out.diagnostics,
         energy: out.diagnostics && out.energy,
+        significant_bits: out.significant_bits,
     })
 }
 
