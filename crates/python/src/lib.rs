@@ -449,6 +449,7 @@ impl Scene {
         o.set_item("drives", s.output.drives)?;
         o.set_item("accelerations", s.output.accelerations)?;
         o.set_item("diagnostics", s.output.diagnostics)?;
+        o.set_item("significant_bits", s.output.significant_bits)?;
         d.set_item("output", o)?;
         d.set_item("warnings", &model.warnings)?;
         d.set_item("lines", s.lines())?;

@@ -101,6 +101,25 @@ label = "edited"
     assert np.array_equal(run.time, res["cases/edited/time"])
 
 
+def test_a_run_written_with_fewer_significant_bits_keeps_its_exact_values_in_memory(tmp_path):
+    """`output.significant_bits` rounds the values of the file only: the run in memory keeps
+    them as computed, the file holds each one within 2^-(bits+1) of it, the times exact."""
+    scene = jointplay.load_scene(SCENES / "pendulum.toml")
+    scene["solver.end_time"] = 1.0
+    scene["output.significant_bits"] = 20
+    assert scene.check()["output"]["significant_bits"] == 20
+    run = scene.run(progress=False)
+    f = jointplay.load(run.write(tmp_path))
+    assert f.attrs["significant_bits"] == 20
+    assert np.array_equal(f["time"], run.time)
+    exact, stored = run["bodies/bob/position"], f["bodies/bob/position"]
+    nonzero = exact != 0
+    rel = np.abs(stored[nonzero] - exact[nonzero]) / np.abs(exact[nonzero])
+    assert 0 < rel.max() <= 2.0 ** -21
+    # The 32 dropped bits are zero in the file.
+    assert np.all(stored.view(np.uint64) & np.uint64(2**32 - 1) == 0)
+
+
 def test_errors_name_the_path():
     scene = jointplay.load_scene(SCENES / "pendulum.toml")
     with pytest.raises(KeyError, match="joints.nope.kind: no element 'nope'"):
