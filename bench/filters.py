@@ -60,7 +60,8 @@ def main():
                 d = u.copy()
                 d[1:] ^= u[:-1]
                 sizes["xor-delta"] += len(zlib.compress(shuffle(d), 4))
-                # Wrapping integer differences: the first `order` values stay as they are.
+                # Wrapping integer differences, applied in place: after order k, r[0] is the first
+                # value and r[j], j < k, its j-th difference.
                 r = col.view(np.int64).copy()
                 for order in (1, 2, 3):
                     r[order:] = r[order:] - r[order - 1:-1]

@@ -49,7 +49,8 @@ pub fn round(values: &mut [f64], bits: u32) {
     }
 }
 
-/// The largest relative error [`round`] makes with `bits` mantissa bits, $2^{-(b+1)}$.
+/// The bound on the relative error [`round`] makes on a normal double with `bits` mantissa bits,
+/// $2^{-(b+1)}$ (a subnormal has the absolute bound $2^{-(b+1)}\, 2^{-1022}$ instead).
 pub fn relative_bound(bits: u32) -> f64 {
     0.5f64.powi(bits as i32 + 1)
 }
@@ -107,6 +108,43 @@ mod tests {
                 // exact doubles and the difference of two doubles this close is exact).
                 assert!((r - x).abs() <= relative_bound(bits) * x.abs(), "{x:e}");
                 assert_eq!(r.to_bits() & ((1u64 << drop) - 1), 0);
+            }
+        }
+    }
+
+    /// A second oracle, on the integer magnitude: quotient and remainder by the dropped bits'
+    /// weight, rounded up past half or at half with an odd quotient. It covers what the
+    /// floating-point oracle cannot: subnormals, zero and the binade below `f64::MAX`.
+    fn nearest_magnitude(x: f64, bits: u32) -> f64 {
+        let d = 52 - bits;
+        let sign = x.to_bits() & (1 << 63);
+        let m = x.to_bits() & !(1 << 63);
+        let (mut q, r, half) = (m >> d, m & ((1 << d) - 1), 1u64 << (d - 1));
+        if r > half || (r == half && q & 1 == 1) {
+            q += 1;
+        }
+        let y = f64::from_bits(sign | (q << d));
+        if y.is_finite() { y } else { x }
+    }
+
+    #[test]
+    fn subnormals_and_the_largest_doubles_round_as_their_integer_magnitudes_do() {
+        for bits in [1, 5, 20, 36, 51] {
+            let mut xs = Vec::new();
+            for p in patterns(20_000) {
+                let sign = (p >> 63) << 63;
+                // Subnormal, smallest normal binades and the top binade (biased exponent 2046).
+                for exp in [0u64, 1, 2, 2045, 2046] {
+                    xs.push(f64::from_bits(sign | (exp << 52) | (p & ((1 << 52) - 1))));
+                }
+            }
+            xs.extend([f64::MAX, -f64::MAX, f64::MIN_POSITIVE, -0.0, 0.0]);
+            let mut rounded = xs.clone();
+            round(&mut rounded, bits);
+            for (&x, &r) in xs.iter().zip(&rounded) {
+                let want = nearest_magnitude(x, bits);
+                assert_eq!(r.to_bits(), want.to_bits(), "{x:e} at {bits} bits");
+                assert!(r.is_finite());
             }
         }
     }

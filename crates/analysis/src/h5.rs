@@ -11,8 +11,10 @@
 //! compressed with the shuffle filter followed by deflate ([`DEFLATE`]): the shuffle regroups
 //! the bytes of the values by significance (all sign-and-exponent bytes, then the high mantissa
 //! bytes, ...), and since neighbouring samples of a smooth signal share their exponent and high
-//! mantissa bytes, deflate finds long repeats in the first planes. Values are stored exactly;
-//! only the file's bytes change. Chunks hold about [`CHUNK_BYTES`] (whole rows, but a sweep's
+//! mantissa bytes, deflate finds long repeats in the first planes. The compression is lossless:
+//! only the file's bytes change. (What a scene's `output.significant_bits` or an analysis's
+//! `significant_bits` asks for is rounded before, by [`crate::bitround`], and marked with the
+//! attribute `significant_bits`.) Chunks hold about [`CHUNK_BYTES`] (whole rows, but a sweep's
 //! history rows, chunked by the block its jobs write them in), small enough
 //! that reading one column of a long recording decompresses little beyond it, large enough that
 //! the per-chunk index and deflate's start-up cost stay negligible. Datasets of strings are not
@@ -536,7 +538,8 @@ fn write_groups(g: &hdf5::Group, rec: &Recording) -> hdf5::Result<()> {
 }
 
 /// Writes a recording: the sample times, its groups with their attributes and one dataset per
-/// channel (as u8 for a flag, one-dimensional for a scalar).
+/// channel (as u8 for a flag, one-dimensional for a scalar), the values of the others rounded to
+/// [`Recording::significant_bits`] when it is set (marked on `g` and on each rounded dataset).
 fn write_recording(g: &hdf5::Group, rec: &Recording) -> hdf5::Result<()> {
     write1(g, "time", &rec.time, "s", "sample times")?;
     write_groups(g, rec)?;
@@ -574,9 +577,9 @@ fn rounded(values: &[f64], bits: Option<u32>) -> std::borrow::Cow<'_, [f64]> {
     }
 }
 
-/// The `significant_bits` attribute of a run's group and of its rounded datasets; nothing for
-/// `None` (every bit kept).
-fn mark_bits(loc: &hdf5::Location, bits: Option<u32>) -> hdf5::Result<()> {
+/// The `significant_bits` attribute of a file's (or a run's) group and of its rounded datasets;
+/// nothing for `None` (every bit kept).
+pub(crate) fn mark_bits(loc: &hdf5::Location, bits: Option<u32>) -> hdf5::Result<()> {
     match bits {
         Some(b) => u64_attr(loc, "significant_bits", u64::from(b)),
         None => Ok(()),

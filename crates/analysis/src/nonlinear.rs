@@ -38,8 +38,8 @@ use toml::{Table, Value};
 use crate::flow::{Flow, Target};
 use crate::h5::{
     DEFLATE, PartialFile, append, create_nan, create_nan_chunked, describe, f64_attr, f64_attr_set,
-    h5err, read_attr, read_str, str_attr, u8_attr_set, u64_attr, write_column, write_element,
-    write_row, write1,
+    h5err, mark_bits, read_attr, read_str, str_attr, u8_attr_set, u64_attr, write_column,
+    write_element, write_row, write1,
 };
 use crate::hybrid;
 use crate::observe::Observable;
@@ -123,6 +123,18 @@ pub struct AnalysisSpec {
     /// The period (s); default the drive period of the scene or the system's forcing period.
     #[serde(default)]
     pub period: Option<f64>,
+    /// Mantissa bits the time histories' values keep in the file (1 to 52; see
+    /// [`crate::bitround`]); default every bit. The sample times, strobe points, crossings and
+    /// final states are never rounded.
+    #[serde(default)]
+    pub significant_bits: Option<u32>,
+}
+
+impl AnalysisSpec {
+    /// The mantissa bits the histories are rounded to; `None` when every bit is kept (52 too).
+    pub fn history_bits(&self) -> Option<u32> {
+        self.significant_bits.filter(|&b| b < 52)
+    }
 }
 
 fn default_spp() -> usize {
@@ -397,6 +409,15 @@ impl Loaded {
                     "must be less than analysis.periods ({}), so that some periods are kept",
                     a.periods
                 ),
+            ));
+        }
+        if let Some(b) = a.significant_bits
+            && !(1..=52).contains(&b)
+        {
+            return Err(invalid(
+                path,
+                "analysis.significant_bits",
+                format!("{b} is not between 1 and 52 (the mantissa bits of a double)"),
             ));
         }
         finite(path, "analysis.phase", a.phase)?;
@@ -1137,7 +1158,11 @@ pub fn execute_until(
         let partial = out.partial().to_path_buf();
         let e = h5err(&partial);
         let history = if st.spec.analysis.samples_per_period > 0 {
-            match SingleHistory::create(&out.file, &st.spec.observables) {
+            match SingleHistory::create(
+                &out.file,
+                &st.spec.observables,
+                st.spec.analysis.history_bits(),
+            ) {
                 Ok(h) => Some(h),
                 Err(err) => {
                     out.discard();
@@ -1183,6 +1208,9 @@ pub fn execute_until(
             let file = &out.file;
             Root::of(st, &r.integrator, r.start, r.period)
                 .write(file, u8::from(failure.is_none()))?;
+            if st.spec.analysis.samples_per_period > 0 {
+                mark_bits(file, st.spec.analysis.history_bits())?;
+            }
             if !r.warnings.is_empty() {
                 str_attr(file, "warnings", &r.warnings.join("\n"))?;
             }
@@ -1654,6 +1682,8 @@ pub(crate) struct SweepLayout {
     pub shape: hybrid::StateShape,
     /// The chaos measures each value stores.
     pub chaos: crate::chaos::ChaosSpec,
+    /// [`AnalysisSpec::history_bits`].
+    pub bits: Option<u32>,
 }
 
 impl SweepLayout {
@@ -1699,6 +1729,7 @@ impl SweepLayout {
                 lyapunov: spec.lyapunov.clone(),
                 zero_one: spec.zero_one.clone(),
             },
+            bits: spec.analysis.history_bits(),
         })
     }
 }
@@ -1729,6 +1760,7 @@ impl Loaded {
                 clearances: memory.warned.len(),
             },
             chaos: self.chaos_spec(),
+            bits: self.spec.analysis.history_bits(),
         })
     }
 }
@@ -1770,10 +1802,16 @@ pub(crate) fn write_crossings(
 struct SingleHistory {
     time: hdf5::Dataset,
     values: Vec<hdf5::Dataset>,
+    /// [`AnalysisSpec::history_bits`].
+    bits: Option<u32>,
 }
 
 impl SingleHistory {
-    fn create(file: &hdf5::File, observables: &[ObservableSpec]) -> hdf5::Result<SingleHistory> {
+    fn create(
+        file: &hdf5::File,
+        observables: &[ObservableSpec],
+        bits: Option<u32>,
+    ) -> hdf5::Result<SingleHistory> {
         let g = file.create_group("history")?;
         // One chunk per block, written whole; no chunk cache.
         let create = |name: &str| {
@@ -1791,6 +1829,7 @@ impl SingleHistory {
                 .iter()
                 .map(|o| create(&o.name))
                 .collect::<hdf5::Result<_>>()?,
+            bits,
         })
     }
 
@@ -1799,7 +1838,11 @@ impl SingleHistory {
         let n = time.len();
         append(&self.time, from, n, 1, true, time.to_vec())?;
         for (ds, v) in self.values.iter().zip(values) {
-            append(ds, from, n, 1, true, v.clone())?;
+            let mut v = v.clone();
+            if let Some(b) = self.bits {
+                crate::bitround::round(&mut v, b);
+            }
+            append(ds, from, n, 1, true, v)?;
         }
         self.time.file()?.flush()
     }
@@ -1823,6 +1866,7 @@ fn write_single(file: &hdf5::File, st: &Loaded, r: &JobResult) -> hdf5::Result<(
             let ds = g.dataset(&o.name)?;
             describe(&ds, Some(u), &format!("{} over the kept window", o.path))?;
             str_attr(&ds, "path", &o.path)?;
+            mark_bits(&ds, st.spec.analysis.history_bits())?;
         }
     }
     let g = file.create_group("sections")?;
@@ -1864,6 +1908,9 @@ pub(crate) fn create_sweep_file(
         str_attr(&file, "program_version", version)?;
         str_attr(&file, "units", "SI: m, kg, s, rad, N, N m, J")?;
         l.root.write(&file, 0)?;
+        if hl > 0 {
+            mark_bits(&file, l.bits)?;
+        }
         let g = file.create_group("sweep")?;
         let params: Vec<f64> = jobs.iter().map(|j| j.0).collect();
         write1(
@@ -1928,6 +1975,8 @@ pub(crate) fn create_sweep_file(
                     u,
                     &format!("{} over the kept window, per job", o.path),
                 )?;
+                let ds = h.dataset(&o.name)?;
+                mark_bits(&ds, l.bits)?;
             }
         }
         hybrid::create_rows(&g, n, l.shape)?;
@@ -2000,8 +2049,16 @@ fn write_history_block(
             .write_slice(v, s![row, from..from + v.len()])
     };
     put("time", time)?;
+    let bits = st.spec.analysis.history_bits();
     for (o, v) in st.spec.observables.iter().zip(values) {
-        put(&o.name, v)?;
+        match bits {
+            Some(b) => {
+                let mut v = v.clone();
+                crate::bitround::round(&mut v, b);
+                put(&o.name, &v)?;
+            }
+            None => put(&o.name, v)?,
+        }
     }
     // On disk before the job goes on: a sweep killed while a job runs leaves a file that
     // `--resume` can open, as one killed between jobs does.

@@ -1294,6 +1294,7 @@ mod tests {
                 _ => vc.clone(),
             };
             for (got, name) in [(va, na), (vb, nb)] {
+                assert_eq!(got.len(), want.len(), "{name}");
                 assert!(
                     got.iter()
                         .zip(&want)
@@ -1301,6 +1302,10 @@ mod tests {
                     "{name} differs"
                 );
             }
+        }
+        for name in ["time", "final_state", "final_time"] {
+            assert!(bits(&fa.dataset(name).unwrap()).is_none(), "{name}");
+            assert!(bits(&fb.dataset(name).unwrap()).is_none(), "{name}");
         }
         assert!(rounded >= 10, "{rounded}");
         assert!(da.iter().any(|d| d.0 == "time") && da.iter().any(|d| d.0 == "final_state"));

@@ -299,7 +299,7 @@ impl Summary {
             },
             if o.diagnostics { ", diagnostics" } else { "" },
             match o.significant_bits {
-                Some(b) => format!(", values rounded to {b} significant bits"),
+                Some(b) => format!(", values rounded to {b} mantissa bits"),
                 None => String::new(),
             }
         ));

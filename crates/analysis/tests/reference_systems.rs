@@ -390,6 +390,95 @@ fn an_interrupted_sweep_resumed_equals_an_uninterrupted_one() {
     }
 }
 
+/// `[analysis] significant_bits` rounds the values of the time histories in the file (the
+/// single run's and every sweep row's, written block by block, and those a merge copies) to
+/// exactly `jointplay_analysis::bitround::round` of the run's own; the sample times, strobe points
+/// and final states are written exactly, and the file and each rounded dataset say how many bits
+/// were kept.
+#[test]
+fn histories_keep_the_significant_bits_asked_for_and_nothing_else_is_rounded() {
+    use jointplay_analysis::bitround::round;
+    let text = DUFFING
+        .replace("periods = 264", "periods = 120")
+        .replace("transient = 200", "transient = 0")
+        .replace(
+            "samples_per_period = 0",
+            "samples_per_period = 100\nsignificant_bits = 20",
+        )
+        .replace("values = [0.20, 0.28, 0.29, 0.50]", "values = [0.28, 0.5]");
+    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    let rounded = |v: &[f64]| {
+        let mut v = v.to_vec();
+        round(&mut v, 20);
+        bits(&v)
+    };
+    let marked = |l: &hdf5::Location| {
+        l.attr("significant_bits")
+            .and_then(|a| a.read_scalar::<u64>())
+            .ok()
+    };
+    let st = study(&text);
+    let dir = tmp_dir("significant-bits");
+    let out = execute(&st, &dir, Options::default(), "test", &|_| {}).unwrap();
+    use jointplay_analysis::shards::{Shard, merge};
+    let shards: Vec<_> = (0..2)
+        .map(|index| {
+            let o = Options {
+                shard: Some(Shard { index, count: 2 }),
+                ..Options::default()
+            };
+            execute(&st, &dir, o, "test", &|_| {}).unwrap().file
+        })
+        .collect();
+    let merged = dir.join("merged.h5");
+    merge(&shards, &merged, "test", false).unwrap();
+    for path in [&out.file, &merged] {
+        let file = hdf5::File::open(path).unwrap();
+        assert_eq!(marked(&file), Some(20));
+        assert_eq!(marked(&file.dataset("sweep/history/x").unwrap()), Some(20));
+        for name in ["sweep/history/time", "sweep/x", "sweep/final_state"] {
+            assert_eq!(marked(&file.dataset(name).unwrap()), None, "{name}");
+        }
+        let (time, x, v, strobe) = (
+            read2(&file, "sweep/history/time"),
+            read2(&file, "sweep/history/x"),
+            read2(&file, "sweep/history/v"),
+            read2(&file, "sweep/x"),
+        );
+        for (row, g) in [0.28, 0.5].into_iter().enumerate() {
+            let r = st.run_value(g, &mut |_| {}).unwrap();
+            assert_eq!(r.trace.history_time.len(), 12_001);
+            assert_eq!(bits(&time[row]), bits(&r.trace.history_time), "{row}");
+            assert_eq!(bits(&x[row]), rounded(&r.trace.history[0]), "{row}");
+            assert_eq!(bits(&v[row]), rounded(&r.trace.history[1]), "{row}");
+            assert_eq!(bits(&strobe[row]), bits(&r.trace.strobe[0]), "{row}");
+            assert_ne!(
+                bits(&x[row]),
+                bits(&r.trace.history[0]),
+                "{row}: nothing rounded"
+            );
+        }
+    }
+    let single = text.replace("[sweep]", "[unused]");
+    let single = &single[..single.find("[unused]").unwrap()];
+    let st = study(single);
+    let out = execute(&st, &dir, Options::default(), "test", &|_| {}).unwrap();
+    let file = hdf5::File::open(&out.file).unwrap();
+    let r = st.run_single(&mut |_| {}).unwrap();
+    assert_eq!(marked(&file), Some(20));
+    for (name, want, mark) in [
+        ("history/time", bits(&r.trace.history_time), None),
+        ("history/x", rounded(&r.trace.history[0]), Some(20)),
+        ("history/v", rounded(&r.trace.history[1]), Some(20)),
+        ("sections/strobe/x", bits(&r.trace.strobe[0]), None),
+    ] {
+        let ds = file.dataset(name).unwrap();
+        assert_eq!(bits(&ds.read_raw::<f64>().unwrap()), want, "{name}");
+        assert_eq!(marked(&ds), mark, "{name}");
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn histories_written_block_by_block_equal_those_of_a_run_kept_in_memory() {
     // 200 periods of 100 samples: 20 001 samples, more than two blocks of the file's writer

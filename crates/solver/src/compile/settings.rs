@@ -191,7 +191,8 @@ pub(crate) fn outputs(
         accelerations: out.accelerations,
         diagnostics: out.diagnostics,
         energy: out.diagnostics && out.energy,
-        significant_bits: out.significant_bits,
+        // 52 bits keep every bit: nothing is rounded or marked.
+        significant_bits: out.significant_bits.filter(|&b| b < 52),
     })
 }
 
