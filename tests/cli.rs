@@ -812,6 +812,12 @@ fn bad_analysis_studies_name_the_file_and_the_field() {
             "between 1 and 52",
         ),
         (
+            "transient = 20",
+            "transient = 20\nsignificant_bits = 53",
+            "analysis.significant_bits",
+            "between 1 and 52",
+        ),
+        (
             "parameter = \"gamma\"",
             "parameter = \"gama\"",
             "sweep.parameter",

@@ -417,46 +417,66 @@ fn histories_keep_the_significant_bits_asked_for_and_nothing_else_is_rounded() {
             .and_then(|a| a.read_scalar::<u64>())
             .ok()
     };
-    let st = study(&text);
     let dir = tmp_dir("significant-bits");
-    let out = execute(&st, &dir, Options::default(), "test", &|_| {}).unwrap();
     use jointplay_analysis::shards::{Shard, merge};
-    let shards: Vec<_> = (0..2)
-        .map(|index| {
-            let o = Options {
-                shard: Some(Shard { index, count: 2 }),
-                ..Options::default()
-            };
-            execute(&st, &dir, o, "test", &|_| {}).unwrap().file
-        })
-        .collect();
-    let merged = dir.join("merged.h5");
-    merge(&shards, &merged, "test", false).unwrap();
-    for path in [&out.file, &merged] {
-        let file = hdf5::File::open(path).unwrap();
-        assert_eq!(marked(&file), Some(20));
-        assert_eq!(marked(&file.dataset("sweep/history/x").unwrap()), Some(20));
-        for name in ["sweep/history/time", "sweep/x", "sweep/final_state"] {
-            assert_eq!(marked(&file.dataset(name).unwrap()), None, "{name}");
+    // The parallel sweep and its two shards merged; the continuation, which writes its rows
+    // through its own loop, each value from the previous one's final state.
+    for continuation in [false, true] {
+        let text = if continuation {
+            text.clone() + "continuation = true\n"
+        } else {
+            text.clone()
+        };
+        let st = study(&text);
+        let out = execute(&st, &dir, Options::default(), "test", &|_| {}).unwrap();
+        let mut files = vec![out.file.clone()];
+        if !continuation {
+            let shards: Vec<_> = (0..2)
+                .map(|index| {
+                    let o = Options {
+                        shard: Some(Shard { index, count: 2 }),
+                        ..Options::default()
+                    };
+                    execute(&st, &dir, o, "test", &|_| {}).unwrap().file
+                })
+                .collect();
+            let merged = dir.join("merged.h5");
+            merge(&shards, &merged, "test", false).unwrap();
+            files.push(merged);
         }
-        let (time, x, v, strobe) = (
-            read2(&file, "sweep/history/time"),
-            read2(&file, "sweep/history/x"),
-            read2(&file, "sweep/history/v"),
-            read2(&file, "sweep/x"),
-        );
-        for (row, g) in [0.28, 0.5].into_iter().enumerate() {
-            let r = st.run_value(g, &mut |_| {}).unwrap();
-            assert_eq!(r.trace.history_time.len(), 12_001);
-            assert_eq!(bits(&time[row]), bits(&r.trace.history_time), "{row}");
-            assert_eq!(bits(&x[row]), rounded(&r.trace.history[0]), "{row}");
-            assert_eq!(bits(&v[row]), rounded(&r.trace.history[1]), "{row}");
-            assert_eq!(bits(&strobe[row]), bits(&r.trace.strobe[0]), "{row}");
-            assert_ne!(
-                bits(&x[row]),
-                bits(&r.trace.history[0]),
-                "{row}: nothing rounded"
+        for path in &files {
+            let file = hdf5::File::open(path).unwrap();
+            assert_eq!(marked(&file), Some(20));
+            assert_eq!(marked(&file.dataset("sweep/history/x").unwrap()), Some(20));
+            for name in ["sweep/history/time", "sweep/x", "sweep/final_state"] {
+                assert_eq!(marked(&file.dataset(name).unwrap()), None, "{name}");
+            }
+            let (time, x, v, strobe) = (
+                read2(&file, "sweep/history/time"),
+                read2(&file, "sweep/history/x"),
+                read2(&file, "sweep/history/v"),
+                read2(&file, "sweep/x"),
             );
+            let mut from = None;
+            for (row, g) in [0.28, 0.5].into_iter().enumerate() {
+                let r = match &from {
+                    Some(prev) => st.run_value_from(g, prev, &mut |_| {}).unwrap(),
+                    None => st.run_value(g, &mut |_| {}).unwrap(),
+                };
+                if continuation {
+                    from = Some(r.trace.final_state.clone());
+                }
+                assert_eq!(r.trace.history_time.len(), 12_001);
+                assert_eq!(bits(&time[row]), bits(&r.trace.history_time), "{row}");
+                assert_eq!(bits(&x[row]), rounded(&r.trace.history[0]), "{row}");
+                assert_eq!(bits(&v[row]), rounded(&r.trace.history[1]), "{row}");
+                assert_eq!(bits(&strobe[row]), bits(&r.trace.strobe[0]), "{row}");
+                assert_ne!(
+                    bits(&x[row]),
+                    bits(&r.trace.history[0]),
+                    "{row}: nothing rounded"
+                );
+            }
         }
     }
     let single = text.replace("[sweep]", "[unused]");
