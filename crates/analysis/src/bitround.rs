@@ -49,6 +49,19 @@ pub fn round(values: &mut [f64], bits: u32) {
     }
 }
 
+/// `values` rounded to `bits` mantissa bits by [`round`], copied; `None` (every bit kept) lends
+/// them as they are.
+pub fn rounded(values: &[f64], bits: Option<u32>) -> std::borrow::Cow<'_, [f64]> {
+    match bits {
+        Some(b) => {
+            let mut v = values.to_vec();
+            round(&mut v, b);
+            std::borrow::Cow::Owned(v)
+        }
+        None => std::borrow::Cow::Borrowed(values),
+    }
+}
+
 /// The bound on the relative error [`round`] makes on a normal double with `bits` mantissa bits,
 /// $2^{-(b+1)}$ (a subnormal has the absolute bound $2^{-(b+1)}\, 2^{-1022}$ instead).
 pub fn relative_bound(bits: u32) -> f64 {

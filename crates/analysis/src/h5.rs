@@ -370,11 +370,7 @@ impl PartialFile {
         };
         match attrs() {
             Ok(()) => Ok(out),
-            Err(err) => {
-                let err = h5err(out.partial())(err);
-                out.discard();
-                Err(err)
-            }
+            Err(err) => Err(out.fail(err)),
         }
     }
 
@@ -406,6 +402,13 @@ impl PartialFile {
         let _ = self.file.close();
         let _ = std::fs::remove_file(&self.partial);
     }
+
+    /// [`PartialFile::discard`] after `err`, which it returns naming the file.
+    pub fn fail(self, err: hdf5::Error) -> Error {
+        let err = h5err(self.partial())(err);
+        self.discard();
+        err
+    }
 }
 
 /// Creates `dir/<name>.h5` under the temporary name `<name>.h5.partial`, writes the program's
@@ -420,11 +423,7 @@ pub(crate) fn write_atomically(
     let out = PartialFile::create(dir, name, program_version)?;
     match body(&out.file) {
         Ok(()) => out.finish(),
-        Err(err) => {
-            let err = h5err(out.partial())(err);
-            out.discard();
-            Err(err)
-        }
+        Err(err) => Err(out.fail(err)),
     }
 }
 
@@ -551,7 +550,7 @@ fn write_recording(g: &hdf5::Group, rec: &Recording) -> hdf5::Result<()> {
             write_table(g, name, &v, c.width(), unit, desc)?;
             continue;
         }
-        let values = rounded(&c.values, rec.significant_bits);
+        let values = crate::bitround::rounded(&c.values, rec.significant_bits);
         if c.scalar {
             write1(g, name, &values, unit, desc)?;
         } else {
@@ -563,18 +562,6 @@ fn write_recording(g: &hdf5::Group, rec: &Recording) -> hdf5::Result<()> {
         }
     }
     Ok(())
-}
-
-/// `values` rounded to `bits` mantissa bits ([`crate::bitround`]), or as they are for `None`.
-fn rounded(values: &[f64], bits: Option<u32>) -> std::borrow::Cow<'_, [f64]> {
-    match bits {
-        Some(b) => {
-            let mut v = values.to_vec();
-            crate::bitround::round(&mut v, b);
-            std::borrow::Cow::Owned(v)
-        }
-        None => std::borrow::Cow::Borrowed(values),
-    }
 }
 
 /// The `significant_bits` attribute of a file's (or a run's) group and of its rounded datasets;
@@ -602,7 +589,35 @@ pub struct RunWriter {
     bits: Option<u32>,
 }
 
-/// Creates an empty extendable dataset of `width` columns (one-dimensional when `scalar`).
+/// Creates an empty extendable dataset of `width` columns (one-dimensional when `scalar`),
+/// compressed in chunks of `rows` samples, each appended whole.
+pub(crate) fn create_extendable<T: hdf5::H5Type>(
+    g: &hdf5::Group,
+    name: &str,
+    width: usize,
+    scalar: bool,
+    rows: usize,
+) -> hdf5::Result<hdf5::Dataset> {
+    // No chunk cache: every append writes whole chunks, straight to the file. (HDF5 gives every
+    // open dataset a cache of 1 MiB by default; with the hundreds of datasets of a mechanism's
+    // run held open, the caches alone would hold a few hundred MB.)
+    let b = g.new_dataset::<T>().chunk_cache(0, 0, 1.0);
+    if scalar {
+        b.shape(0..)
+            .chunk(rows)
+            .shuffle()
+            .deflate(DEFLATE)
+            .create(name)
+    } else {
+        b.shape((0.., width))
+            .chunk((rows, width))
+            .shuffle()
+            .deflate(DEFLATE)
+            .create(name)
+    }
+}
+
+/// [`create_extendable`] in chunks of [`STREAM_ROWS`] samples, described.
 fn extendable<T: hdf5::H5Type>(
     g: &hdf5::Group,
     name: &str,
@@ -611,23 +626,7 @@ fn extendable<T: hdf5::H5Type>(
     unit: &str,
     desc: &str,
 ) -> hdf5::Result<hdf5::Dataset> {
-    // No chunk cache: every append writes whole chunks, straight to the file. (HDF5 gives every
-    // open dataset a cache of 1 MiB by default; with the hundreds of datasets of a mechanism's
-    // run held open, the caches alone would hold a few hundred MB.)
-    let b = g.new_dataset::<T>().chunk_cache(0, 0, 1.0);
-    let ds = if scalar {
-        b.shape(0..)
-            .chunk(STREAM_ROWS)
-            .shuffle()
-            .deflate(DEFLATE)
-            .create(name)?
-    } else {
-        b.shape((0.., width))
-            .chunk((STREAM_ROWS, width))
-            .shuffle()
-            .deflate(DEFLATE)
-            .create(name)?
-    };
+    let ds = create_extendable::<T>(g, name, width, scalar, STREAM_ROWS)?;
     describe(&ds, Some(unit), desc)?;
     Ok(ds)
 }
@@ -689,11 +688,7 @@ impl RunWriter {
                 rows: 0,
                 bits: rec.significant_bits,
             }),
-            Err(err) => {
-                let err = h5err(out.partial())(err);
-                out.discard();
-                Err(err)
-            }
+            Err(err) => Err(out.fail(err)),
         }
     }
 
@@ -732,10 +727,7 @@ impl RunWriter {
                     let v: Vec<u8> = c.values.iter().map(|&x| x as u8).collect();
                     append(ds, from, n, c.width(), false, v)?;
                 } else {
-                    let mut v = c.values.clone();
-                    if let Some(b) = self.bits {
-                        crate::bitround::round(&mut v, b);
-                    }
+                    let v = crate::bitround::rounded(&c.values, self.bits).into_owned();
                     append(ds, from, n, c.width(), c.scalar, v)?;
                 }
             }
@@ -755,9 +747,7 @@ impl RunWriter {
         } = self;
         drop((time, sets));
         if let Err(err) = write_outcome(&out.file, meta, run) {
-            let err = h5err(out.partial())(err);
-            out.discard();
-            return Err(err);
+            return Err(out.fail(err));
         }
         out.finish()
     }

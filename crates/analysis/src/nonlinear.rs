@@ -37,9 +37,9 @@ use toml::{Table, Value};
 
 use crate::flow::{Flow, Target};
 use crate::h5::{
-    DEFLATE, PartialFile, append, create_nan, create_nan_chunked, describe, f64_attr, f64_attr_set,
-    h5err, mark_bits, read_attr, read_str, str_attr, u8_attr_set, u64_attr, write_column,
-    write_element, write_row, write1,
+    PartialFile, append, create_extendable, create_nan, create_nan_chunked, describe, f64_attr,
+    f64_attr_set, h5err, mark_bits, read_attr, read_str, str_attr, u8_attr_set, u64_attr,
+    write_column, write_element, write_row, write1,
 };
 use crate::hybrid;
 use crate::observe::Observable;
@@ -1164,10 +1164,7 @@ pub fn execute_until(
                 st.spec.analysis.history_bits(),
             ) {
                 Ok(h) => Some(h),
-                Err(err) => {
-                    out.discard();
-                    return Err(e(err));
-                }
+                Err(err) => return Err(out.fail(err)),
             }
         } else {
             None
@@ -1228,8 +1225,7 @@ pub fn execute_until(
         })();
         drop(history);
         if let Err(err) = written {
-            out.discard();
-            return Err(e(err));
+            return Err(out.fail(err));
         }
         let file = out.finish()?;
         let interrupted = matches!(failure, Some(Error::Interrupted { .. }));
@@ -1813,16 +1809,8 @@ impl SingleHistory {
         bits: Option<u32>,
     ) -> hdf5::Result<SingleHistory> {
         let g = file.create_group("history")?;
-        // One chunk per block, written whole; no chunk cache.
-        let create = |name: &str| {
-            g.new_dataset::<f64>()
-                .chunk_cache(0, 0, 1.0)
-                .shape(0..)
-                .chunk(HISTORY_BLOCK)
-                .shuffle()
-                .deflate(DEFLATE)
-                .create(name)
-        };
+        // One chunk per block, written whole.
+        let create = |name: &str| create_extendable::<f64>(&g, name, 1, true, HISTORY_BLOCK);
         Ok(SingleHistory {
             time: create("time")?,
             values: observables
@@ -1838,10 +1826,7 @@ impl SingleHistory {
         let n = time.len();
         append(&self.time, from, n, 1, true, time.to_vec())?;
         for (ds, v) in self.values.iter().zip(values) {
-            let mut v = v.clone();
-            if let Some(b) = self.bits {
-                crate::bitround::round(&mut v, b);
-            }
+            let v = crate::bitround::rounded(v, self.bits).into_owned();
             append(ds, from, n, 1, true, v)?;
         }
         self.time.file()?.flush()
@@ -2051,14 +2036,7 @@ fn write_history_block(
     put("time", time)?;
     let bits = st.spec.analysis.history_bits();
     for (o, v) in st.spec.observables.iter().zip(values) {
-        match bits {
-            Some(b) => {
-                let mut v = v.clone();
-                crate::bitround::round(&mut v, b);
-                put(&o.name, &v)?;
-            }
-            None => put(&o.name, v)?,
-        }
+        put(&o.name, &crate::bitround::rounded(v, bits))?;
     }
     // On disk before the job goes on: a sweep killed while a job runs leaves a file that
     // `--resume` can open, as one killed between jobs does.

@@ -50,6 +50,23 @@ parameter = "gamma"
 values = [0.20, 0.28, 0.29, 0.50]
 "#;
 
+/// The sweep `st` run as two shards into `dir`, merged into `dir/merged.h5`.
+fn two_shards_merged(st: &Loaded, dir: &Path) -> PathBuf {
+    use jointplay_analysis::shards::{Shard, merge};
+    let shards: Vec<_> = (0..2)
+        .map(|index| {
+            let o = Options {
+                shard: Some(Shard { index, count: 2 }),
+                ..Options::default()
+            };
+            execute(st, dir, o, "test", &|_| {}).unwrap().file
+        })
+        .collect();
+    let merged = dir.join("merged.h5");
+    merge(&shards, &merged, "test", false).unwrap();
+    merged
+}
+
 fn read2(file: &hdf5::File, name: &str) -> Vec<Vec<f64>> {
     let ds = file.dataset(name).unwrap();
     let shape = ds.shape();
@@ -418,7 +435,6 @@ fn histories_keep_the_significant_bits_asked_for_and_nothing_else_is_rounded() {
             .ok()
     };
     let dir = tmp_dir("significant-bits");
-    use jointplay_analysis::shards::{Shard, merge};
     // The parallel sweep and its two shards merged; the continuation, which writes its rows
     // through its own loop, each value from the previous one's final state.
     for continuation in [false, true] {
@@ -431,18 +447,7 @@ fn histories_keep_the_significant_bits_asked_for_and_nothing_else_is_rounded() {
         let out = execute(&st, &dir, Options::default(), "test", &|_| {}).unwrap();
         let mut files = vec![out.file.clone()];
         if !continuation {
-            let shards: Vec<_> = (0..2)
-                .map(|index| {
-                    let o = Options {
-                        shard: Some(Shard { index, count: 2 }),
-                        ..Options::default()
-                    };
-                    execute(&st, &dir, o, "test", &|_| {}).unwrap().file
-                })
-                .collect();
-            let merged = dir.join("merged.h5");
-            merge(&shards, &merged, "test", false).unwrap();
-            files.push(merged);
+            files.push(two_shards_merged(&st, &dir));
         }
         for path in &files {
             let file = hdf5::File::open(path).unwrap();
@@ -527,20 +532,7 @@ fn histories_written_block_by_block_equal_those_of_a_run_kept_in_memory() {
         );
         if !continuation {
             // Two shards merged: the rows are copied a block at a time.
-            use jointplay_analysis::shards::{Shard, merge};
-            let shards: Vec<_> = (0..2)
-                .map(|index| {
-                    let shard = Some(Shard { index, count: 2 });
-                    let o = Options {
-                        shard,
-                        ..Options::default()
-                    };
-                    execute(&st, &dir, o, "test", &|_| {}).unwrap().file
-                })
-                .collect();
-            let merged = dir.join("merged.h5");
-            merge(&shards, &merged, "test", false).unwrap();
-            let m = hdf5::File::open(&merged).unwrap();
+            let m = hdf5::File::open(two_shards_merged(&st, &dir)).unwrap();
             for name in ["sweep/history/time", "sweep/history/x", "sweep/x"] {
                 let (a, b) = (read2(&file, name), read2(&m, name));
                 let same = a.iter().zip(&b).all(|(p, q)| bits(p) == bits(q));
