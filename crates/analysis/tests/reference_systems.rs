@@ -3,7 +3,7 @@
 
 use std::path::{Path, PathBuf};
 
-use jointplay_analysis::nonlinear::{Loaded, Options, execute};
+use jointplay_analysis::nonlinear::{JobResult, Loaded, Options, execute};
 
 fn study(text: &str) -> Loaded {
     Loaded::parse(text, Path::new("reference.toml")).unwrap()
@@ -49,6 +49,27 @@ path = "v"
 parameter = "gamma"
 values = [0.20, 0.28, 0.29, 0.50]
 "#;
+
+/// Each value of the sweep `st` run on its own, as its job runs in the sweep: in a continuation
+/// from the previous value's final state.
+fn run_alone(st: &Loaded, values: &[f64], continuation: bool) -> Vec<JobResult> {
+    let mut runs: Vec<JobResult> = Vec::new();
+    for &g in values {
+        let r = match runs.last() {
+            Some(prev) if continuation => st
+                .run_value_from(g, &prev.trace.final_state, &mut |_| {})
+                .unwrap(),
+            _ => st.run_value(g, &mut |_| {}).unwrap(),
+        };
+        runs.push(r);
+    }
+    runs
+}
+
+/// The study `text` without its `[sweep]` table (and what follows it): a single run.
+fn without_sweep(text: &str) -> Loaded {
+    study(&text[..text.find("[sweep]").unwrap()])
+}
 
 /// The sweep `st` run as two shards into `dir`, merged into `dir/merged.h5`.
 fn two_shards_merged(st: &Loaded, dir: &Path) -> PathBuf {
@@ -462,15 +483,10 @@ fn histories_keep_the_significant_bits_asked_for_and_nothing_else_is_rounded() {
                 read2(&file, "sweep/history/v"),
                 read2(&file, "sweep/x"),
             );
-            let mut from = None;
-            for (row, g) in [0.28, 0.5].into_iter().enumerate() {
-                let r = match &from {
-                    Some(prev) => st.run_value_from(g, prev, &mut |_| {}).unwrap(),
-                    None => st.run_value(g, &mut |_| {}).unwrap(),
-                };
-                if continuation {
-                    from = Some(r.trace.final_state.clone());
-                }
+            for (row, r) in run_alone(&st, &[0.28, 0.5], continuation)
+                .iter()
+                .enumerate()
+            {
                 assert_eq!(r.trace.history_time.len(), 12_001);
                 assert_eq!(bits(&time[row]), bits(&r.trace.history_time), "{row}");
                 assert_eq!(bits(&x[row]), rounded(&r.trace.history[0]), "{row}");
@@ -484,9 +500,7 @@ fn histories_keep_the_significant_bits_asked_for_and_nothing_else_is_rounded() {
             }
         }
     }
-    let single = text.replace("[sweep]", "[unused]");
-    let single = &single[..single.find("[unused]").unwrap()];
-    let st = study(single);
+    let st = without_sweep(&text);
     let out = execute(&st, &dir, Options::default(), "test", &|_| {}).unwrap();
     let file = hdf5::File::open(&out.file).unwrap();
     let r = st.run_single(&mut |_| {}).unwrap();
@@ -539,25 +553,18 @@ fn histories_written_block_by_block_equal_those_of_a_run_kept_in_memory() {
                 assert!(a.len() == b.len() && same, "{name} differs after the merge");
             }
         }
-        let mut from = None;
-        for (row, g) in [0.28, 0.5].into_iter().enumerate() {
-            let r = match &from {
-                Some(prev) => st.run_value_from(g, prev, &mut |_| {}).unwrap(),
-                None => st.run_value(g, &mut |_| {}).unwrap(),
-            };
+        for (row, r) in run_alone(&st, &[0.28, 0.5], continuation)
+            .iter()
+            .enumerate()
+        {
             assert_eq!(r.trace.history_time.len(), 20_001);
             assert_eq!(bits(&time[row]), bits(&r.trace.history_time), "{row}");
             assert_eq!(bits(&x[row]), bits(&r.trace.history[0]), "{row}");
-            if continuation {
-                from = Some(r.trace.final_state.clone());
-            }
         }
         let _ = std::fs::remove_dir_all(&dir);
     }
     // The single run's histories: extendable datasets appended block by block.
-    let single = text.replace("[sweep]", "[unused]");
-    let single = &single[..single.find("[unused]").unwrap()];
-    let st = study(single);
+    let st = without_sweep(&text);
     let dir = tmp_dir("blocks-single");
     let out = execute(&st, &dir, Options::default(), "test", &|_| {}).unwrap();
     let file = hdf5::File::open(&out.file).unwrap();
