@@ -14,7 +14,11 @@
 //! mantissa bytes, deflate finds long repeats in the first planes. The compression is lossless:
 //! only the file's bytes change. (What a scene's `output.significant_bits` or an analysis's
 //! `significant_bits` asks for is rounded before, by [`crate::bitround`], and marked with the
-//! attribute `significant_bits`.) Chunks hold about [`CHUNK_BYTES`] (whole rows, but a sweep's
+//! attribute `significant_bits`.) The chunks of a run's recording (streamed by [`RunWriter`] or
+//! written whole by [`write_run`] and [`write_study`]) are shuffled and deflated by
+//! [`crate::chunk`], with libdeflate and on several threads where nothing else runs, and written
+//! as they are; every other dataset goes through HDF5's own filters (zlib). The bytes are those
+//! of the declared filters either way. Chunks hold about [`CHUNK_BYTES`] (whole rows, but a sweep's
 //! history rows, chunked by the block its jobs write them in), small enough
 //! that reading one column of a long recording decompresses little beyond it, large enough that
 //! the per-chunk index and deflate's start-up cost stay negligible. Datasets of strings are not
@@ -146,10 +150,12 @@ pub const SMALL: usize = 256;
 /// Bytes per chunk of a compressed dataset (rounded to whole rows).
 pub const CHUNK_BYTES: usize = 64 * 1024;
 
-/// Deflate level after the shuffle filter. Level 4 is the middle of zlib's range. On a 6 s run
-/// of the mixed 4-UPS/RPU (DOPRI5, 1 ms output) level 1 made the file 0.8 % larger and took the
-/// same share of the run's time (about 16 %, by `perf`): recorded trajectories compress little
-/// either way.
+/// Deflate level after the shuffle filter, of zlib (HDF5's filter) and of libdeflate
+/// ([`crate::chunk`]) alike. Level 4 is the middle of zlib's range. On a 6 s run of the mixed
+/// 4-UPS/RPU (DOPRI5, 1 ms output) zlib's level 1 made the file 0.8 % larger and took the same
+/// share of the run's time (about 16 %, by `perf`): recorded trajectories compress little either
+/// way. On a 10 s run's chunks libdeflate's levels 1, 4 and 6 gave 1.357, 1.382 and 1.385 times
+/// smaller in 179, 248 and 273 ms (zlib's level 4: 1.374 in 527 ms).
 pub const DEFLATE: u8 = 4;
 
 /// Samples a streamed run file appends at once: one chunk of every dataset whose row is at most
@@ -539,29 +545,112 @@ fn write_groups(g: &hdf5::Group, rec: &Recording) -> hdf5::Result<()> {
 /// Writes a recording: the sample times, its groups with their attributes and one dataset per
 /// channel (as u8 for a flag, one-dimensional for a scalar), the values of the others rounded to
 /// [`Recording::significant_bits`] when it is set (marked on `g` and on each rounded dataset).
+///
+/// The chunks of the compressed datasets are compressed by [`crate::chunk`], by the threads of
+/// rayon's pool (a recording is written whole once its run is over).
 fn write_recording(g: &hdf5::Group, rec: &Recording) -> hdf5::Result<()> {
-    write1(g, "time", &rec.time, "s", "sample times")?;
     write_groups(g, rec)?;
     mark_bits(g, rec.significant_bits)?;
+    let time = NewSet {
+        name: "time",
+        values: rec.time.as_slice().into(),
+        width: 1,
+        scalar: true,
+        unit: "s",
+        desc: "sample times",
+    };
+    let (mut reals, mut flags) = (vec![time], Vec::new());
+    let mut rounded = Vec::new();
     for c in &rec.channels {
-        let (name, unit, desc) = (&c.dataset, &c.unit, &c.description);
         if c.flag {
             let v: Vec<u8> = c.values.iter().map(|&x| x as u8).collect();
-            write_table(g, name, &v, c.width(), unit, desc)?;
-            continue;
-        }
-        let values = crate::bitround::rounded(&c.values, rec.significant_bits);
-        if c.scalar {
-            write1(g, name, &values, unit, desc)?;
+            flags.push(NewSet::of(c, v.into()));
         } else {
-            write_table(g, name, &values, c.width(), unit, desc)?;
+            reals.push(NewSet::of(
+                c,
+                crate::bitround::rounded(&c.values, rec.significant_bits),
+            ));
+            rounded.push(&c.dataset[..]);
         }
-        if rec.significant_bits.is_some() {
+    }
+    write_sets(g, &reals)?;
+    write_sets(g, &flags)?;
+    if rec.significant_bits.is_some() {
+        for name in rounded {
             let ds = g.dataset(name)?;
             mark_bits(&ds, rec.significant_bits)?;
         }
     }
     Ok(())
+}
+
+/// A dataset for [`write_sets`]: its values (whole rows of `width`; one-dimensional when
+/// `scalar`), unit and description.
+struct NewSet<'a, T: Clone> {
+    name: &'a str,
+    values: std::borrow::Cow<'a, [T]>,
+    width: usize,
+    scalar: bool,
+    unit: &'a str,
+    desc: &'a str,
+}
+
+impl<'a, T: Clone> NewSet<'a, T> {
+    /// The dataset of channel `c` holding `values` (a flag's as a table, whatever its width).
+    fn of(c: &'a Channel, values: std::borrow::Cow<'a, [T]>) -> Self {
+        NewSet {
+            name: &c.dataset,
+            values,
+            width: c.width(),
+            scalar: c.scalar && !c.flag,
+            unit: &c.unit,
+            desc: &c.description,
+        }
+    }
+}
+
+/// Creates and writes the datasets `sets` in `g`, described: those [`chunk_shape`] chunks with
+/// their chunks compressed by [`crate::chunk`] (by the threads of rayon's pool) and written as
+/// they are, the others as [`write_table`] and [`write1`] write them.
+fn write_sets<T>(g: &hdf5::Group, sets: &[NewSet<'_, T>]) -> hdf5::Result<()>
+where
+    T: hdf5::H5Type + Clone + crate::chunk::Element,
+{
+    use crate::chunk::{Rows, append_all};
+    let mut made = Vec::new();
+    for s in sets {
+        let n = s.values.len().checked_div(s.width).unwrap_or(0);
+        let shape = if s.scalar { vec![n] } else { vec![n, s.width] };
+        let ds = match chunk_shape(&shape, T::SIZE) {
+            Some(c) => {
+                let b = g
+                    .new_dataset::<T>()
+                    .chunk(c.clone())
+                    .shuffle()
+                    .deflate(DEFLATE);
+                let ds = b.shape(shape).create(s.name)?;
+                made.push((ds.clone(), c[0], s));
+                ds
+            }
+            None if s.scalar => create_filtered(g, s.name, &Array1::from(s.values.to_vec()))?,
+            None => {
+                let arr = Array2::from_shape_vec((n, s.width), s.values.to_vec())
+                    .map_err(|e| hdf5::Error::from(e.to_string()))?;
+                create_filtered(g, s.name, &arr)?
+            }
+        };
+        describe(&ds, Some(s.unit), s.desc)?;
+    }
+    let rows: Vec<_> = made
+        .iter()
+        .map(|(ds, chunk_rows, s)| Rows {
+            ds,
+            values: &s.values[..],
+            width: s.width,
+            chunk_rows: *chunk_rows,
+        })
+        .collect();
+    append_all(&rows, 0, DEFLATE, true)
 }
 
 /// The `significant_bits` attribute of a file's (or a run's) group and of its rounded datasets;
@@ -712,8 +801,11 @@ impl RunWriter {
     }
 
     /// Appends the samples `rec` holds (all its channels, the same number of samples each) and
-    /// flushes the file.
-    pub fn append(&mut self, rec: &Recording) -> Result<()> {
+    /// flushes the file. The chunks are compressed by [`crate::chunk`] (by the threads of
+    /// rayon's pool when `parallel`: the last block of a run, which nothing else waits beside)
+    /// when the samples start a chunk, as every block of a streamed run does; otherwise they go
+    /// through HDF5's own filters.
+    pub fn append(&mut self, rec: &Recording, parallel: bool) -> Result<()> {
         let e = h5err(self.out.partial());
         let n = rec.time.len();
         if n == 0 {
@@ -721,14 +813,18 @@ impl RunWriter {
         }
         let from = self.rows;
         (|| -> hdf5::Result<()> {
-            append(&self.time, from, n, 1, true, rec.time.clone())?;
-            for (c, ds) in rec.channels.iter().zip(&self.sets) {
-                if c.flag {
-                    let v: Vec<u8> = c.values.iter().map(|&x| x as u8).collect();
-                    append(ds, from, n, c.width(), false, v)?;
-                } else {
-                    let v = crate::bitround::rounded(&c.values, self.bits).into_owned();
-                    append(ds, from, n, c.width(), c.scalar, v)?;
+            if from.is_multiple_of(STREAM_ROWS) {
+                self.append_packed(rec, from, parallel)?;
+            } else {
+                append(&self.time, from, n, 1, true, rec.time.clone())?;
+                for (c, ds) in rec.channels.iter().zip(&self.sets) {
+                    if c.flag {
+                        let v: Vec<u8> = c.values.iter().map(|&x| x as u8).collect();
+                        append(ds, from, n, c.width(), false, v)?;
+                    } else {
+                        let v = crate::bitround::rounded(&c.values, self.bits).into_owned();
+                        append(ds, from, n, c.width(), c.scalar, v)?;
+                    }
                 }
             }
             self.out.file.flush()
@@ -736,6 +832,46 @@ impl RunWriter {
         .map_err(&e)?;
         self.rows += n;
         Ok(())
+    }
+
+    /// [`RunWriter::append`] of samples starting at row `from`, a multiple of [`STREAM_ROWS`]:
+    /// every dataset extended, its chunks compressed by [`crate::chunk`] and written as they are.
+    fn append_packed(&self, rec: &Recording, from: usize, parallel: bool) -> hdf5::Result<()> {
+        use crate::chunk::{Rows, append_all};
+        let rows = |ds, values, width| Rows {
+            ds,
+            values,
+            width,
+            chunk_rows: STREAM_ROWS,
+        };
+        let rounded: Vec<_> = rec
+            .channels
+            .iter()
+            .map(|c| crate::bitround::rounded(&c.values, self.bits))
+            .collect();
+        let mut reals = vec![rows(&self.time, &rec.time[..], 1)];
+        let mut flags = Vec::new();
+        let mut flag_sets = Vec::new();
+        for ((c, ds), v) in rec.channels.iter().zip(&self.sets).zip(&rounded) {
+            if c.flag {
+                flags.push(c.values.iter().map(|&x| x as u8).collect::<Vec<u8>>());
+                flag_sets.push((ds, c.width()));
+            } else {
+                reals.push(rows(ds, &v[..], c.width()));
+            }
+        }
+        append_all(&reals, from, DEFLATE, parallel)?;
+        let flags: Vec<_> = flag_sets
+            .iter()
+            .zip(&flags)
+            .map(|(&(ds, width), v)| Rows {
+                ds,
+                values: &v[..],
+                width,
+                chunk_rows: STREAM_ROWS,
+            })
+            .collect();
+        append_all(&flags, from, DEFLATE, parallel)
     }
 
     /// Writes what the run's end decides (statistics, `complete`, the error of a run that

@@ -33,6 +33,7 @@
 
 pub mod bitround;
 pub mod chaos;
+mod chunk;
 pub mod comparison;
 pub mod continuation;
 pub mod figures;

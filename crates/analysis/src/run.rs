@@ -596,8 +596,10 @@ pub struct Written {
 ///
 /// The file is written by a thread of its own: the integration hands each block of
 /// [`STREAM_ROWS`] samples over a channel that holds at most one waiting block and goes on while
-/// the writer shuffles, deflates and appends the one before (the compression takes about a
-/// quarter of a single run's time on the 4-UPS/RPU when done in line). At most four blocks are
+/// the writer shuffles, deflates and appends the one before (with zlib, the compression took
+/// about a quarter of a single run's time on the 4-UPS/RPU when done in line; libdeflate, in
+/// [`crate::chunk`], takes half as long). The last block, which the integration no longer runs
+/// beside, is compressed by every thread of rayon's pool. At most four blocks are
 /// held at once: the one filling, one handed over while the channel is full, the one waiting and
 /// the one being written. The writer hands each written block back, emptied, and the integration
 /// fills it again: on the 10 s bench run of the mixed 4-UPS/RPU this made the integration 2 %
@@ -605,7 +607,7 @@ pub struct Written {
 /// in), with the same peak memory.
 struct Stream {
     /// The blocks for the writer thread; `None` once closed.
-    tx: Option<mpsc::SyncSender<Recording>>,
+    tx: Option<mpsc::SyncSender<(Recording, bool)>>,
     /// The writer thread, which gives its writer back with the first error it met.
     thread: Option<std::thread::JoinHandle<(RunWriter, Result<()>)>>,
     /// Blocks the writer has written, handed back emptied to be filled again: their memory is
@@ -639,13 +641,13 @@ impl Stream {
             .zip(at("diagnostics/velocity_drift"))
             .map(|(p, v)| ([p, v], [0.0; 2]));
         let partial = writer.partial().to_path_buf();
-        let (tx, rx) = mpsc::sync_channel::<Recording>(1);
+        let (tx, rx) = mpsc::sync_channel::<(Recording, bool)>(1);
         // Room for every block there can be, so that handing one back never waits.
         let (back, spare) = mpsc::sync_channel::<Recording>(3);
         let thread = std::thread::spawn(move || {
             let mut writer = writer;
-            for mut block in rx {
-                if let Err(e) = writer.append(&block) {
+            for (mut block, last) in rx {
+                if let Err(e) = writer.append(&block, last) {
                     return (writer, Err(e));
                 }
                 block.truncate(0);
@@ -686,8 +688,10 @@ impl Stream {
         })
     }
 
-    /// Writes the samples of `rec`, keeps those of the figures and empties it.
-    fn take(&mut self, rec: &mut Recording) -> Result<()> {
+    /// Writes the samples of `rec`, keeps those of the figures and empties it; `last` for the
+    /// run's last samples, which the writer compresses with every thread of rayon's pool (the
+    /// integration is over: nothing else runs beside it).
+    fn take(&mut self, rec: &mut Recording, last: bool) -> Result<()> {
         let base = self.rows;
         if rec.time.is_empty() {
             return Ok(());
@@ -740,7 +744,7 @@ impl Stream {
         };
         let block = std::mem::replace(rec, empty);
         self.rows += block.time.len();
-        let sent = self.tx.as_ref().map(|tx| tx.send(block).is_ok());
+        let sent = self.tx.as_ref().map(|tx| tx.send((block, last)).is_ok());
         if sent == Some(true) {
             return Ok(());
         }
@@ -921,7 +925,7 @@ fn record(
         rec.sample(&order, model, &mut sys.ws, t, y)?;
         if let Some(s) = sink.as_deref_mut()
             && rec.time.len() >= STREAM_ROWS
-            && let Err(e) = s.take(&mut rec)
+            && let Err(e) = s.take(&mut rec, false)
         {
             write_failure = Some(e);
             return Err(crate::Error::Interrupted { time: Some(t) });
@@ -977,7 +981,7 @@ fn record(
         return Err(e);
     }
     if let Some(s) = sink {
-        s.take(&mut rec)?;
+        s.take(&mut rec, true)?;
     }
     Ok(RunResult {
         recording: rec,
