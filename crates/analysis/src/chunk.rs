@@ -84,8 +84,33 @@ pub(crate) fn pack<T: Element>(
     row0: usize,
     level: u8,
 ) -> Vec<Packed> {
-    let lvl = CompressionLvl::new(i32::from(level)).unwrap_or_default();
-    let mut coder = Compressor::new(lvl);
+    CODER.with_borrow_mut(|kept| {
+        // The coder's tables (about a megabyte) are allocated once per thread and level, not
+        // once per dataset and block.
+        let coder = match kept {
+            Some((l, c)) if *l == level => c,
+            _ => {
+                let lvl = CompressionLvl::new(i32::from(level)).unwrap_or_default();
+                &mut kept.insert((level, Compressor::new(lvl))).1
+            }
+        };
+        pack_with(coder, values, width, chunk_rows, row0)
+    })
+}
+
+thread_local! {
+    /// This thread's deflate coder and its level.
+    static CODER: std::cell::RefCell<Option<(u8, Compressor)>> = const { std::cell::RefCell::new(None) };
+}
+
+/// [`pack`] with `coder`.
+fn pack_with<T: Element>(
+    coder: &mut Compressor,
+    values: &[T],
+    width: usize,
+    chunk_rows: usize,
+    row0: usize,
+) -> Vec<Packed> {
     let per_chunk = chunk_rows * width.max(1);
     // The coder's output goes to one buffer of its worst case, and only what it wrote is kept.
     let mut out = vec![0u8; coder.zlib_compress_bound(per_chunk * T::SIZE)];
