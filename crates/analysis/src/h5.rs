@@ -15,7 +15,8 @@
 //! only the file's bytes change. (What a scene's `output.significant_bits` or an analysis's
 //! `significant_bits` asks for is rounded before, by [`crate::bitround`], and marked with the
 //! attribute `significant_bits`.) The chunks of a run's recording (streamed by [`RunWriter`] or
-//! written whole by [`write_run`] and [`write_study`]) are shuffled and deflated by
+//! written whole by [`write_run`] and [`write_study`]), and those of a single analysis run's
+//! histories, are shuffled and deflated by
 //! [`crate::chunk`], with libdeflate and on several threads where nothing else runs, and written
 //! as they are; every other dataset goes through HDF5's own filters (zlib). The bytes are those
 //! of the declared filters either way. Chunks hold about [`CHUNK_BYTES`] (whole rows, but a sweep's

@@ -1821,13 +1821,32 @@ impl SingleHistory {
         })
     }
 
-    /// Appends the samples `from..` of a block.
+    /// Appends the samples `from..` of a block. A block that starts a chunk (every block but
+    /// after a short one) has its chunks compressed by [`crate::chunk`], by the threads of
+    /// rayon's pool: the run waits for its block to be written, so the other core is free.
     fn append(&self, from: usize, time: &[f64], values: &[Vec<f64>]) -> hdf5::Result<()> {
         let n = time.len();
-        append(&self.time, from, n, 1, true, time.to_vec())?;
-        for (ds, v) in self.values.iter().zip(values) {
-            let v = crate::bitround::rounded(v, self.bits).into_owned();
-            append(ds, from, n, 1, true, v)?;
+        let rounded: Vec<_> = values
+            .iter()
+            .map(|v| crate::bitround::rounded(v, self.bits))
+            .collect();
+        if from.is_multiple_of(HISTORY_BLOCK) {
+            let sets = std::iter::once((&self.time, time))
+                .chain(self.values.iter().zip(rounded.iter().map(|v| &v[..])));
+            let rows: Vec<_> = sets
+                .map(|(ds, values)| crate::chunk::Rows {
+                    ds,
+                    values,
+                    width: 1,
+                    chunk_rows: HISTORY_BLOCK,
+                })
+                .collect();
+            crate::chunk::append_all(&rows, from, crate::h5::DEFLATE, true)?;
+        } else {
+            append(&self.time, from, n, 1, true, time.to_vec())?;
+            for (ds, v) in self.values.iter().zip(rounded) {
+                append(ds, from, n, 1, true, v.into_owned())?;
+            }
         }
         self.time.file()?.flush()
     }
