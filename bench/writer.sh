@@ -7,7 +7,7 @@
 # file size and the peak memory (/usr/bin/time), and the ratio of the second build to the first.
 #
 #   bench/writer.sh OLD NEW [REPEATS]    # two jointplay binaries; REPEATS default 3;
-#                                        # about 4 minutes on 2 cores at 3 repeats
+#                                        # about 3 minutes on 2 cores at 3 repeats
 #
 # The files of the two builds are compared value for value when Python 3 with h5py is there
 # (bench/requirements.txt), wall times excepted.
@@ -80,7 +80,11 @@ def check(name, o):
             bad.append(f"{name}@{k}")
     if isinstance(o, h5py.Dataset) and not same(o[...], p[...]):
         bad.append(name)
+check("/", a)
 a.visititems(check)
+extra = []
+b.visititems(lambda name, o: extra.append(name) if name not in a else None)
+bad += extra
 if bad:
     sys.exit("bench/writer.sh: the files differ: " + ", ".join(bad[:10]))
 PY
@@ -92,4 +96,4 @@ row "10 s, one run" p5.toml 1
 row "10 s, two runs at once" p5.toml 2
 row "40 s, two runs at once" p20.toml 2
 row "100 s, one run" p50.toml 1
-row "study clearance-size.toml (4 cases, 2 threads)" "$root/analyses/4ups-rpu/clearance-size.toml" 1
+row "study clearance-size.toml (4 cases)" "$root/analyses/4ups-rpu/clearance-size.toml" 1

@@ -18,8 +18,8 @@
 //! written whole by [`write_run`] and [`write_study`]), and those of a single analysis run's
 //! histories, are shuffled and deflated by
 //! [`crate::chunk`], with libdeflate and on several threads where nothing else runs, and written
-//! as they are; every other dataset goes through HDF5's own filters (zlib). The bytes are those
-//! of the declared filters either way. Chunks hold about [`CHUNK_BYTES`] (whole rows, but a sweep's
+//! as they are; every other dataset goes through HDF5's own filters (zlib). The chunks are in
+//! the format of the declared filters either way, and decompress to the same values. Chunks hold about [`CHUNK_BYTES`] (whole rows, but a sweep's
 //! history rows, chunked by the block its jobs write them in), small enough
 //! that reading one column of a long recording decompresses little beyond it, large enough that
 //! the per-chunk index and deflate's start-up cost stay negligible. Datasets of strings are not
@@ -550,108 +550,120 @@ fn write_groups(g: &hdf5::Group, rec: &Recording) -> hdf5::Result<()> {
 /// The chunks of the compressed datasets are compressed by [`crate::chunk`], by the threads of
 /// rayon's pool (a recording is written whole once its run is over).
 fn write_recording(g: &hdf5::Group, rec: &Recording) -> hdf5::Result<()> {
+    use crate::chunk::Store;
     write_groups(g, rec)?;
     mark_bits(g, rec.significant_bits)?;
     let time = NewSet {
         name: "time",
-        values: rec.time.as_slice().into(),
+        values: &rec.time,
         width: 1,
         scalar: true,
+        store: Store::F64(None),
         unit: "s",
         desc: "sample times",
     };
-    let (mut reals, mut flags) = (vec![time], Vec::new());
-    let mut rounded = Vec::new();
-    for c in &rec.channels {
-        if c.flag {
-            let v: Vec<u8> = c.values.iter().map(|&x| x as u8).collect();
-            flags.push(NewSet::of(c, v.into()));
-        } else {
-            reals.push(NewSet::of(
-                c,
-                crate::bitround::rounded(&c.values, rec.significant_bits),
-            ));
-            rounded.push(&c.dataset[..]);
-        }
-    }
-    write_sets(g, &reals)?;
-    write_sets(g, &flags)?;
+    let sets: Vec<_> = std::iter::once(time)
+        .chain(rec.channels.iter().map(|c| NewSet {
+            name: &c.dataset,
+            values: &c.values,
+            width: c.width(),
+            // A flag is a table, whatever its width.
+            scalar: c.scalar && !c.flag,
+            store: store(c, rec.significant_bits),
+            unit: &c.unit,
+            desc: &c.description,
+        }))
+        .collect();
+    write_sets(g, &sets)?;
     if rec.significant_bits.is_some() {
-        for name in rounded {
-            let ds = g.dataset(name)?;
+        for c in rec.channels.iter().filter(|c| !c.flag) {
+            let ds = g.dataset(&c.dataset)?;
             mark_bits(&ds, rec.significant_bits)?;
         }
     }
     Ok(())
 }
 
+/// How channel `c` is stored: a flag as a byte, any other value as a double rounded to `bits`.
+fn store(c: &Channel, bits: Option<u32>) -> crate::chunk::Store {
+    match c.flag {
+        true => crate::chunk::Store::Flag,
+        false => crate::chunk::Store::F64(bits),
+    }
+}
+
 /// A dataset for [`write_sets`]: its values (whole rows of `width`; one-dimensional when
-/// `scalar`), unit and description.
-struct NewSet<'a, T: Clone> {
+/// `scalar`), how it stores them, its unit and description.
+struct NewSet<'a> {
     name: &'a str,
-    values: std::borrow::Cow<'a, [T]>,
+    values: &'a [f64],
     width: usize,
     scalar: bool,
+    store: crate::chunk::Store,
     unit: &'a str,
     desc: &'a str,
 }
 
-impl<'a, T: Clone> NewSet<'a, T> {
-    /// The dataset of channel `c` holding `values` (a flag's as a table, whatever its width).
-    fn of(c: &'a Channel, values: std::borrow::Cow<'a, [T]>) -> Self {
-        NewSet {
-            name: &c.dataset,
-            values,
-            width: c.width(),
-            scalar: c.scalar && !c.flag,
-            unit: &c.unit,
-            desc: &c.description,
-        }
-    }
-}
-
 /// Creates and writes the datasets `sets` in `g`, described: those [`chunk_shape`] chunks with
 /// their chunks compressed by [`crate::chunk`] (by the threads of rayon's pool) and written as
-/// they are, the others as [`write_table`] and [`write1`] write them.
-fn write_sets<T>(g: &hdf5::Group, sets: &[NewSet<'_, T>]) -> hdf5::Result<()>
-where
-    T: hdf5::H5Type + Clone + crate::chunk::Element,
-{
-    use crate::chunk::{Rows, append_all};
-    let mut made = Vec::new();
+/// they are, the others (of at most [`SMALL`] values) stored as they are.
+fn write_sets(g: &hdf5::Group, sets: &[NewSet<'_>]) -> hdf5::Result<()> {
+    use crate::chunk::{Rows, Store, append_all};
+    let mut rows = Vec::new();
     for s in sets {
         let n = s.values.len().checked_div(s.width).unwrap_or(0);
         let shape = if s.scalar { vec![n] } else { vec![n, s.width] };
-        let ds = match chunk_shape(&shape, T::SIZE) {
-            Some(c) => {
-                let b = g
-                    .new_dataset::<T>()
-                    .chunk(c.clone())
-                    .shuffle()
-                    .deflate(DEFLATE);
-                let ds = b.shape(shape).create(s.name)?;
-                made.push((ds.clone(), c[0], s));
+        let ds = match (chunk_shape(&shape, s.store.size()), s.store) {
+            (Some(c), store) => {
+                let b = match store {
+                    Store::Flag => g.new_dataset::<u8>(),
+                    Store::F64(_) => g.new_dataset::<f64>(),
+                };
+                let ds = b.chunk(c.clone()).shuffle().deflate(DEFLATE);
+                let ds = ds.shape(shape).create(s.name)?;
+                rows.push((ds.clone(), c[0], s));
                 ds
             }
-            None if s.scalar => create_filtered(g, s.name, &Array1::from(s.values.to_vec()))?,
-            None => {
-                let arr = Array2::from_shape_vec((n, s.width), s.values.to_vec())
-                    .map_err(|e| hdf5::Error::from(e.to_string()))?;
-                create_filtered(g, s.name, &arr)?
+            (None, Store::Flag) => {
+                let v: Vec<u8> = s.values.iter().map(|&x| x as u8).collect();
+                small(g, s.name, v, &shape)?
+            }
+            (None, Store::F64(bits)) => {
+                let v = crate::bitround::rounded(s.values, bits).into_owned();
+                small(g, s.name, v, &shape)?
             }
         };
         describe(&ds, Some(s.unit), s.desc)?;
     }
-    let rows: Vec<_> = made
+    let rows: Vec<_> = rows
         .iter()
         .map(|(ds, chunk_rows, s)| Rows {
             ds,
-            values: &s.values[..],
+            values: s.values,
             width: s.width,
             chunk_rows: *chunk_rows,
+            store: s.store,
         })
         .collect();
-    append_all(&rows, 0, DEFLATE, true)
+    append_all(&rows, 0, true)
+}
+
+/// A dataset of at most [`SMALL`] values of `shape` (one or two dimensions), stored as it is.
+fn small<T: hdf5::H5Type>(
+    g: &hdf5::Group,
+    name: &str,
+    values: Vec<T>,
+    shape: &[usize],
+) -> hdf5::Result<hdf5::Dataset> {
+    match *shape {
+        [_] => create_filtered(g, name, &Array1::from(values)),
+        [n, w] => {
+            let arr = Array2::from_shape_vec((n, w), values)
+                .map_err(|e| hdf5::Error::from(e.to_string()))?;
+            create_filtered(g, name, &arr)
+        }
+        _ => Err(hdf5::Error::from(format!("'{name}': shape {shape:?}"))),
+    }
 }
 
 /// The `significant_bits` attribute of a file's (or a run's) group and of its rounded datasets;
@@ -838,41 +850,23 @@ impl RunWriter {
     /// [`RunWriter::append`] of samples starting at row `from`, a multiple of [`STREAM_ROWS`]:
     /// every dataset extended, its chunks compressed by [`crate::chunk`] and written as they are.
     fn append_packed(&self, rec: &Recording, from: usize, parallel: bool) -> hdf5::Result<()> {
-        use crate::chunk::{Rows, append_all};
-        let rows = |ds, values, width| Rows {
+        use crate::chunk::{Rows, Store, append_all};
+        let row = |ds, values, width, store| Rows {
             ds,
             values,
             width,
             chunk_rows: STREAM_ROWS,
+            store,
         };
-        let rounded: Vec<_> = rec
-            .channels
-            .iter()
-            .map(|c| crate::bitround::rounded(&c.values, self.bits))
+        let sets: Vec<_> = std::iter::once(row(&self.time, &rec.time[..], 1, Store::F64(None)))
+            .chain(
+                rec.channels
+                    .iter()
+                    .zip(&self.sets)
+                    .map(|(c, ds)| row(ds, &c.values[..], c.width(), store(c, self.bits))),
+            )
             .collect();
-        let mut reals = vec![rows(&self.time, &rec.time[..], 1)];
-        let mut flags = Vec::new();
-        let mut flag_sets = Vec::new();
-        for ((c, ds), v) in rec.channels.iter().zip(&self.sets).zip(&rounded) {
-            if c.flag {
-                flags.push(c.values.iter().map(|&x| x as u8).collect::<Vec<u8>>());
-                flag_sets.push((ds, c.width()));
-            } else {
-                reals.push(rows(ds, &v[..], c.width()));
-            }
-        }
-        append_all(&reals, from, DEFLATE, parallel)?;
-        let flags: Vec<_> = flag_sets
-            .iter()
-            .zip(&flags)
-            .map(|(&(ds, width), v)| Rows {
-                ds,
-                values: &v[..],
-                width,
-                chunk_rows: STREAM_ROWS,
-            })
-            .collect();
-        append_all(&flags, from, DEFLATE, parallel)
+        append_all(&sets, from, parallel)
     }
 
     /// Writes what the run's end decides (statistics, `complete`, the error of a run that

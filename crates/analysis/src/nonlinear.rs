@@ -1826,26 +1826,29 @@ impl SingleHistory {
     /// rayon's pool: the run waits for its block to be written, so the other core is free.
     fn append(&self, from: usize, time: &[f64], values: &[Vec<f64>]) -> hdf5::Result<()> {
         let n = time.len();
-        let rounded: Vec<_> = values
-            .iter()
-            .map(|v| crate::bitround::rounded(v, self.bits))
-            .collect();
         if from.is_multiple_of(HISTORY_BLOCK) {
-            let sets = std::iter::once((&self.time, time))
-                .chain(self.values.iter().zip(rounded.iter().map(|v| &v[..])));
-            let rows: Vec<_> = sets
-                .map(|(ds, values)| crate::chunk::Rows {
-                    ds,
-                    values,
-                    width: 1,
-                    chunk_rows: HISTORY_BLOCK,
-                })
+            use crate::chunk::{Rows, Store};
+            let row = |ds, values, store| Rows {
+                ds,
+                values,
+                width: 1,
+                chunk_rows: HISTORY_BLOCK,
+                store,
+            };
+            let rows: Vec<_> = std::iter::once(row(&self.time, time, Store::F64(None)))
+                .chain(
+                    self.values
+                        .iter()
+                        .zip(values)
+                        .map(|(ds, v)| row(ds, &v[..], Store::F64(self.bits))),
+                )
                 .collect();
-            crate::chunk::append_all(&rows, from, crate::h5::DEFLATE, true)?;
+            crate::chunk::append_all(&rows, from, true)?;
         } else {
             append(&self.time, from, n, 1, true, time.to_vec())?;
-            for (ds, v) in self.values.iter().zip(rounded) {
-                append(ds, from, n, 1, true, v.into_owned())?;
+            for (ds, v) in self.values.iter().zip(values) {
+                let v = crate::bitround::rounded(v, self.bits).into_owned();
+                append(ds, from, n, 1, true, v)?;
             }
         }
         self.time.file()?.flush()
