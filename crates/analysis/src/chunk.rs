@@ -3,8 +3,9 @@
 //!
 //! The stored chunks are in the format of the pipeline the dataset declares (the shuffle filter,
 //! then deflate in the zlib format), so every HDF5 reader (h5py, `h5dump`, MATLAB) decompresses
-//! them with its standard filters, no plugin needed, to the same values bit for bit. The deflate
-//! streams themselves differ from the ones HDF5 would have made: two things do.
+//! them with its standard filters, no plugin needed, to the same values bit for bit (the deflate
+//! streams themselves are not the ones zlib would have made). Two things differ from HDF5's
+//! own path:
 //!
 //! * **The deflate coder.** HDF5 calls zlib's `compress2`; here it is libdeflate (Eric Biggers,
 //!   <https://github.com/ebiggers/libdeflate>, through the `libdeflater` crate), whose
