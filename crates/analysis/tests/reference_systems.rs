@@ -5,6 +5,14 @@ use std::path::{Path, PathBuf};
 
 use jointplay_analysis::nonlinear::{JobResult, Loaded, Options, execute};
 
+/// `text` (a sweep study) as a continuation when `continuation`, as it is otherwise.
+fn sweep_text(text: &str, continuation: bool) -> String {
+    match continuation {
+        true => format!("{text}continuation = true\n"),
+        false => text.to_string(),
+    }
+}
+
 fn study(text: &str) -> Loaded {
     Loaded::parse(text, Path::new("reference.toml")).unwrap()
 }
@@ -352,12 +360,7 @@ fn an_interrupted_sweep_resumed_equals_an_uninterrupted_one() {
             "from = 0.2\nto = 0.5\ncount = 7",
         );
     for continuation in [false, true] {
-        let text = if continuation {
-            text.clone() + "continuation = true\n"
-        } else {
-            text.clone()
-        };
-        let st = study(&text);
+        let st = study(&sweep_text(&text, continuation));
         let (a, b) = (tmp_dir("whole"), tmp_dir("parts"));
         let whole = execute(&st, &a, Options::default(), "test", &|_| {}).unwrap();
         let part = execute(
@@ -459,12 +462,7 @@ fn histories_keep_the_significant_bits_asked_for_and_nothing_else_is_rounded() {
     // The parallel sweep and its two shards merged; the continuation, which writes its rows
     // through its own loop, each value from the previous one's final state.
     for continuation in [false, true] {
-        let text = if continuation {
-            text.clone() + "continuation = true\n"
-        } else {
-            text.clone()
-        };
-        let st = study(&text);
+        let st = study(&sweep_text(&text, continuation));
         let out = execute(&st, &dir, Options::default(), "test", &|_| {}).unwrap();
         let mut files = vec![out.file.clone()];
         if !continuation {
@@ -531,12 +529,7 @@ fn histories_written_block_by_block_equal_those_of_a_run_kept_in_memory() {
     const { assert!(200 * 100 > 2 * jointplay_analysis::sections::HISTORY_BLOCK) };
     let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
     for continuation in [false, true] {
-        let text = if continuation {
-            text.clone() + "continuation = true\n"
-        } else {
-            text.clone()
-        };
-        let st = study(&text);
+        let st = study(&sweep_text(&text, continuation));
         let dir = tmp_dir(&format!("blocks-{continuation}"));
         let out = execute(&st, &dir, Options::default(), "test", &|_| {}).unwrap();
         let file = hdf5::File::open(&out.file).unwrap();
