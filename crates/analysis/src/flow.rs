@@ -120,6 +120,16 @@ impl OdeSystem for MechFlow<'_> {
     fn event_restarts_step(&self, i: usize) -> bool {
         self.mech.event_restarts_step(i)
     }
+    fn stiff_directions(
+        &mut self,
+        t: f64,
+        y: &[f64],
+        h: f64,
+        dirs: &mut Vec<f64>,
+        pattern: &mut Vec<u32>,
+    ) -> bool {
+        self.mech.stiff_directions(t, y, h, dirs, pattern)
+    }
 }
 
 impl Observed for MechFlow<'_> {
@@ -385,6 +395,16 @@ impl OdeSystem for AnyFlow<'_> {
     }
     fn event_restarts_step(&self, i: usize) -> bool {
         either!(self, f => f.event_restarts_step(i))
+    }
+    fn stiff_directions(
+        &mut self,
+        t: f64,
+        y: &[f64],
+        h: f64,
+        dirs: &mut Vec<f64>,
+        pattern: &mut Vec<u32>,
+    ) -> bool {
+        either!(self, f => f.stiff_directions(t, y, h, dirs, pattern))
     }
 }
 

@@ -100,10 +100,10 @@ impl LyapunovSpec {
         method: &Method,
     ) -> std::result::Result<(), (String, String)> {
         let bad = |f: &str, m: String| Err((format!("lyapunov.{f}"), m));
-        if method.integrator().name == "rosenbrock23" {
+        if method.integrator().linearly_implicit() {
             return Err((
                 "solver.integrator".into(),
-                "the Lyapunov exponents need an explicit integrator (rk4, dopri5 or dop853): a linearly implicit one would differentiate the whole extended system".into(),
+                "the Lyapunov exponents need an explicit integrator (rk4, bs3, dopri5 or dop853): a linearly implicit one would differentiate the whole extended system".into(),
             ));
         }
         if self.exponents == 0 || self.exponents > phase_dim {

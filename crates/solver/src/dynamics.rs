@@ -406,6 +406,96 @@ impl Model {
         }
     }
 
+    /// The directions along which the contacts make the right-hand side stiff at `y`, for a step
+    /// of about `h` (s) (see [`OdeSystem::stiff_directions`]). A contact counts when it
+    /// penetrates at `y` or would within `h` at its current rate (`delta + h delta_dot > 0`).
+    /// Its force depends stiffly on its penetration `delta(q)` (the normal law's stiffness), on
+    /// its penetration rate (the damping) and, when it has friction, on the sliding velocity (a
+    /// regularised law's slope); each of these is `g . nu` for a velocity-level direction `g`
+    /// over the two bodies (journal `(d, r_j x d)`, housing `-(d, r_h x d)`, with `d` the normal
+    /// `n` or a tangent and `r` the lever from each body's centre of mass to its contact point).
+    /// So per contact: the gradient of `delta` with respect to the positions (translations `d`,
+    /// Euler parameters `2 G(q) (r x d) / |q|^2`, where `q' = 1/2 G(q) w`), and the velocity
+    /// directions of the normal and, with friction, of the two tangents. `pattern` lists the
+    /// contact slots used. The forces' other dependences (the normal's turning, the levers) are
+    /// of the order of the force over the journal's radius, negligible beside these.
+    pub fn stiff_directions(
+        &self,
+        y: &[f64],
+        h: f64,
+        ws: &mut Workspace,
+        dirs: &mut Vec<f64>,
+        pattern: &mut Vec<u32>,
+    ) {
+        dirs.clear();
+        pattern.clear();
+        if !self.effects.clearance {
+            return;
+        }
+        let nb = self.nb();
+        let (n, np) = (13 * nb, 7 * nb);
+        let idx = |b: usize| if b == GROUND { nb } else { b };
+        self.kinematics(y, ws);
+        for c in &self.clearances {
+            let slots = c.first..c.first + c.geometry.n_contacts();
+            c.geometry(
+                &ws.kin[idx(c.housing)],
+                &ws.kin[idx(c.journal)],
+                &mut ws.contacts[slots.clone()],
+            );
+            let friction = self.effects.friction && !c.friction.is_none();
+            for s in slots {
+                let ce = ws.contacts[s];
+                let nn = ce.n.norm_squared();
+                if !(nn > 0.5 && nn < 2.0) || !(ce.delta > 0.0 || ce.delta + h * ce.delta_dot > 0.0)
+                {
+                    continue;
+                }
+                pattern.push(s as u32);
+                let t1 = crate::kin::any_normal(&ce.n);
+                let t2 = ce.n.cross(&t1);
+                let sides = [(c.journal, ce.pj, 1.0), (c.housing, ce.ph, -1.0)];
+                // The gradient of delta with respect to the positions.
+                let start = dirs.len();
+                dirs.resize(start + n, 0.0);
+                for &(b, p, sign) in &sides {
+                    if b == GROUND {
+                        continue;
+                    }
+                    let d = &mut dirs[start..start + n];
+                    let k = &ws.kin[b];
+                    let m = (p - k.r).cross(&ce.n) * sign;
+                    let q = &y[7 * b + 3..7 * b + 7];
+                    let s2 = 2.0 / (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+                    for i in 0..3 {
+                        d[7 * b + i] += sign * ce.n[i];
+                    }
+                    d[7 * b + 3] += s2 * (-q[1] * m.x - q[2] * m.y - q[3] * m.z);
+                    d[7 * b + 4] += s2 * (q[0] * m.x + q[3] * m.y - q[2] * m.z);
+                    d[7 * b + 5] += s2 * (-q[3] * m.x + q[0] * m.y + q[1] * m.z);
+                    d[7 * b + 6] += s2 * (q[2] * m.x - q[1] * m.y + q[0] * m.z);
+                }
+                // The velocity directions.
+                let count = if friction { 3 } else { 1 };
+                for dir in [ce.n, t1, t2].iter().take(count) {
+                    let start = dirs.len();
+                    dirs.resize(start + n, 0.0);
+                    for &(b, p, sign) in &sides {
+                        if b == GROUND {
+                            continue;
+                        }
+                        let d = &mut dirs[start..start + n];
+                        let m = (p - ws.kin[b].r).cross(dir);
+                        for i in 0..3 {
+                            d[np + 6 * b + i] += sign * dir[i];
+                            d[np + 6 * b + 3 + i] += sign * m[i];
+                        }
+                    }
+                }
+            }
+        }
+    }
+
     /// Accelerations and multipliers at (t, y) into the workspace.
     pub fn accelerations(&self, t: f64, y: &[f64], ws: &mut Workspace) {
         self.accelerations_with(t, y, ws, false);
@@ -1037,6 +1127,20 @@ impl OdeSystem for Mechanism<'_> {
     }
     fn explain_non_finite(&mut self, t: f64, y: &[f64], component: usize) -> String {
         self.model.explain_non_finite(t, y, component, &mut self.ws)
+    }
+    /// The contacts' stiff directions ([`Model::stiff_directions`]); the workspace's kinematics
+    /// and contact states are overwritten, which the step's own evaluations then refresh.
+    fn stiff_directions(
+        &mut self,
+        _t: f64,
+        y: &[f64],
+        h: f64,
+        dirs: &mut Vec<f64>,
+        pattern: &mut Vec<u32>,
+    ) -> bool {
+        self.model
+            .stiff_directions(y, h, &mut self.ws, dirs, pattern);
+        true
     }
     /// The onset history and the guard's flags; empty vectors keep the mechanism's own (fresh
     /// for a new mechanism). Vectors of another length are refused: the state belongs to

@@ -450,8 +450,8 @@ pub struct SolverSpec {
     /// Fixed step for rk4 (s).
     #[serde(default = "default_step")]
     pub step: f64,
-    /// Relative and absolute tolerances of the adaptive integrators (dopri5, dop853,
-    /// rosenbrock23).
+    /// Relative and absolute tolerances of the adaptive integrators (bs3, dopri5, dop853,
+    /// rosenbrock23, ros34pw2).
     #[serde(default = "default_rtol")]
     pub rtol: f64,
     #[serde(default = "default_atol")]
@@ -799,7 +799,7 @@ clearance = {{ ball_radius = 0.01, radial_clearance = 1e-4, normal = {normal} }}
             assert!(
                 err.starts_with("solver.toml: solver.integrator: TOML parse error at line 2, column 14")
                     && err.contains(&format!(
-                        "unknown variant `{name}`, expected one of `rk4`, `bs3`, `dopri5`, `dop853`, `rosenbrock23`"
+                        "unknown variant `{name}`, expected one of `rk4`, `bs3`, `dopri5`, `dop853`, `rosenbrock23`, `ros34pw2`"
                     )),
                 "{name}: {err}"
             );

@@ -1,0 +1,122 @@
+//! The contacts' stiff directions ([`Model::stiff_directions`], the low-rank Jacobian of the
+//! ROS34PW2 method) against finite differences of the contact geometry, which computes the
+//! penetration and its rate on its own, on states along runs of the two clearance mechanisms.
+
+mod common;
+
+use std::path::PathBuf;
+
+use jointplay_solver::dynamics::Workspace;
+use jointplay_solver::model::Model;
+use jointplay_solver::scene::SceneSpec;
+
+/// A deterministic direction with entries in [-1, 1] on the components `range` of `n`.
+fn direction(n: usize, range: std::ops::Range<usize>, seed: u64) -> Vec<f64> {
+    let mut x = seed
+        .wrapping_mul(6364136223846793005)
+        .wrapping_add(1442695040888963407);
+    (0..n)
+        .map(|i| {
+            x = x
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            if range.contains(&i) {
+                (x >> 11) as f64 / (1u64 << 53) as f64 * 2.0 - 1.0
+            } else {
+                0.0
+            }
+        })
+        .collect()
+}
+
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    a.iter().zip(b).map(|(x, y)| x * y).sum()
+}
+
+/// At states along a run of `name` up to `t_end`: for every contact the directions name, the
+/// first is the gradient of its penetration with respect to the positions (Euler parameters
+/// included) and the second the velocity direction of its penetration rate. Checked along
+/// pseudo-random position and velocity perturbations; returns how many contacts were checked.
+///
+/// The penetration is smooth in the positions, so the central difference with eps = 1e-7 (on
+/// coordinates of order 1) is exact to O(eps^2) ~ 1e-14 plus round-off ~ 1e-16 / eps ~ 1e-9 of
+/// the directional derivative (of order 1); 1e-6 leaves room and still rejects a wrong lever,
+/// sign or Euler-parameter map, which change it by order 1. The rate is linear in the
+/// velocities, so its difference is exact up to round-off.
+fn check(name: &str, t_end: f64) -> usize {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../data/scenes")
+        .join(name);
+    let file = SceneSpec::load(&path).unwrap();
+    let (model, mut state) = Model::compile(&file).unwrap();
+    model.assemble(&mut state).unwrap();
+    let t0 = state.t;
+    let samples: Vec<f64> = (0..=40)
+        .map(|k| t0 + k as f64 * (t_end - t0) / 40.0)
+        .collect();
+    let traj = common::run_samples(&model, &mut state, model.settings.method, t_end, &samples);
+    let (n, np) = (13 * model.nb(), 7 * model.nb());
+    let mut ws = Workspace::new(&model);
+    let (mut dirs, mut pattern, mut rates) = (Vec::new(), Vec::new(), Vec::new());
+    let mut checked = 0;
+    for (k, (t, y)) in traj.iter().enumerate() {
+        model.stiff_directions(y, 1e-4, &mut ws, &mut dirs, &mut pattern);
+        if pattern.is_empty() {
+            continue;
+        }
+        assert_eq!(dirs.len() % (n * pattern.len()), 0, "{name} at t = {t}");
+        let per_contact = dirs.len() / (n * pattern.len());
+        assert!(
+            per_contact == 2 || per_contact == 4,
+            "{name}: {per_contact}"
+        );
+        for (c, &slot) in pattern.iter().enumerate() {
+            let s = slot as usize;
+            let group = &dirs[c * per_contact * n..(c + 1) * per_contact * n];
+            let (grad, rate) = (&group[..n], &group[n..2 * n]);
+            assert!(grad[np..].iter().all(|&v| v == 0.0));
+            assert!(rate[..np].iter().all(|&v| v == 0.0));
+
+            let d = direction(n, 0..np, 2 * k as u64 + 1);
+            let eps = 1e-7;
+            let at = |sign: f64, d: &[f64], ws: &mut Workspace, rates: &mut Vec<_>| {
+                let yp: Vec<f64> = y.iter().zip(d).map(|(a, b)| a + sign * eps * b).collect();
+                model.contact_rates(&yp, ws, rates);
+                rates[s]
+            };
+            let (plus, minus) = (
+                at(1.0, &d, &mut ws, &mut rates),
+                at(-1.0, &d, &mut ws, &mut rates),
+            );
+            let fd = (plus.0 - minus.0) / (2.0 * eps);
+            let scale = dot(grad, grad).sqrt() * dot(&d, &d).sqrt();
+            assert!(
+                (fd - dot(grad, &d)).abs() <= 1e-6 * scale,
+                "{name}, slot {s} at t = {t}: d delta = {fd:e}, gradient {:e}",
+                dot(grad, &d)
+            );
+
+            let v = direction(n, np..n, 2 * k as u64 + 2);
+            let base = at(0.0, &v, &mut ws, &mut rates);
+            let moved = at(1.0, &v, &mut ws, &mut rates);
+            let fd = (moved.1 - base.1) / eps;
+            let scale = dot(rate, rate).sqrt() * dot(&v, &v).sqrt();
+            assert!(
+                (fd - dot(rate, &v)).abs() <= 1e-6 * scale,
+                "{name}, slot {s} at t = {t}: d delta_dot = {fd:e}, direction {:e}",
+                dot(rate, &v)
+            );
+            checked += 1;
+        }
+    }
+    checked
+}
+
+#[test]
+fn contact_directions_match_finite_differences_of_the_contact_geometry() {
+    // Both runs reach closed contacts (spherical and revolute joints of the 4-UPS/RPU, the
+    // slider-crank's planar pin) at several of the sampled states.
+    let a = check("4ups-rpu-mixed.toml", 0.1);
+    let b = check("slider-crank-clearance.toml", 0.02);
+    assert!(a >= 10 && b >= 5, "checked {a} and {b} contacts");
+}
