@@ -17,7 +17,7 @@ fn main() {
     divan::main();
 }
 
-const SETTINGS: [&str; 9] = [
+const SETTINGS: [&str; 11] = [
     "rk4 1e-4",
     "rk4 5e-5",
     "bs3 1e-3",
@@ -27,6 +27,8 @@ const SETTINGS: [&str; 9] = [
     "dop853 1e-6",
     "dop853 1e-8",
     "rosenbrock23 1e-3",
+    "ros34pw2 1e-3",
+    "ros34pw2 1e-4",
 ];
 
 /// The scene, compiled and assembled, and its state after 0.15 s.

@@ -130,6 +130,9 @@ impl OdeSystem for MechFlow<'_> {
     ) -> bool {
         self.mech.stiff_directions(t, y, h, dirs, pattern)
     }
+    fn stiff_jacobian(&mut self, t: f64, y: &[f64], basis: &[f64], image: &mut [f64]) -> bool {
+        self.mech.stiff_jacobian(t, y, basis, image)
+    }
 }
 
 impl Observed for MechFlow<'_> {
@@ -405,6 +408,9 @@ impl OdeSystem for AnyFlow<'_> {
         pattern: &mut Vec<u32>,
     ) -> bool {
         either!(self, f => f.stiff_directions(t, y, h, dirs, pattern))
+    }
+    fn stiff_jacobian(&mut self, t: f64, y: &[f64], basis: &[f64], image: &mut [f64]) -> bool {
+        either!(self, f => f.stiff_jacobian(t, y, basis, image))
     }
 }
 

@@ -126,6 +126,16 @@ pub trait OdeSystem {
         false
     }
 
+    /// The Jacobian df/dy at `(t, y)` along the `r` unit directions `basis` (each of length
+    /// [`OdeSystem::dim`], one after the other), into `image` (the same layout), for the
+    /// directions [`OdeSystem::stiff_directions`] gave: `J q` or an approximation of it that
+    /// keeps its stiff part, as the W-method allows. Counts as one right-hand-side evaluation.
+    /// Returns false (the default) when the system has no such product: the method then
+    /// differences f along each direction (r evaluations).
+    fn stiff_jacobian(&mut self, _t: f64, _y: &[f64], _basis: &[f64], _image: &mut [f64]) -> bool {
+        false
+    }
+
     /// Takes the system's discrete memory (contact-onset history, guard flags) from `state`
     /// before [`advance`] integrates; an error when it does not fit the system. A state without
     /// memory (empty vectors) starts the memory afresh. The default keeps none.
