@@ -560,10 +560,12 @@ impl Work {
             y_new: vec![0.0; n],
             cont: v(integrator.dense_len),
             lin: integrator.jacobian.then(|| LinearWork {
-                jac: DMatrix::zeros(n, n),
+                dense: DenseJacobian {
+                    jac: DMatrix::zeros(n, n),
+                    lu: None,
+                    spare: Some(DMatrix::zeros(n, n)),
+                },
                 dfdt: vec![0.0; n],
-                lu: None,
-                spare: Some(DMatrix::zeros(n, n)),
                 low: Default::default(),
             }),
         }
@@ -572,16 +574,69 @@ impl Work {
 
 /// Linear algebra of a linearly implicit (Rosenbrock) step.
 struct LinearWork {
-    /// df/dy at the step start (forward differences).
-    jac: DMatrix<f64>,
+    /// The full Jacobian and its factorisation.
+    dense: DenseJacobian,
     /// df/dt at the step start (a forward difference).
     dfdt: Vec<f64>,
-    /// LU factors of W = I - h d J of the last attempt; their storage is reused for the next W.
-    lu: Option<LU<f64, Dyn, Dyn>>,
-    /// Storage for W before the first factorisation.
-    spare: Option<DMatrix<f64>>,
     /// The low-rank Jacobian of ROS34PW2.
     low: ros34pw2::LowRank,
+}
+
+/// A full Jacobian and the factorisation of `I - c J`.
+struct DenseJacobian {
+    /// df/dy at the step start (forward differences).
+    jac: DMatrix<f64>,
+    /// LU factors of `I - c J` of the last attempt; their storage is reused for the next one.
+    lu: Option<LU<f64, Dyn, Dyn>>,
+    /// Storage for the matrix before the first factorisation.
+    spare: Option<DMatrix<f64>>,
+}
+
+impl DenseJacobian {
+    /// df/dy at `(t, y)` by forward differences into `jac`, with f0 = f(t, y): column j is
+    /// `(f(t, y + del e_j) - f0) / del`, del ~ sqrt(eps) |y_j| (at least sqrt(eps) 1e-5) rounded
+    /// so that `y_j + del` is exact. `tmp` and `scratch` are vectors of the state's length; n
+    /// evaluations.
+    fn difference_jacobian(
+        &mut self,
+        sys: &mut dyn OdeSystem,
+        (t, y, f0): (f64, &[f64], &[f64]),
+        tmp: &mut [f64],
+        scratch: &mut [f64],
+    ) {
+        let n = y.len();
+        let sqrt_eps = f64::EPSILON.sqrt();
+        tmp.copy_from_slice(y);
+        for j in 0..n {
+            let yj = y[j];
+            let del = (yj + sqrt_eps * yj.abs().max(1e-5)) - yj;
+            tmp[j] = yj + del;
+            sys.rhs(t, tmp, scratch);
+            tmp[j] = yj;
+            for i in 0..n {
+                self.jac[(i, j)] = (scratch[i] - f0[i]) / del;
+            }
+        }
+    }
+
+    /// Factorises `I - c J` in the storage of the last factorisation (`LU::l_unpack` hands the
+    /// matrix back without reallocating it) into `lu`; false when it is singular.
+    fn factor(&mut self, c: f64) -> bool {
+        let n = self.jac.nrows();
+        let mut m = match self.lu.take() {
+            Some(lu) => lu.l_unpack(),
+            None => self.spare.take().unwrap_or_else(|| DMatrix::zeros(n, n)),
+        };
+        for j in 0..n {
+            for i in 0..n {
+                m[(i, j)] = if i == j { 1.0 } else { 0.0 } - c * self.jac[(i, j)];
+            }
+        }
+        let lu = LU::new(m);
+        let ok = lu.is_invertible();
+        self.lu = Some(lu);
+        ok
+    }
 }
 
 /// The stepper of an [`Integrator`]: its stages, error estimate and dense output.

@@ -29,6 +29,23 @@ fn direction(n: usize, range: std::ops::Range<usize>, seed: u64) -> Vec<f64> {
         .collect()
 }
 
+/// The scene `name` compiled and assembled, and its states at `count` + 1 equally spaced times
+/// of a run up to `t_end` with the scene's own method.
+fn trajectory(name: &str, t_end: f64, count: usize) -> (Model, Vec<(f64, Vec<f64>)>) {
+    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("../../data/scenes")
+        .join(name);
+    let file = SceneSpec::load(&path).unwrap();
+    let (model, mut state) = Model::compile(&file).unwrap();
+    model.assemble(&mut state).unwrap();
+    let t0 = state.t;
+    let samples: Vec<f64> = (0..=count)
+        .map(|k| t0 + k as f64 * (t_end - t0) / count as f64)
+        .collect();
+    let traj = common::run_samples(&model, &mut state, model.settings.method, t_end, &samples);
+    (model, traj)
+}
+
 fn dot(a: &[f64], b: &[f64]) -> f64 {
     a.iter().zip(b).map(|(x, y)| x * y).sum()
 }
@@ -44,17 +61,7 @@ fn dot(a: &[f64], b: &[f64]) -> f64 {
 /// sign or Euler-parameter map, which change it by order 1. The rate is linear in the
 /// velocities, so its difference is exact up to round-off.
 fn check(name: &str, t_end: f64) -> usize {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../data/scenes")
-        .join(name);
-    let file = SceneSpec::load(&path).unwrap();
-    let (model, mut state) = Model::compile(&file).unwrap();
-    model.assemble(&mut state).unwrap();
-    let t0 = state.t;
-    let samples: Vec<f64> = (0..=40)
-        .map(|k| t0 + k as f64 * (t_end - t0) / 40.0)
-        .collect();
-    let traj = common::run_samples(&model, &mut state, model.settings.method, t_end, &samples);
+    let (model, traj) = trajectory(name, t_end, 40);
     let (n, np) = (13 * model.nb(), 7 * model.nb());
     let mut ws = Workspace::new(&model);
     let (mut dirs, mut pattern, mut rates) = (Vec::new(), Vec::new(), Vec::new());
@@ -134,17 +141,7 @@ fn contact_directions_match_finite_differences_of_the_contact_geometry() {
 /// tens of 1/s, harmless at steps of 1e-4 s.) 1e-2 keeps a margin and still fails for a wrong
 /// lever, sign, mass or constraint projection, which change the stiff columns by order 1.
 fn compare_jacobian(name: &str, t_end: f64) -> (f64, usize) {
-    let path = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../data/scenes")
-        .join(name);
-    let file = SceneSpec::load(&path).unwrap();
-    let (model, mut state) = Model::compile(&file).unwrap();
-    model.assemble(&mut state).unwrap();
-    let t0 = state.t;
-    let samples: Vec<f64> = (0..=20)
-        .map(|k| t0 + k as f64 * (t_end - t0) / 20.0)
-        .collect();
-    let traj = common::run_samples(&model, &mut state, model.settings.method, t_end, &samples);
+    let (model, traj) = trajectory(name, t_end, 20);
     let n = 13 * model.nb();
     let (mut ws, mut scratch) = (Workspace::new(&model), Workspace::new(&model));
     let (mut dirs, mut pattern) = (Vec::new(), Vec::new());

@@ -302,36 +302,14 @@ impl Stepper for Ros34pw2 {
         } else {
             lr.valid = false;
             if !retry {
-                // Column j: f(t, y + del e_j), as Rosenbrock23 differences it.
-                w.tmp.copy_from_slice(y);
-                for j in 0..n {
-                    let yj = y[j];
-                    let del = (yj + sqrt_eps * yj.abs().max(1e-5)) - yj;
-                    w.tmp[j] = yj + del;
-                    sys.rhs(t, &w.tmp, scratch);
-                    w.tmp[j] = yj;
-                    for i in 0..n {
-                        lin.jac[(i, j)] = (scratch[i] - f0[i]) / del;
-                    }
-                }
+                lin.dense
+                    .difference_jacobian(sys, (t, y, f0), &mut w.tmp, scratch);
                 stats.rhs_evals += n as u64;
                 stats.jacobians += 1;
             }
-            let mut m = match lin.lu.take() {
-                Some(lu) => lu.l_unpack(),
-                None => lin.spare.take().unwrap_or_else(|| DMatrix::zeros(n, n)),
-            };
-            for j in 0..n {
-                for i in 0..n {
-                    m[(i, j)] = if i == j { 1.0 } else { 0.0 } - c * lin.jac[(i, j)];
-                }
-            }
-            let lu = LU::new(m);
-            if !lu.is_invertible() {
-                lin.lu = Some(lu);
+            if !lin.dense.factor(c) {
                 return Err(singular(t, h));
             }
-            lin.lu = Some(lu);
         }
 
         // The stages.
@@ -420,11 +398,11 @@ impl Stepper for Ros34pw2 {
                     let u = w.y_new[col];
                     if u != 0.0 {
                         for m in 0..n {
-                            ki[m] += h * lin.jac[(m, col)] * u;
+                            ki[m] += h * lin.dense.jac[(m, col)] * u;
                         }
                     }
                 }
-                if let Some(lu) = lin.lu.as_ref() {
+                if let Some(lu) = lin.dense.lu.as_ref() {
                     lu_solve(lu, ki);
                 }
             }

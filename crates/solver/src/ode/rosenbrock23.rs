@@ -9,7 +9,7 @@
 //! rejected step. On y' = -1e6 (y - cos t) - sin t it takes 310 steps where DOPRI5, held at its
 //! stability limit, takes 302 424.
 
-use nalgebra::{DMatrix, DVectorViewMut, Dyn, LU};
+use nalgebra::{DVectorViewMut, Dyn, LU};
 
 use super::{Adaptive, Integrator, OdeSystem, Stats, Stepper, Work};
 use crate::error::{Error, Result};
@@ -85,19 +85,7 @@ impl Stepper for Rosenbrock23 {
         let r = w.lin.as_mut().expect("Rosenbrock work space");
         let sqrt_eps = f64::EPSILON.sqrt();
         if !retry {
-            // Column j: f(t, y + del e_j), with del ~ sqrt(eps) |y_j| (at least sqrt(eps) 1e-5)
-            // rounded so that y_j + del is exact.
-            w.tmp.copy_from_slice(y);
-            for j in 0..n {
-                let yj = y[j];
-                let del = (yj + sqrt_eps * yj.abs().max(1e-5)) - yj;
-                w.tmp[j] = yj + del;
-                sys.rhs(t, &w.tmp, f1);
-                w.tmp[j] = yj;
-                for i in 0..n {
-                    r.jac[(i, j)] = (f1[i] - f0[i]) / del;
-                }
-            }
+            r.dense.difference_jacobian(sys, (t, y, f0), &mut w.tmp, f1);
             // T as in ode23s: a time increment of sqrt(eps) max(|t|, |t + h|), at most h.
             let dt = (t + (sqrt_eps * t.abs().max((t + h).abs())).min(h)) - t;
             sys.rhs(t + dt, y, f1);
@@ -107,30 +95,19 @@ impl Stepper for Rosenbrock23 {
             stats.rhs_evals += n as u64 + 1;
             stats.jacobians += 1;
         }
-        // W = I - h d J, factorised in the storage of the last factorisation (LU::l_unpack hands
-        // the matrix back without reallocating it).
-        let mut m = match r.lu.take() {
-            Some(lu) => lu.l_unpack(),
-            None => r.spare.take().unwrap_or_else(|| DMatrix::zeros(n, n)),
-        };
+        // W = I - h d J.
         let hd = h * D;
-        for j in 0..n {
-            for i in 0..n {
-                m[(i, j)] = if i == j { 1.0 } else { 0.0 } - hd * r.jac[(i, j)];
-            }
-        }
-        let lu = LU::new(m);
-        if !lu.is_invertible() {
-            r.lu = Some(lu);
+        if !r.dense.factor(hd) {
             return Err(Error::Diverged {
                 time: t,
                 message: format!("the Rosenbrock matrix I - h d df/dy is singular at step {h:e} s"),
             });
         }
+        let lu = r.dense.lu.as_ref().expect("just factorised");
         for i in 0..n {
             k1[i] = f0[i] + hd * r.dfdt[i];
         }
-        lu_solve(&lu, k1);
+        lu_solve(lu, k1);
         for i in 0..n {
             w.tmp[i] = y[i] + 0.5 * h * k1[i];
         }
@@ -138,7 +115,7 @@ impl Stepper for Rosenbrock23 {
         for i in 0..n {
             k2[i] = f1[i] - k1[i];
         }
-        lu_solve(&lu, k2);
+        lu_solve(lu, k2);
         for i in 0..n {
             k2[i] += k1[i];
             w.y_new[i] = y[i] + h * k2[i];
@@ -147,12 +124,11 @@ impl Stepper for Rosenbrock23 {
         for i in 0..n {
             k3[i] = f2[i] - E32 * (k2[i] - f1[i]) - 2.0 * (k1[i] - f0[i]) + hd * r.dfdt[i];
         }
-        lu_solve(&lu, k3);
+        lu_solve(lu, k3);
         for i in 0..n {
             w.tmp[i] = h / 6.0 * (k1[i] - 2.0 * k2[i] + k3[i]);
         }
         stats.rhs_evals += 2;
-        r.lu = Some(lu);
         Ok(())
     }
 
