@@ -25,11 +25,14 @@
 //!   work per stage, instead of n + 1 evaluations and an O(n^3) factorisation for the full
 //!   Jacobian. The rest of df/dy (the smooth dynamics) is left to the explicit part of the
 //!   stages, which the W-method's order conditions allow. The same A serves later steps while
-//!   the set of stiff directions' sources is unchanged, for at most [`MAX_AGE`] steps; a rejected
-//!   step forms it afresh. (Measured on the 4-UPS/RPU's work-precision windows at rtol 1e-3 and
-//!   1e-4: A kept for up to 1, 2, 5 and 20 steps took 9 678, 9 575, 9 628 and 10 960
+//!   the set of stiff directions' sources is unchanged, for at most [`MAX_AGE`] step attempts; a
+//!   step rejected with an A formed before its own start forms it afresh. (Measured on the
+//!   4-UPS/RPU's work-precision windows, with every retry forming A again: A kept for up to 1,
+//!   2, 5 and 20 steps took 9 678, 9 575, 9 628 and 10 960
 //!   evaluations at rtol 1e-3 for restart errors of 3.5, 4.5, 4.2 and 3.3e-7 m; 5 keeps the
 //!   evaluations of the smaller ages at a fraction of their time per step.)
+//! * A mechanism without a closed contact has no stiff direction: A = 0 and the stages are
+//!   explicit (its other stiffness, a stiff spring or the Baumgarte terms, is not treated).
 //! * Any other system: the full Jacobian by forward differences at each step start (n
 //!   evaluations, kept for the retries after a rejection) and an LU factorisation of
 //!   `I - h gamma J`.
@@ -95,7 +98,8 @@ const B_HAT: [f64; 4] = [
     2.179_332_607_542_295e-1,
 ];
 
-/// How many steps a low-rank Jacobian serves at most while its directions' sources stay the same.
+/// How many step attempts a low-rank Jacobian serves at most while its directions' sources stay
+/// the same.
 pub const MAX_AGE: u32 = 5;
 
 /// The stability function R(z) at z = h lambda: one step on y' = lambda y with A = lambda.
@@ -133,10 +137,14 @@ pub(super) struct LowRank {
     basis: Vec<f64>,
     image: Vec<f64>,
     rank: usize,
-    /// The sources of the directions A was formed from, and the steps it has served.
+    /// The sources of the directions A was formed from, and the step attempts it has served.
     pattern: Vec<u32>,
     age: u32,
     valid: bool,
+    /// Whether the last attempt formed A (low rank) or the full Jacobian (`dense_here`) at its
+    /// own (t, y): a retry from there keeps it.
+    formed_here: bool,
+    dense_here: bool,
     /// The system's directions and sources at this step start.
     dirs: Vec<f64>,
     new_pattern: Vec<u32>,
@@ -226,6 +234,8 @@ impl Stepper for Ros34pw2 {
         // The matrix A: low rank along the system's stiff directions, or the full Jacobian.
         let mut dirs = std::mem::take(&mut lr.dirs);
         let mut pattern = std::mem::take(&mut lr.new_pattern);
+        dirs.clear();
+        pattern.clear();
         lr.low = sys.stiff_directions(t, y, h, &mut dirs, &mut pattern);
         lr.dirs = dirs;
         lr.new_pattern = pattern;
@@ -237,7 +247,9 @@ impl Stepper for Ros34pw2 {
             let fresh = !lr.valid
                 || lr.pattern != lr.new_pattern
                 || lr.age >= MAX_AGE
-                || (retry && lr.age > 0);
+                || (retry && !lr.formed_here);
+            lr.formed_here = fresh;
+            lr.dense_here = false;
             if fresh {
                 lr.orthonormalise(n);
                 lr.image.clear();
@@ -268,6 +280,13 @@ impl Stepper for Ros34pw2 {
                 }
                 if lr.rank > 0 {
                     stats.jacobians += 1;
+                }
+                if lr.image.iter().any(|v| !v.is_finite()) {
+                    lr.valid = false;
+                    return Err(Error::Diverged {
+                        time: t,
+                        message: "the Jacobian along the stiff directions is not finite".into(),
+                    });
                 }
                 let r = lr.rank;
                 lr.qz.clear();
@@ -301,11 +320,12 @@ impl Stepper for Ros34pw2 {
             }
         } else {
             lr.valid = false;
-            if !retry {
+            if !retry || !lr.dense_here {
                 lin.dense
                     .difference_jacobian(sys, (t, y, f0), &mut w.tmp, scratch);
                 stats.rhs_evals += n as u64;
                 stats.jacobians += 1;
+                lr.dense_here = true;
             }
             if !lin.dense.factor(c) {
                 return Err(singular(t, h));
