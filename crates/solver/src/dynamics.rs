@@ -458,10 +458,9 @@ impl Model {
                 // The gradient of delta with respect to the positions.
                 let start = dirs.len();
                 dirs.resize(start + n, 0.0);
-                for &(b, p, sign) in &sides {
-                    if b == GROUND {
-                        continue;
-                    }
+                // The sides that move (the ground's coordinates are not in the state).
+                let moving = || sides.iter().filter(|side| side.0 != GROUND);
+                for &(b, p, sign) in moving() {
                     let d = &mut dirs[start..start + n];
                     let k = &ws.kin[b];
                     let m = (p - k.r).cross(&ce.n) * sign;
@@ -480,10 +479,7 @@ impl Model {
                 for dir in [ce.n, t1, t2].iter().take(count) {
                     let start = dirs.len();
                     dirs.resize(start + n, 0.0);
-                    for &(b, p, sign) in &sides {
-                        if b == GROUND {
-                            continue;
-                        }
+                    for &(b, p, sign) in moving() {
                         let d = &mut dirs[start..start + n];
                         let m = (p - ws.kin[b].r).cross(dir);
                         for i in 0..3 {
