@@ -620,8 +620,8 @@ impl DenseJacobian {
     }
 
     /// Factorises `I - c J` in the storage of the last factorisation (`LU::l_unpack` hands the
-    /// matrix back without reallocating it) into `lu`; false when it is singular.
-    fn factor(&mut self, c: f64) -> bool {
+    /// matrix back without reallocating it) into `lu`, and returns it; None when it is singular.
+    fn factor(&mut self, c: f64) -> Option<&LU<f64, Dyn, Dyn>> {
         let n = self.jac.nrows();
         let mut m = match self.lu.take() {
             Some(lu) => lu.l_unpack(),
@@ -634,9 +634,15 @@ impl DenseJacobian {
         }
         let lu = LU::new(m);
         let ok = lu.is_invertible();
-        self.lu = Some(lu);
-        ok
+        let lu = self.lu.insert(lu);
+        ok.then_some(&*lu)
     }
+}
+
+/// Solves `lu x = b` in place (the Rosenbrock methods' stages).
+fn lu_solve(lu: &LU<f64, Dyn, Dyn>, b: &mut [f64]) {
+    let n = b.len();
+    lu.solve_mut(&mut nalgebra::DVectorViewMut::from_slice(b, n));
 }
 
 /// The stepper of an [`Integrator`]: its stages, error estimate and dense output.

@@ -39,9 +39,11 @@
 //!
 //! [`Stats::rhs_evals`] counts the differencing evaluations, [`Stats::jacobians`] the matrices.
 
-use nalgebra::{DMatrix, DVectorViewMut, Dyn, LU};
+use nalgebra::{DMatrix, Dyn, LU};
 
-use super::{Adaptive, Integrator, OdeSystem, Stats, Stepper, Work, hermite};
+use super::{
+    Adaptive, DenseJacobian, Integrator, OdeSystem, Stats, Stepper, Work, hermite, lu_solve,
+};
 use crate::error::{Error, Result};
 
 /// ROS34PW2: adaptive only.
@@ -131,8 +133,6 @@ fn stability(re: f64, im: f64) -> (f64, f64) {
 /// The low-rank Jacobian `A = Z Q^T` and its bookkeeping.
 #[derive(Default)]
 pub(super) struct LowRank {
-    /// Whether the system gave directions at the last step (else the full Jacobian is used).
-    low: bool,
     /// Orthonormal basis Q (n x r, column-major) and Z = J Q (n x r).
     basis: Vec<f64>,
     image: Vec<f64>,
@@ -188,6 +188,150 @@ impl LowRank {
         }
     }
 
+    /// Makes A for a step of `h` from `(t, y)` with f0 = f(t, y), the system's directions and
+    /// their sources in `dirs` and `new_pattern`: formed afresh (orthonormal basis, `Z = J Q` from
+    /// the system or by differences, `Q^T Z`) unless the one kept still serves, then `S = I_r -
+    /// h gamma Q^T Z` factorised. `tmp` and `scratch` are vectors of the state's length.
+    fn prepare(
+        &mut self,
+        sys: &mut dyn OdeSystem,
+        (t, y, f0): (f64, &[f64], &[f64]),
+        (h, retry): (f64, bool),
+        (tmp, scratch): (&mut [f64], &mut [f64]),
+        stats: &mut Stats,
+    ) -> Result<()> {
+        let n = y.len();
+        let fresh = !self.valid
+            || self.pattern != self.new_pattern
+            || self.age >= MAX_AGE
+            || (retry && !self.formed_here);
+        self.formed_here = fresh;
+        self.dense_here = false;
+        if fresh {
+            self.orthonormalise(n);
+            self.image.clear();
+            self.image.resize(n * self.rank, 0.0);
+            let analytic = self.rank > 0 && sys.stiff_jacobian(t, y, &self.basis, &mut self.image);
+            if analytic {
+                stats.rhs_evals += 1;
+            } else {
+                let sqrt_eps = f64::EPSILON.sqrt();
+                for (q, z) in self
+                    .basis
+                    .chunks_exact(n)
+                    .zip(self.image.chunks_exact_mut(n))
+                {
+                    let scale = q
+                        .iter()
+                        .zip(y)
+                        .filter(|(qi, _)| **qi != 0.0)
+                        .fold(1e-2_f64, |m, (_, yi)| m.max(yi.abs()));
+                    let eps = sqrt_eps * scale;
+                    for i in 0..n {
+                        tmp[i] = y[i] + eps * q[i];
+                    }
+                    sys.rhs(t, tmp, scratch);
+                    for i in 0..n {
+                        z[i] = (scratch[i] - f0[i]) / eps;
+                    }
+                }
+                stats.rhs_evals += self.rank as u64;
+            }
+            if self.rank > 0 {
+                stats.jacobians += 1;
+            }
+            if self.image.iter().any(|v| !v.is_finite()) {
+                self.valid = false;
+                return Err(Error::Diverged {
+                    time: t,
+                    message: "the Jacobian along the stiff directions is not finite".into(),
+                });
+            }
+            let r = self.rank;
+            self.qz.clear();
+            for q in self.basis.chunks_exact(n) {
+                for z in self.image.chunks_exact(n) {
+                    self.qz
+                        .push(q.iter().zip(z).map(|(x, y)| x * y).sum::<f64>());
+                }
+            }
+            debug_assert_eq!(self.qz.len(), r * r);
+            std::mem::swap(&mut self.pattern, &mut self.new_pattern);
+            self.valid = true;
+            self.age = 0;
+        }
+        self.age += 1;
+        // S = I_r - c Q^T Z.
+        let (r, c) = (self.rank, h * GAMMA);
+        self.small = None;
+        if r > 0 {
+            let s = DMatrix::<f64>::from_fn(r, r, |a, b| {
+                (if a == b { 1.0 } else { 0.0 }) - c * self.qz[a * r + b]
+            });
+            let lu = LU::new(s);
+            if !lu.is_invertible() {
+                return Err(singular(t, h));
+            }
+            self.small = Some(lu);
+        }
+        Ok(())
+    }
+
+    /// Stage `i` with A = Z Q^T: with f at the stage in `f`, `ki` = the stage's k. With
+    /// M = Q^T Z, P_j = Q^T k_j and p_u = sum_j gamma_ij P_j: Q^T b = h Q^T f + h M p_u,
+    /// x = S^-1 Q^T b, k_i = h f + Z (h p_u + c x) and P_i = Q^T b + c M x: one projection and
+    /// one product with Z a stage.
+    fn stage(&mut self, i: usize, (h, c): (f64, f64), f: &[f64], ki: &mut [f64]) {
+        let n = f.len();
+        let r = self.rank;
+        self.project(n, f);
+        let LowRank {
+            qz,
+            proj,
+            stage_proj,
+            small,
+            image,
+            x,
+            sol,
+            ..
+        } = self;
+        stage_proj.resize(4 * r, 0.0);
+        x.clear();
+        for a in 0..r {
+            let mut pu = 0.0;
+            for j in 0..i {
+                pu += GAMMAS[i][j] * stage_proj[j * r + a];
+            }
+            x.push(pu);
+        }
+        // x holds p_u; proj becomes Q^T b.
+        for a in 0..r {
+            let mp: f64 = (0..r).map(|b| qz[a * r + b] * x[b]).sum();
+            proj[a] = h * (proj[a] + mp);
+        }
+        sol.clear();
+        sol.extend_from_slice(proj);
+        if let Some(lu) = small.as_ref() {
+            lu_solve(lu, sol);
+        }
+        // x becomes h p_u + c S^-1 Q^T b.
+        for a in 0..r {
+            x[a] = h * x[a] + c * sol[a];
+        }
+        for m in 0..n {
+            ki[m] = h * f[m];
+        }
+        for (z, &xa) in image.chunks_exact(n).zip(x.iter()) {
+            for (o, zi) in ki.iter_mut().zip(z) {
+                *o += xa * zi;
+            }
+        }
+        for a in 0..r {
+            let ms: f64 = (0..r).map(|b| qz[a * r + b] * sol[b]).sum();
+            stage_proj[i * r + a] = proj[a] + c * ms;
+        }
+    }
+
     /// Q^T v into `proj`.
     fn project(&mut self, n: usize, v: &[f64]) {
         self.proj.clear();
@@ -197,10 +341,41 @@ impl LowRank {
     }
 }
 
-/// Solves `lu x = b` in place.
-fn lu_solve(lu: &LU<f64, Dyn, Dyn>, b: &mut [f64]) {
-    let n = b.len();
-    lu.solve_mut(&mut DVectorViewMut::from_slice(b, n));
+impl DenseJacobian {
+    /// Stage `i` with the full Jacobian: b = h f + h J u with u = sum_j gamma_ij k_j (the
+    /// earlier stages' k in `ks`, u formed in `u`), then `ki` = (I - c J)^-1 b with the
+    /// factorisation of the step.
+    fn stage(
+        &self,
+        i: usize,
+        h: f64,
+        (ks, f): (&[Vec<f64>], &[f64]),
+        u: &mut [f64],
+        ki: &mut [f64],
+    ) {
+        let n = f.len();
+        for m in 0..n {
+            let mut v = 0.0;
+            for j in 0..i {
+                v += GAMMAS[i][j] * ks[j][m];
+            }
+            u[m] = v;
+        }
+        for m in 0..n {
+            ki[m] = h * f[m];
+        }
+        for col in 0..n {
+            let uc = u[col];
+            if uc != 0.0 {
+                for m in 0..n {
+                    ki[m] += h * self.jac[(m, col)] * uc;
+                }
+            }
+        }
+        if let Some(lu) = self.lu.as_ref() {
+            lu_solve(lu, ki);
+        }
+    }
 }
 
 fn singular(t: f64, h: f64) -> Error {
@@ -226,7 +401,6 @@ impl Stepper for Ros34pw2 {
         retry: bool,
     ) -> Result<()> {
         let n = y.len();
-        let sqrt_eps = f64::EPSILON.sqrt();
         let lin = w.lin.as_mut().expect("ROS34PW2 work space");
         let lr = &mut lin.low;
         let c = h * GAMMA;
@@ -236,98 +410,24 @@ impl Stepper for Ros34pw2 {
         let mut pattern = std::mem::take(&mut lr.new_pattern);
         dirs.clear();
         pattern.clear();
-        lr.low = sys.stiff_directions(t, y, h, &mut dirs, &mut pattern);
+        let low = sys.stiff_directions(t, y, h, &mut dirs, &mut pattern);
         lr.dirs = dirs;
         lr.new_pattern = pattern;
         let (k, rest) = w.k.split_at_mut(SCRATCH);
         let (scratch, f1) = rest.split_at_mut(1);
         let (scratch, f1) = (&mut scratch[0], &mut f1[0]);
-        let f0 = &k[0];
-        if lr.low {
-            let fresh = !lr.valid
-                || lr.pattern != lr.new_pattern
-                || lr.age >= MAX_AGE
-                || (retry && !lr.formed_here);
-            lr.formed_here = fresh;
-            lr.dense_here = false;
-            if fresh {
-                lr.orthonormalise(n);
-                lr.image.clear();
-                lr.image.resize(n * lr.rank, 0.0);
-                let analytic = lr.rank > 0 && sys.stiff_jacobian(t, y, &lr.basis, &mut lr.image);
-                if analytic {
-                    stats.rhs_evals += 1;
-                }
-                for j in 0..if analytic { 0 } else { lr.rank } {
-                    let q = &lr.basis[j * n..(j + 1) * n];
-                    let scale = q
-                        .iter()
-                        .zip(y)
-                        .filter(|(qi, _)| **qi != 0.0)
-                        .fold(1e-2_f64, |m, (_, yi)| m.max(yi.abs()));
-                    let eps = sqrt_eps * scale;
-                    for i in 0..n {
-                        w.tmp[i] = y[i] + eps * q[i];
-                    }
-                    sys.rhs(t, &w.tmp, scratch);
-                    let z = &mut lr.image[j * n..(j + 1) * n];
-                    for i in 0..n {
-                        z[i] = (scratch[i] - f0[i]) / eps;
-                    }
-                }
-                if !analytic {
-                    stats.rhs_evals += lr.rank as u64;
-                }
-                if lr.rank > 0 {
-                    stats.jacobians += 1;
-                }
-                if lr.image.iter().any(|v| !v.is_finite()) {
-                    lr.valid = false;
-                    return Err(Error::Diverged {
-                        time: t,
-                        message: "the Jacobian along the stiff directions is not finite".into(),
-                    });
-                }
-                let r = lr.rank;
-                lr.qz.clear();
-                for a in 0..r {
-                    let q = &lr.basis[a * n..(a + 1) * n];
-                    for b in 0..r {
-                        let z = &lr.image[b * n..(b + 1) * n];
-                        lr.qz.push(q.iter().zip(z).map(|(x, y)| x * y).sum::<f64>());
-                    }
-                }
-                std::mem::swap(&mut lr.pattern, &mut lr.new_pattern);
-                lr.valid = true;
-                lr.age = 0;
-            }
-            lr.age += 1;
-            // S = I_r - c Q^T Z.
-            let r = lr.rank;
-            let mut s = DMatrix::<f64>::identity(r, r);
-            for a in 0..r {
-                for b in 0..r {
-                    s[(a, b)] -= c * lr.qz[a * r + b];
-                }
-            }
-            lr.small = None;
-            if r > 0 {
-                let lu = LU::new(s);
-                if !lu.is_invertible() {
-                    return Err(singular(t, h));
-                }
-                lr.small = Some(lu);
-            }
+        if low {
+            lr.prepare(sys, (t, y, &k[0]), (h, retry), (&mut w.tmp, scratch), stats)?;
         } else {
             lr.valid = false;
             if !retry || !lr.dense_here {
                 lin.dense
-                    .difference_jacobian(sys, (t, y, f0), &mut w.tmp, scratch);
+                    .difference_jacobian(sys, (t, y, &k[0]), &mut w.tmp, scratch);
                 stats.rhs_evals += n as u64;
                 stats.jacobians += 1;
                 lr.dense_here = true;
             }
-            if !lin.dense.factor(c) {
+            if lin.dense.factor(c).is_none() {
                 return Err(singular(t, h));
             }
         }
@@ -350,81 +450,11 @@ impl Stepper for Ros34pw2 {
             }
             let (head, tail) = k.split_at_mut(1 + i);
             let ki = &mut tail[0];
-            if lr.low {
-                // With A = Z Q^T, M = Q^T Z, P_j = Q^T k_j and p_u = sum_j gamma_ij P_j:
-                // Q^T b = h Q^T f + h M p_u, x = S^-1 Q^T b, k_i = h f + Z (h p_u + c x) and
-                // P_i = h Q^T f + M (h p_u + c x): one projection and one product with Z a stage.
-                let r = lr.rank;
-                lr.project(n, scratch);
-                let LowRank {
-                    qz,
-                    proj,
-                    stage_proj,
-                    small,
-                    image,
-                    x,
-                    sol,
-                    ..
-                } = &mut *lr;
-                stage_proj.resize(4 * r, 0.0);
-                x.clear();
-                for a in 0..r {
-                    let mut pu = 0.0;
-                    for j in 0..i {
-                        pu += GAMMAS[i][j] * stage_proj[j * r + a];
-                    }
-                    x.push(pu);
-                }
-                // x holds p_u; proj becomes Q^T b.
-                for a in 0..r {
-                    let mp: f64 = (0..r).map(|b| qz[a * r + b] * x[b]).sum();
-                    proj[a] = h * (proj[a] + mp);
-                }
-                sol.clear();
-                sol.extend_from_slice(proj);
-                if let Some(lu) = small.as_ref() {
-                    lu_solve(lu, sol);
-                }
-                // x becomes h p_u + c S^-1 Q^T b.
-                for a in 0..r {
-                    x[a] = h * x[a] + c * sol[a];
-                }
-                for m in 0..n {
-                    ki[m] = h * scratch[m];
-                }
-                for (z, &xa) in image.chunks_exact(n).zip(x.iter()) {
-                    for (o, zi) in ki.iter_mut().zip(z) {
-                        *o += xa * zi;
-                    }
-                }
-                // P_i = Q^T k_i = Q^T b + c M S^-1 Q^T b.
-                for a in 0..r {
-                    let ms: f64 = (0..r).map(|b| qz[a * r + b] * sol[b]).sum();
-                    stage_proj[i * r + a] = proj[a] + c * ms;
-                }
+            if low {
+                lin.low.stage(i, (h, c), scratch, ki);
             } else {
-                // b = h f + h J u with u = sum_j gamma_ij k_j, then k_i = (I - c J)^-1 b.
-                for m in 0..n {
-                    let mut u = 0.0;
-                    for j in 0..i {
-                        u += GAMMAS[i][j] * head[1 + j][m];
-                    }
-                    w.y_new[m] = u;
-                }
-                for m in 0..n {
-                    ki[m] = h * scratch[m];
-                }
-                for col in 0..n {
-                    let u = w.y_new[col];
-                    if u != 0.0 {
-                        for m in 0..n {
-                            ki[m] += h * lin.dense.jac[(m, col)] * u;
-                        }
-                    }
-                }
-                if let Some(lu) = lin.dense.lu.as_ref() {
-                    lu_solve(lu, ki);
-                }
+                lin.dense
+                    .stage(i, h, (&head[1..], scratch), &mut w.y_new, ki);
             }
         }
         for m in 0..n {

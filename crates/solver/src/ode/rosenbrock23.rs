@@ -9,9 +9,7 @@
 //! rejected step. On y' = -1e6 (y - cos t) - sin t it takes 310 steps where DOPRI5, held at its
 //! stability limit, takes 302 424.
 
-use nalgebra::{DVectorViewMut, Dyn, LU};
-
-use super::{Adaptive, Integrator, OdeSystem, Stats, Stepper, Work};
+use super::{Adaptive, Integrator, OdeSystem, Stats, Stepper, Work, lu_solve};
 use crate::error::{Error, Result};
 
 /// Rosenbrock23: adaptive only.
@@ -48,12 +46,6 @@ fn stability(re: f64, im: f64) -> (f64, f64) {
     let (qr, qi) = (wr * wr - wi * wi, 2.0 * wr * wi);
     let q2 = qr * qr + qi * qi;
     ((nr * qr + ni * qi) / q2, (ni * qr - nr * qi) / q2)
-}
-
-/// Solves `lu x = b` in place.
-fn lu_solve(lu: &LU<f64, Dyn, Dyn>, b: &mut [f64]) {
-    let n = b.len();
-    lu.solve_mut(&mut DVectorViewMut::from_slice(b, n));
 }
 
 struct Rosenbrock23;
@@ -97,13 +89,12 @@ impl Stepper for Rosenbrock23 {
         }
         // W = I - h d J.
         let hd = h * D;
-        if !r.dense.factor(hd) {
+        let Some(lu) = r.dense.factor(hd) else {
             return Err(Error::Diverged {
                 time: t,
                 message: format!("the Rosenbrock matrix I - h d df/dy is singular at step {h:e} s"),
             });
-        }
-        let lu = r.dense.lu.as_ref().expect("just factorised");
+        };
         for i in 0..n {
             k1[i] = f0[i] + hd * r.dfdt[i];
         }
