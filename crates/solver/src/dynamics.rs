@@ -385,24 +385,31 @@ impl Model {
         if !self.effects.clearance {
             return;
         }
-        let nb = self.nb();
-        let idx = |b: usize| if b == GROUND { nb } else { b };
-        self.kinematics(y, ws);
+        self.contact_geometry(y, ws);
         for c in &self.clearances {
-            let n = c.geometry.n_contacts();
-            let slots = c.first..c.first + n;
-            c.geometry(
-                &ws.kin[idx(c.housing)],
-                &ws.kin[idx(c.journal)],
-                &mut ws.contacts[slots.clone()],
-            );
-            for s in slots {
+            for s in c.first..c.first + c.geometry.n_contacts() {
                 out[s] = (
                     ws.contacts[s].delta,
                     ws.contacts[s].delta_dot,
                     c.law.needs_onset(),
                 );
             }
+        }
+    }
+
+    /// The kinematics at `y` and every contact's geometry (penetration, rate, normal, points)
+    /// into `ws.contacts`, without forces.
+    fn contact_geometry(&self, y: &[f64], ws: &mut Workspace) {
+        let nb = self.nb();
+        let idx = |b: usize| if b == GROUND { nb } else { b };
+        self.kinematics(y, ws);
+        for c in &self.clearances {
+            let slots = c.first..c.first + c.geometry.n_contacts();
+            c.geometry(
+                &ws.kin[idx(c.housing)],
+                &ws.kin[idx(c.journal)],
+                &mut ws.contacts[slots],
+            );
         }
     }
 
@@ -434,15 +441,9 @@ impl Model {
         }
         let nb = self.nb();
         let (n, np) = (13 * nb, 7 * nb);
-        let idx = |b: usize| if b == GROUND { nb } else { b };
-        self.kinematics(y, ws);
+        self.contact_geometry(y, ws);
         for c in &self.clearances {
             let slots = c.first..c.first + c.geometry.n_contacts();
-            c.geometry(
-                &ws.kin[idx(c.housing)],
-                &ws.kin[idx(c.journal)],
-                &mut ws.contacts[slots.clone()],
-            );
             let friction = self.effects.friction && !c.friction.is_none();
             for s in slots {
                 let ce = ws.contacts[s];
@@ -533,6 +534,13 @@ impl Model {
         let eps = f64::EPSILON.sqrt();
         let mut yp = y.to_vec();
         let mut u = vec![0.0; self.n_rows];
+        // The rows' M^-1 G^T blocks at y, the same for every direction.
+        for (wr, r) in scratch.wrows.iter_mut().zip(&ws.rows) {
+            *wr = (
+                minv_block(self, ws, r.a, &r.ja),
+                minv_block(self, ws, r.b, &r.jb),
+            );
+        }
         for (dir, out) in basis.chunks_exact(n).zip(image.chunks_exact_mut(n)) {
             for i in 0..n {
                 yp[i] = y[i] + eps * dir[i];
@@ -558,12 +566,11 @@ impl Model {
                     u[i] = v;
                 }
                 ws.solve_reduced(&mut u);
-                for (i, r) in ws.rows.iter().enumerate() {
-                    for (b, j) in [(r.a, &r.ja), (r.b, &r.jb)] {
+                for ((r, (wa, wb)), ui) in ws.rows.iter().zip(&scratch.wrows).zip(&u) {
+                    for (b, w) in [(r.a, wa), (r.b, wb)] {
                         if b != GROUND {
-                            let w = minv_block(self, ws, b, j);
                             for c in 0..6 {
-                                scratch.minv_q[b][c] -= u[i] * w[c];
+                                scratch.minv_q[b][c] -= ui * w[c];
                             }
                         }
                     }
