@@ -258,6 +258,31 @@ fn bad_input_gets_an_error_naming_file_and_field() {
             "output.significant_bits",
         ),
         (
+            "interval = 1e-3",
+            "interval = 1e-3\nsignificant_bits = \"all\"",
+            "output.significant_bits",
+        ),
+        (
+            "interval = 1e-3",
+            "interval = 1e-3\nsignificant_bits = { default = 28, positon = 16 }",
+            "output.significant_bits.positon",
+        ),
+        (
+            "interval = 1e-3",
+            "interval = 1e-3\nsignificant_bits = { default = 28, velocity = 60 }",
+            "output.significant_bits.velocity",
+        ),
+        (
+            "interval = 1e-3",
+            "interval = 1e-3\nsignificant_bits = { contact_state = 8 }",
+            "output.significant_bits.contact_state",
+        ),
+        (
+            "interval = 1e-3",
+            "interval = 1e-3\nsignificant_bits = { energy = 1.5 }",
+            "output.significant_bits.energy",
+        ),
+        (
             "axis_b = \"z\"\n",
             "axis_b = \"z\"\nclearance = { journal_radius = 0.01, radial_clearance = -1e-4, bushing_length = 0.02, normal = { law = \"hertz\", stiffness = 1e10 } }\n",
             "joints[0].clearance.radial_clearance",

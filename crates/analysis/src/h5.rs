@@ -545,7 +545,7 @@ fn write_groups(g: &hdf5::Group, rec: &Recording) -> hdf5::Result<()> {
 
 /// Writes a recording: the sample times, its groups with their attributes and one dataset per
 /// channel (as u8 for a flag, one-dimensional for a scalar), the values of the others rounded to
-/// [`Recording::significant_bits`] when it is set (marked on `g` and on each rounded dataset).
+/// their [`Channel::bits`] when set (marked on each rounded dataset, and the fewest on `g`).
 ///
 /// The chunks of the compressed datasets are compressed by [`crate::chunk`], by the threads of
 /// rayon's pool (a recording is written whole once its run is over).
@@ -569,26 +569,24 @@ fn write_recording(g: &hdf5::Group, rec: &Recording) -> hdf5::Result<()> {
             width: c.width(),
             // A flag is a table, whatever its width.
             scalar: c.scalar && !c.flag,
-            store: store(c, rec.significant_bits),
+            store: store(c),
             unit: &c.unit,
             desc: &c.description,
         }))
         .collect();
     write_sets(g, &sets)?;
-    if rec.significant_bits.is_some() {
-        for c in rec.channels.iter().filter(|c| !c.flag) {
-            let ds = g.dataset(&c.dataset)?;
-            mark_bits(&ds, rec.significant_bits)?;
-        }
+    for c in rec.channels.iter().filter(|c| c.bits.is_some()) {
+        let ds = g.dataset(&c.dataset)?;
+        mark_bits(&ds, c.bits)?;
     }
     Ok(())
 }
 
-/// How channel `c` is stored: a flag as a byte, any other value as a double rounded to `bits`.
-fn store(c: &Channel, bits: Option<u32>) -> crate::chunk::Store {
+/// How channel `c` is stored: a flag as a byte, any other value as a double rounded to its bits.
+fn store(c: &Channel) -> crate::chunk::Store {
     match c.flag {
         true => crate::chunk::Store::Flag,
-        false => crate::chunk::Store::F64(bits),
+        false => crate::chunk::Store::F64(c.bits),
     }
 }
 
@@ -687,8 +685,6 @@ pub struct RunWriter {
     sets: Vec<hdf5::Dataset>,
     /// Samples written.
     rows: usize,
-    /// Mantissa bits the channels' values keep ([`Recording::significant_bits`]).
-    bits: Option<u32>,
 }
 
 /// Creates an empty extendable dataset of `width` columns (one-dimensional when `scalar`),
@@ -774,7 +770,7 @@ impl RunWriter {
                         extendable::<u8>(file, name, c.width(), false, unit, desc)
                     } else {
                         let ds = extendable::<f64>(file, name, c.width(), c.scalar, unit, desc)?;
-                        mark_bits(&ds, rec.significant_bits)?;
+                        mark_bits(&ds, c.bits)?;
                         Ok(ds)
                     }
                 })
@@ -788,7 +784,6 @@ impl RunWriter {
                 time,
                 sets,
                 rows: 0,
-                bits: rec.significant_bits,
             }),
             Err(err) => Err(out.fail(err)),
         }
@@ -835,7 +830,7 @@ impl RunWriter {
                         let v: Vec<u8> = c.values.iter().map(|&x| x as u8).collect();
                         append(ds, from, n, c.width(), false, v)?;
                     } else {
-                        let v = crate::bitround::rounded(&c.values, self.bits).into_owned();
+                        let v = crate::bitround::rounded(&c.values, c.bits).into_owned();
                         append(ds, from, n, c.width(), c.scalar, v)?;
                     }
                 }
@@ -863,7 +858,7 @@ impl RunWriter {
                 rec.channels
                     .iter()
                     .zip(&self.sets)
-                    .map(|(c, ds)| row(ds, &c.values[..], c.width(), store(c, self.bits))),
+                    .map(|(c, ds)| row(ds, &c.values[..], c.width(), store(c))),
             )
             .collect();
         append_all(&sets, from, parallel)

@@ -65,6 +65,10 @@ pub struct Channel {
     pub checked: Option<String>,
     /// The values, `columns.len()` per sample, sample by sample.
     pub values: Vec<f64>,
+    /// Mantissa bits its values keep in the file (`output.significant_bits` of its quantity, see
+    /// [`crate::bitround`]); `None`: all (and always for a flag). The values held here are never
+    /// rounded.
+    pub bits: Option<u32>,
     /// When its values are evaluated (and checked) in a sample: bodies, ideal joints, drives,
     /// clearance joints, diagnostics (which evaluate in the workspace again, so last).
     stage: u8,
@@ -130,8 +134,8 @@ pub struct Recording {
     pub groups: Vec<Group>,
     /// The recorded joints with clearance.
     pub clearances: Vec<Clearance>,
-    /// Mantissa bits the channels' values keep in the file (`output.significant_bits`, see
-    /// [`crate::bitround`]); `None`: all. The values held here are never rounded.
+    /// The fewest mantissa bits any channel keeps in the file ([`Channel::bits`]), marked on the
+    /// run's group; `None`: every value exact.
     pub significant_bits: Option<u32>,
 }
 
@@ -180,11 +184,16 @@ impl Declare<'_> {
             .map(|g| g.path.clone())
             .unwrap_or_default();
         let quantity = path.rsplit('.').next().unwrap_or(path);
+        let flag = quantity == "contact_state";
         self.rec.channels.push(Channel {
             dataset: format!("{name}/{quantity}"),
             unit,
             description: description.to_string(),
-            flag: quantity == "contact_state",
+            flag,
+            bits: match flag {
+                true => None,
+                false => self.model.outputs.significant_bits.of(quantity),
+            },
             scalar: comps.is_empty(),
             checked,
             values: Vec::new(),
@@ -204,10 +213,7 @@ impl Recording {
         let out = &model.outputs;
         let mut d = Declare {
             model,
-            rec: Recording {
-                significant_bits: out.significant_bits,
-                ..Recording::default()
-            },
+            rec: Recording::default(),
             stage: 0,
         };
         d.group("bodies".into(), Vec::new());
@@ -406,6 +412,7 @@ impl Recording {
                 )?;
             }
         }
+        d.rec.significant_bits = d.rec.channels.iter().filter_map(|c| c.bits).min();
         Ok(d.rec)
     }
 
@@ -1009,6 +1016,29 @@ mod tests {
         Model::compile(&SceneSpec::load(&path).unwrap()).unwrap()
     }
 
+    /// `output.significant_bits` by quantity accepts exactly the quantities a run file holds:
+    /// every rounded dataset of the bundled clearance mechanisms (spherical, spatial revolute
+    /// with faces, planar revolute, drives, diagnostics) ends in a name of
+    /// [`jointplay_solver::model::ROUNDED_QUANTITIES`], and every name of it occurs.
+    #[test]
+    fn the_quantities_significant_bits_names_are_those_of_the_run_files() {
+        use jointplay_solver::model::ROUNDED_QUANTITIES;
+        let mut seen = std::collections::BTreeSet::new();
+        for scene in ["4ups-rpu-mixed.toml", "slider-crank-clearance.toml"] {
+            let rec = Recording::of(&model(scene).0).unwrap();
+            for c in &rec.channels {
+                let q = c.dataset.rsplit('/').next().unwrap();
+                assert_eq!(ROUNDED_QUANTITIES.contains(&q), !c.flag, "{}", c.dataset);
+                seen.insert(q.to_string());
+            }
+        }
+        let missing: Vec<_> = ROUNDED_QUANTITIES
+            .iter()
+            .filter(|q| !seen.contains(**q))
+            .collect();
+        assert!(missing.is_empty(), "{missing:?}");
+    }
+
     #[test]
     fn every_dataset_of_a_4ups_rpu_run_is_made_of_registry_paths() {
         let (m, _) = model("4ups-rpu-mixed.toml");
@@ -1266,25 +1296,40 @@ mod tests {
     }
 
     /// With `output.significant_bits`, both writers (the run written at its end, as a study case
-    /// is, and the run written as it goes) store every recorded value rounded to that many bits,
-    /// exactly [`crate::bitround::round`] of the value computed, and mark the file and each rounded
-    /// dataset; the sample times and the final state are written exactly.
+    /// is, and the run written as it goes) store every recorded value rounded to the bits of its
+    /// quantity, exactly [`crate::bitround::round`] of the value computed, and mark each rounded
+    /// dataset with its bits and the file with the fewest; a quantity given every bit, the sample
+    /// times and the final state are written exactly.
     #[test]
     fn recorded_values_keep_the_significant_bits_asked_for_in_both_writers() {
         let (mut m, state) = model("pendulum.toml");
         // 5 001 samples: three appended blocks.
         m.settings.end_time = 5.0;
-        m.outputs.significant_bits = Some(20);
+        m.outputs.significant_bits = jointplay_solver::model::Bits {
+            default: Some(30),
+            by_quantity: vec![
+                ("position".into(), None),
+                ("reaction_force".into(), Some(16)),
+            ],
+        };
+        let want_bits = |dataset: &str| match dataset.rsplit('/').next() {
+            Some("position") => None,
+            Some("reaction_force") => Some(16),
+            _ => Some(30),
+        };
         let dir = tempfile::tempdir().unwrap();
         let file = PathBuf::from("pendulum.toml");
         let meta = Meta::of(&m, &file, "scene text", "test");
         let whole = simulate(&m, state.clone(), &mut |_| {}).unwrap();
-        assert_eq!(whole.recording.significant_bits, Some(20));
+        assert_eq!(whole.recording.significant_bits, Some(16));
         let a = crate::h5::write_run(&dir.path().join("a"), &meta, &whole).unwrap();
         let (_, w) =
             simulate_to_file(&m, state, &mut |_| {}, &dir.path().join("b"), &meta).unwrap();
         let mut exact = whole.clone();
         exact.recording.significant_bits = None;
+        for c in &mut exact.recording.channels {
+            c.bits = None;
+        }
         let c = crate::h5::write_run(&dir.path().join("c"), &meta, &exact).unwrap();
         let read = |p: &Path| {
             let f = hdf5::File::open(p).unwrap();
@@ -1298,22 +1343,27 @@ mod tests {
             l.attr("significant_bits")
                 .and_then(|a| a.read_scalar::<u64>())
                 .ok()
+                .map(|b| b as u32)
         };
         assert_eq!(
             (bits(&fa), bits(&fb), bits(&fc)),
-            (Some(20), Some(20), None)
+            (Some(16), Some(16), None)
         );
-        let mut rounded = 0;
+        let (mut rounded, mut kinds) = (0, std::collections::BTreeSet::new());
         for (((na, _, va), (nb, _, vb)), (nc, _, vc)) in da.iter().zip(&db).zip(&dc) {
             assert_eq!((na, na), (nb, nc));
             let flag = fc.dataset(nc).unwrap().dtype().unwrap().size() == 1;
             let want = match whole.recording.channel(nc) {
                 Some(_) if !flag => {
-                    rounded += 1;
+                    let b = want_bits(nc);
+                    assert_eq!(bits(&fa.dataset(na).unwrap()), b, "{na}");
+                    assert_eq!(bits(&fb.dataset(nb).unwrap()), b, "{nb}");
+                    kinds.insert(b);
                     let mut v = vc.clone();
-                    crate::bitround::round(&mut v, 20);
-                    assert!(bits(&fa.dataset(na).unwrap()) == Some(20), "{na}");
-                    assert!(bits(&fb.dataset(nb).unwrap()) == Some(20), "{nb}");
+                    if let Some(b) = b {
+                        rounded += 1;
+                        crate::bitround::round(&mut v, b);
+                    }
                     v
                 }
                 _ => vc.clone(),
@@ -1328,6 +1378,8 @@ mod tests {
                 );
             }
         }
+        // Every kind of quantity was met: kept, rounded to 16 and to 30 bits.
+        assert_eq!(kinds.len(), 3, "{kinds:?}");
         for name in ["time", "final_state", "final_time"] {
             assert!(bits(&fa.dataset(name).unwrap()).is_none(), "{name}");
             assert!(bits(&fb.dataset(name).unwrap()).is_none(), "{name}");

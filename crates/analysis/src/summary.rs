@@ -46,8 +46,8 @@ pub struct DriveSummary {
 }
 
 /// What is recorded: the sample interval (s), how many bodies, joints and drives, and whether
-/// accelerations and diagnostics are kept, and the mantissa bits the values keep in the file
-/// (`None`: all).
+/// accelerations and diagnostics are kept, and the mantissa bits the values keep in the file,
+/// by quantity.
 #[derive(Debug, Clone, PartialEq)]
 pub struct OutputSummary {
     pub interval: f64,
@@ -56,7 +56,7 @@ pub struct OutputSummary {
     pub drives: usize,
     pub accelerations: bool,
     pub diagnostics: bool,
-    pub significant_bits: Option<u32>,
+    pub significant_bits: jointplay_solver::model::Bits,
 }
 
 /// The compiled summary of a scene at its assembled initial state.
@@ -166,7 +166,7 @@ impl Summary {
                 drives: o.drives.len(),
                 accelerations: o.accelerations,
                 diagnostics: o.diagnostics,
-                significant_bits: o.significant_bits,
+                significant_bits: o.significant_bits.clone(),
             },
         })
     }
@@ -298,7 +298,7 @@ impl Summary {
                 ""
             },
             if o.diagnostics { ", diagnostics" } else { "" },
-            match o.significant_bits {
+            match o.significant_bits.describe() {
                 Some(b) => format!(", values rounded to {b} mantissa bits"),
                 None => String::new(),
             }

@@ -449,7 +449,19 @@ impl Scene {
         o.set_item("drives", s.output.drives)?;
         o.set_item("accelerations", s.output.accelerations)?;
         o.set_item("diagnostics", s.output.diagnostics)?;
-        o.set_item("significant_bits", s.output.significant_bits)?;
+        // An int (or None) when every value keeps the same bits, else a dict by quantity with
+        // "default" (None: every bit kept), as the scene gives it.
+        let bits = &s.output.significant_bits;
+        if bits.by_quantity.is_empty() {
+            o.set_item("significant_bits", bits.default)?;
+        } else {
+            let by = PyDict::new(py);
+            by.set_item("default", bits.default)?;
+            for (q, b) in &bits.by_quantity {
+                by.set_item(q, *b)?;
+            }
+            o.set_item("significant_bits", by)?;
+        }
         d.set_item("output", o)?;
         d.set_item("warnings", &model.warnings)?;
         d.set_item("lines", s.lines())?;

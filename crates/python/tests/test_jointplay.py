@@ -120,6 +120,27 @@ def test_a_run_written_with_fewer_significant_bits_keeps_its_exact_values_in_mem
     assert np.all(stored.view(np.uint64) & np.uint64(2**32 - 1) == 0)
 
 
+def test_significant_bits_by_quantity_round_each_dataset_to_its_own_bits(tmp_path):
+    """`output.significant_bits` as a table: each quantity keeps its own bits, `default` the
+    others; the file's attribute is the fewest."""
+    scene = jointplay.load_scene(SCENES / "pendulum.toml")
+    scene["solver.end_time"] = 1.0
+    scene["output.significant_bits"] = {"default": 30, "reaction_force": 16, "position": 52}
+    assert scene.check()["output"]["significant_bits"] == {
+        "default": 30, "position": None, "reaction_force": 16}
+    run = scene.run(progress=False)
+    f = jointplay.load(run.write(tmp_path))
+    assert f.attrs["significant_bits"] == 16
+    assert "significant_bits" not in f.attributes("bodies/bob/position")
+    assert np.array_equal(f["bodies/bob/position"], run["bodies/bob/position"])
+    for name, bits in [("bodies/bob/velocity", 30), ("joints/pivot/reaction_force", 16)]:
+        assert f.attributes(name)["significant_bits"] == bits
+        exact, stored = run[name], f[name]
+        nonzero = exact != 0
+        rel = np.abs(stored[nonzero] - exact[nonzero]) / np.abs(exact[nonzero])
+        assert 0 < rel.max() <= 2.0 ** -(bits + 1), name
+
+
 def test_errors_name_the_path():
     scene = jointplay.load_scene(SCENES / "pendulum.toml")
     with pytest.raises(KeyError, match="joints.nope.kind: no element 'nope'"):

@@ -273,8 +273,89 @@ pub struct Outputs {
     pub diagnostics: bool,
     /// Energy with the diagnostics.
     pub energy: bool,
-    /// Mantissa bits the recorded values keep in the file; `None`: all of them.
-    pub significant_bits: Option<u32>,
+    /// Mantissa bits the recorded values keep in the file, by quantity.
+    pub significant_bits: Bits,
+}
+
+/// The quantities of a run file whose values `output.significant_bits` may round: the last part
+/// of each dataset's name (`bodies/<name>/position`, `joints/<name>/normal_force`, ...). The
+/// flags (`contact_state`), the sample times and the final state are never rounded.
+pub const ROUNDED_QUANTITIES: &[&str] = &[
+    "position",
+    "orientation",
+    "velocity",
+    "angular_velocity",
+    "acceleration",
+    "angular_acceleration",
+    "reaction_force",
+    "reaction_torque",
+    "eccentricity",
+    "eccentricity_global",
+    "radial_eccentricity",
+    "end_eccentricity",
+    "penetration",
+    "penetration_rate",
+    "normal_force",
+    "friction_force",
+    "force_on_journal",
+    "moment_on_journal",
+    "force_on_housing",
+    "moment_on_housing",
+    "coordinate",
+    "force",
+    "constraint_drift",
+    "velocity_drift",
+    "energy",
+];
+
+/// Mantissa bits the recorded values keep in the file (`output.significant_bits`), by quantity:
+/// `None` keeps every bit (as does 52).
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Bits {
+    /// The quantities not named in `by_quantity`.
+    pub default: Option<u32>,
+    /// Quantities of [`ROUNDED_QUANTITIES`] with their own count, in name order.
+    pub by_quantity: Vec<(String, Option<u32>)>,
+}
+
+impl Bits {
+    /// Every value rounded to `bits` (52: none).
+    pub fn all(bits: u32) -> Bits {
+        Bits {
+            default: Some(bits).filter(|&b| b < 52),
+            by_quantity: Vec::new(),
+        }
+    }
+
+    /// The bits the values of `quantity` (the last part of a dataset's name) keep.
+    pub fn of(&self, quantity: &str) -> Option<u32> {
+        match self.by_quantity.iter().find(|(q, _)| q == quantity) {
+            Some((_, b)) => *b,
+            None => self.default,
+        }
+    }
+
+    /// Whether any value is rounded.
+    pub fn any(&self) -> bool {
+        self.default.is_some() || self.by_quantity.iter().any(|(_, b)| b.is_some())
+    }
+
+    /// As `jointplay check` says it: "28", "28, reaction_force 16", "reaction_force 16"; `None`
+    /// when nothing is rounded.
+    pub fn describe(&self) -> Option<String> {
+        if !self.any() {
+            return None;
+        }
+        let keep = |b: Option<u32>| b.map_or("all".to_string(), |b| b.to_string());
+        let mut parts: Vec<String> = self.default.iter().map(|b| b.to_string()).collect();
+        parts.extend(
+            self.by_quantity
+                .iter()
+                .filter(|(_, b)| *b != self.default)
+                .map(|(q, b)| format!("{q} {}", keep(*b))),
+        );
+        Some(parts.join(", "))
+    }
 }
 
 /// The immutable simulation model.

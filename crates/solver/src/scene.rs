@@ -547,12 +547,56 @@ pub struct OutputSpec {
     /// Record the mechanical energy with the diagnostics (default true).
     #[serde(default = "yes")]
     pub energy: bool,
-    /// Mantissa bits each recorded value keeps in the file (1 to 52); the value is rounded to
-    /// the nearest double with that many, a relative error of at most 2^-(bits+1). Default:
-    /// every bit, the values exactly as computed. Sample times and the final state are never
-    /// rounded.
+    /// Mantissa bits each recorded value keeps in the file (1 to 52), for every value or by
+    /// quantity; a value is rounded to the nearest double with that many, a relative error of
+    /// at most 2^-(bits+1). Default: every bit, the values exactly as computed. Sample times,
+    /// flags and the final state are never rounded.
     #[serde(default)]
-    pub significant_bits: Option<u32>,
+    pub significant_bits: Option<SignificantBits>,
+}
+
+/// `output.significant_bits`: one bit count for every recorded value (`significant_bits = 28`),
+/// or counts by quantity, the last part of a dataset's name in the run file, with `default` for
+/// the quantities not named (`significant_bits = { default = 28, reaction_force = 16 }`; the
+/// names are [`crate::model::ROUNDED_QUANTITIES`]). The counts are checked when the scene is
+/// compiled, so that a count out of range is named with its field.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+#[serde(untagged)]
+pub enum SignificantBits {
+    All(i64),
+    ByQuantity(BTreeMap<String, i64>),
+}
+
+impl<'de> Deserialize<'de> for SignificantBits {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        struct Visit;
+        impl<'de> serde::de::Visitor<'de> for Visit {
+            type Value = SignificantBits;
+            fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                f.write_str("a bit count (1 to 52) or a table of bit counts by quantity")
+            }
+            fn visit_i64<E: serde::de::Error>(self, v: i64) -> std::result::Result<Self::Value, E> {
+                Ok(SignificantBits::All(v))
+            }
+            fn visit_u64<E: serde::de::Error>(self, v: u64) -> std::result::Result<Self::Value, E> {
+                Ok(SignificantBits::All(i64::try_from(v).unwrap_or(i64::MAX)))
+            }
+            fn visit_map<A: serde::de::MapAccess<'de>>(
+                self,
+                mut map: A,
+            ) -> std::result::Result<Self::Value, A::Error> {
+                let mut by = BTreeMap::new();
+                while let Some(k) = map.next_key::<String>()? {
+                    let v = map.next_value::<i64>()?;
+                    if by.insert(k.clone(), v).is_some() {
+                        return Err(serde::de::Error::custom(format!("'{k}' given twice")));
+                    }
+                }
+                Ok(SignificantBits::ByQuantity(by))
+            }
+        }
+        d.deserialize_any(Visit)
+    }
 }
 
 fn yes() -> bool {

@@ -5,9 +5,11 @@
 use super::{Ctx, positive};
 use crate::clearance::Geometry;
 use crate::error::Result;
-use crate::model::{Body, Drive, Effects, Joint, Model, Outputs, Settings};
+use crate::model::{
+    Bits, Body, Drive, Effects, Joint, Model, Outputs, ROUNDED_QUANTITIES, Settings,
+};
 use crate::ode::Accuracy;
-use crate::scene::{OutputSpec, SolverSpec};
+use crate::scene::{OutputSpec, SignificantBits, SolverSpec};
 
 /// The `[solver]` settings of a scene with these drives.
 pub(crate) fn settings(sv: &SolverSpec, drives: &[Drive], cx: &Ctx) -> Result<Settings> {
@@ -155,14 +157,7 @@ pub(crate) fn outputs(
             format!("{interval} s over a span of {span} s gives {n_samples:.3e} samples; at most 1e8 are recorded"),
         ));
     }
-    if let Some(b) = out.significant_bits
-        && !(1..=52).contains(&b)
-    {
-        return Err(cx.err(
-            "output.significant_bits",
-            format!("{b} is not between 1 and 52 (the mantissa bits of a double)"),
-        ));
-    }
+    let bits = significant_bits(cx, out.significant_bits.as_ref())?;
     let pick = |sel: &Option<Vec<String>>, field: &str, all: &[&str]| -> Result<Vec<usize>> {
         match sel {
             None => Ok((0..all.len()).collect()),
@@ -191,9 +186,56 @@ pub(crate) fn outputs(
         accelerations: out.accelerations,
         diagnostics: out.diagnostics,
         energy: out.diagnostics && out.energy,
-        // 52 bits keep every bit: nothing is rounded or marked.
-        significant_bits: out.significant_bits.filter(|&b| b < 52),
+        significant_bits: bits,
     })
+}
+
+/// `output.significant_bits` checked: every count between 1 and 52, every quantity one of
+/// [`ROUNDED_QUANTITIES`]. 52 bits keep every bit: nothing is rounded or marked.
+fn significant_bits(cx: &Ctx<'_>, spec: Option<&SignificantBits>) -> Result<Bits> {
+    let count = |field: String, b: i64| -> Result<Option<u32>> {
+        match u32::try_from(b) {
+            Ok(b @ 1..=52) => Ok(Some(b).filter(|&b| b < 52)),
+            _ => Err(cx.err(
+                field,
+                format!("{b} is not between 1 and 52 (the mantissa bits of a double)"),
+            )),
+        }
+    };
+    let field = "output.significant_bits";
+    match spec {
+        None => Ok(Bits::default()),
+        Some(SignificantBits::All(b)) => Ok(Bits {
+            default: count(field.into(), *b)?,
+            by_quantity: Vec::new(),
+        }),
+        Some(SignificantBits::ByQuantity(by)) => {
+            let mut bits = Bits::default();
+            for (q, &b) in by {
+                let n = count(format!("{field}.{q}"), b)?;
+                if q == "default" {
+                    bits.default = n;
+                } else if ROUNDED_QUANTITIES.contains(&q.as_str()) {
+                    bits.by_quantity.push((q.clone(), n));
+                } else {
+                    let why = match q.as_str() {
+                        "contact_state" | "time" | "final_state" => {
+                            " (flags, sample times and the final state are never rounded)"
+                        }
+                        _ => "",
+                    };
+                    return Err(cx.err(
+                        format!("{field}.{q}"),
+                        format!(
+                            "'{q}' is not a recorded quantity{why}; one of default, {}",
+                            ROUNDED_QUANTITIES.join(", ")
+                        ),
+                    ));
+                }
+            }
+            Ok(bits)
+        }
+    }
 }
 
 /// The effects the compiled model `m` simulates; the right-hand side skips the others.
