@@ -48,6 +48,11 @@ const VERSION: &str = env!("CARGO_PKG_VERSION");
     about = "Nonlinear dynamics of mechanisms with joint clearance"
 )]
 struct Cli {
+    /// The oldest HDF5 library the files written must open in: 1.10 (default; smaller files:
+    /// chunk indexes and object headers of the 1.10 format) or 1.8 (the oldest format).
+    #[arg(long, global = true, value_name = "VERSION", default_value = "1.10",
+          value_parser = ["1.10", "1.8"])]
+    hdf5_format: String,
     #[command(subcommand)]
     command: Command,
 }
@@ -201,6 +206,10 @@ enum Command {
 
 fn main() {
     let cli = Cli::parse();
+    jointplay_analysis::h5::set_format(match cli.hdf5_format.as_str() {
+        "1.8" => jointplay_analysis::h5::Format::V18,
+        _ => jointplay_analysis::h5::Format::V110,
+    });
     if let Err(e) = threads_from_slurm() {
         eprintln!("error: {e:#}");
         std::process::exit(1);

@@ -355,8 +355,40 @@ pub(crate) struct PartialFile {
     path: PathBuf,
 }
 
+/// The oldest HDF5 library the files written must open in (`jointplay --hdf5-format`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Format {
+    /// The oldest format: readable by HDF5 1.8 (and, for these files, 1.6).
+    V18,
+    /// The 1.10 format (the default): a dataset of one chunk stores it without an index, a fixed
+    /// or growing one indexes its chunks with a fixed or extensible array instead of a B-tree, and
+    /// object headers are smaller. About 0.5 KiB of metadata per dataset instead of 3.2 KiB
+    /// (a study of 4 cases has some 700 datasets).
+    V110,
+}
+
+/// [`Format`] of the files [`PartialFile::create`] makes: 0 for 1.10, 1 for 1.8.
+static FORMAT: std::sync::atomic::AtomicU8 = std::sync::atomic::AtomicU8::new(0);
+
+/// Sets the [`Format`] of every file written from now on, in this process.
+pub fn set_format(format: Format) {
+    let v = match format {
+        Format::V110 => 0,
+        Format::V18 => 1,
+    };
+    FORMAT.store(v, std::sync::atomic::Ordering::Relaxed);
+}
+
+/// The [`Format`] files are written in.
+pub fn format() -> Format {
+    match FORMAT.load(std::sync::atomic::Ordering::Relaxed) {
+        0 => Format::V110,
+        _ => Format::V18,
+    }
+}
+
 impl PartialFile {
-    /// Creates `dir/<name>.h5.partial` with the program's root attributes.
+    /// Creates `dir/<name>.h5.partial` in the [`format`] set, with the program's root attributes.
     pub fn create(dir: &Path, name: &str, program_version: &str) -> Result<PartialFile> {
         std::fs::create_dir_all(dir).map_err(|e| Error::Io {
             file: dir.to_path_buf(),
@@ -364,7 +396,13 @@ impl PartialFile {
         })?;
         let path = dir.join(format!("{name}.h5"));
         let partial = dir.join(format!("{name}.h5.partial"));
-        let file = hdf5::File::create(&partial).map_err(h5err(&partial))?;
+        let file = hdf5::File::with_options()
+            .with_fapl(|p| match format() {
+                Format::V110 => p.libver_v110(),
+                Format::V18 => p.libver_earliest(),
+            })
+            .create(&partial)
+            .map_err(h5err(&partial))?;
         let out = PartialFile {
             file,
             partial,
