@@ -22,6 +22,10 @@
 //! ([`crate::bitround::round`], chunk by chunk, so no rounded copy of a whole recording is made),
 //! or a flag as one byte.
 //!
+//! **The chunks** hold `chunk_rows` samples of one column of a dataset (the first dimension
+//! extendable, the second, if any, of the dataset's width): the column's bytes regrouped by the
+//! shuffle compress better than rows of several quantities' components interleaved.
+//!
 //! **The shuffle** (HDF5's `H5Z_FILTER_SHUFFLE`, `H5Zshuffle.c`): the `n` elements of `s`
 //! bytes each of a chunk are regrouped by byte: output byte `j n + i` is byte `j` of element
 //! `i` (in the file's byte order, here the machine's, as the datasets are created with the
@@ -56,9 +60,11 @@ impl Store {
     }
 }
 
-/// One chunk, ready for the file: its first row, the filter mask and the stored bytes.
+/// One chunk, ready for the file: its first row and its column, the filter mask and the stored
+/// bytes.
 struct Packed {
     row: usize,
+    col: usize,
     mask: u32,
     bytes: Vec<u8>,
 }
@@ -94,7 +100,8 @@ fn shuffle(part: &[f64], store: Store, elements: usize, scratch: &mut Vec<f64>, 
 }
 
 /// Shuffles and deflates `values` (whole rows of `width` elements, stored as `store` says) in
-/// chunks of `chunk_rows` rows, the first at row `row0` of the dataset.
+/// chunks of `chunk_rows` rows of one column, the first at row `row0` of the dataset; the
+/// chunks of each block of rows column by column.
 fn pack(values: &[f64], width: usize, chunk_rows: usize, row0: usize, store: Store) -> Vec<Packed> {
     CODER.with_borrow_mut(|kept| {
         // The coder's tables (about a megabyte) are allocated once per thread and level, not
@@ -106,31 +113,36 @@ fn pack(values: &[f64], width: usize, chunk_rows: usize, row0: usize, store: Sto
                 &mut kept.insert((DEFLATE, Compressor::new(lvl))).1
             }
         };
-        let per_chunk = chunk_rows * width.max(1);
+        let width = width.max(1);
+        let per_chunk = chunk_rows.max(1);
         // The coder's output goes to one buffer of its worst case, and only what it wrote is kept.
         let mut out = vec![0u8; coder.zlib_compress_bound(per_chunk * store.size())];
-        let (mut scratch, mut shuffled) = (Vec::new(), Vec::new());
-        values
-            .chunks(per_chunk.max(1))
-            .enumerate()
-            .map(|(k, part)| {
-                shuffle(part, store, per_chunk, &mut scratch, &mut shuffled);
-                let row = row0 + k * chunk_rows;
-                match coder.zlib_compress(&shuffled, &mut out) {
+        let (mut column, mut scratch, mut shuffled) = (Vec::new(), Vec::new(), Vec::new());
+        let mut packed = Vec::new();
+        for (k, block) in values.chunks(per_chunk * width).enumerate() {
+            let row = row0 + k * per_chunk;
+            for col in 0..width {
+                column.clear();
+                column.extend(block.iter().skip(col).step_by(width));
+                shuffle(&column, store, per_chunk, &mut scratch, &mut shuffled);
+                packed.push(match coder.zlib_compress(&shuffled, &mut out) {
                     Ok(n) if n < shuffled.len() => Packed {
                         row,
+                        col,
                         mask: 0,
                         bytes: out[..n].to_vec(),
                     },
                     // Deflate would not make it smaller (or had no room): stored shuffled only.
                     _ => Packed {
                         row,
+                        col,
                         mask: 1 << 1,
                         bytes: shuffled.clone(),
                     },
-                }
-            })
-            .collect()
+                });
+            }
+        }
+        packed
     })
 }
 
@@ -143,7 +155,7 @@ thread_local! {
 }
 
 /// A dataset's new rows for [`append_all`]: the dataset (of one or two dimensions, chunked by
-/// `chunk_rows` rows of its whole width, with the shuffle and deflate filters), the values
+/// `chunk_rows` rows of one column, with the shuffle and deflate filters), the values
 /// (whole rows of `width`) and how it stores them.
 pub(crate) struct Rows<'a> {
     pub ds: &'a hdf5::Dataset,
@@ -181,21 +193,24 @@ pub(crate) fn append_all(sets: &[Rows<'_>], row0: usize, parallel: bool) -> hdf5
     }
 }
 
-/// The dataset of `r` is of one or two dimensions, chunked by `chunk_rows` rows of its whole
-/// width, filtered by the shuffle and then deflate, and `row0` starts a chunk.
+/// The dataset of `r` is of one or two dimensions (of `r.width` columns), chunked by
+/// `chunk_rows` rows of one column, filtered by the shuffle and then deflate, and `row0` starts
+/// a chunk.
 fn check(r: &Rows<'_>, row0: usize) -> hdf5::Result<()> {
     use hdf5::filters::Filter;
     let name = r.ds.name();
     let chunk = r.ds.chunk().unwrap_or_default();
     let want = match r.ds.ndim() {
         1 if r.width == 1 => vec![r.chunk_rows],
-        2 => vec![r.chunk_rows, r.width],
+        2 if r.ds.shape().get(1) == Some(&r.width) => vec![r.chunk_rows, 1],
         _ => Vec::new(),
     };
     if want.is_empty() || chunk != want || r.chunk_rows == 0 {
         return Err(hdf5::Error::from(format!(
-            "'{name}' is chunked {chunk:?}, not by {} rows of {} values",
-            r.chunk_rows, r.width
+            "'{name}' of shape {:?} is chunked {chunk:?}, not by {} rows of one of {} columns",
+            r.ds.shape(),
+            r.chunk_rows,
+            r.width
         )));
     }
     let filters = r.ds.dcpl()?.filters();
@@ -217,7 +232,7 @@ fn check(r: &Rows<'_>, row0: usize) -> hdf5::Result<()> {
 fn write(ds: &hdf5::Dataset, chunks: &[Packed]) -> hdf5::Result<()> {
     let rank = ds.ndim();
     for c in chunks {
-        let offset = [c.row as u64, 0];
+        let offset = [c.row as u64, c.col as u64];
         // HDF5's error stack, if the write fails, is read under the same lock.
         hdf5::sync::sync(|| {
             hdf5::h5check(unsafe {
@@ -233,8 +248,9 @@ fn write(ds: &hdf5::Dataset, chunks: &[Packed]) -> hdf5::Result<()> {
         })
         .map_err(|e| {
             hdf5::Error::from(format!(
-                "could not write the chunk at row {} of '{}': {e}",
+                "could not write the chunk at row {}, column {} of '{}': {e}",
                 c.row,
+                c.col,
                 ds.name()
             ))
         })?;
@@ -261,8 +277,8 @@ mod tests {
         assert_eq!(s, vec![7, 9, 0, 0]);
     }
 
-    /// A dataset of `shape` (the first dimension extendable) chunked by `chunk`, shuffled and
-    /// deflated, of doubles or bytes.
+    /// A dataset of `[rows, width]` or `[rows]` (the first dimension extendable, `width`
+    /// columns) chunked by `rows` rows of one column, shuffled and deflated, of doubles or bytes.
     fn dataset(file: &hdf5::File, name: &str, chunk: &[usize], flags: bool) -> hdf5::Dataset {
         let shape: Vec<hdf5::Extent> = std::iter::once(hdf5::Extent::resizable(0))
             .chain(chunk[1..].iter().map(|&w| hdf5::Extent::fixed(w)))
@@ -272,7 +288,12 @@ mod tests {
         } else {
             file.new_dataset::<f64>()
         };
-        let b = b.chunk(chunk.to_vec()).shuffle().deflate(4);
+        let chunk: Vec<usize> = chunk
+            .iter()
+            .enumerate()
+            .map(|(i, &n)| if i == 0 { n } else { 1 })
+            .collect();
+        let b = b.chunk(chunk).shuffle().deflate(4);
         b.shape(shape).create(name).unwrap()
     }
 
@@ -387,5 +408,21 @@ mod tests {
         let b = file.new_dataset::<f64>().chunk(4);
         let plain = b.shape(hdf5::Extent::resizable(0)).create("plain").unwrap();
         refused(&plain, 4, 0);
+        // Chunks of whole rows, not of one column.
+        let b = file.new_dataset::<f64>().chunk((4, 2)).shuffle().deflate(4);
+        let rows = b
+            .shape((hdf5::Extent::resizable(0), 2))
+            .create("rows")
+            .unwrap();
+        let sets = [Rows {
+            ds: &rows,
+            values: &values,
+            width: 2,
+            chunk_rows: 4,
+            store: Store::F64(None),
+        }];
+        let err = append_all(&sets, 0, false).unwrap_err().to_string();
+        assert!(err.contains("rows") && err.contains("[4, 2]"), "{err}");
+        assert_eq!(rows.shape(), vec![0, 2], "nothing written");
     }
 }
