@@ -299,7 +299,7 @@ impl Summary {
             },
             if o.diagnostics { ", diagnostics" } else { "" },
             match o.significant_bits.describe() {
-                Some(b) => format!(", values rounded to {b} mantissa bits"),
+                Some(b) => format!(", values rounded to {b}"),
                 None => String::new(),
             }
         ));

@@ -340,21 +340,24 @@ impl Bits {
         self.default.is_some() || self.by_quantity.iter().any(|(_, b)| b.is_some())
     }
 
-    /// As `jointplay check` says it: "28", "28, reaction_force 16", "reaction_force 16"; `None`
-    /// when nothing is rounded.
+    /// As `jointplay check` says it: "28 mantissa bits", "28 mantissa bits (reaction_force 52,
+    /// velocity 20)" (52: every bit kept); `None` when nothing is rounded.
     pub fn describe(&self) -> Option<String> {
         if !self.any() {
             return None;
         }
-        let keep = |b: Option<u32>| b.map_or("all".to_string(), |b| b.to_string());
-        let mut parts: Vec<String> = self.default.iter().map(|b| b.to_string()).collect();
-        parts.extend(
-            self.by_quantity
-                .iter()
-                .filter(|(_, b)| *b != self.default)
-                .map(|(q, b)| format!("{q} {}", keep(*b))),
-        );
-        Some(parts.join(", "))
+        let count = |b: Option<u32>| b.unwrap_or(52);
+        let others: Vec<String> = self
+            .by_quantity
+            .iter()
+            .filter(|(_, b)| *b != self.default)
+            .map(|(q, b)| format!("{q} {}", count(*b)))
+            .collect();
+        let all = format!("{} mantissa bits", count(self.default));
+        Some(match others.is_empty() {
+            true => all,
+            false => format!("{all} ({})", others.join(", ")),
+        })
     }
 }
 
@@ -423,5 +426,47 @@ impl Model {
             v.push(t1);
         }
         v
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::Bits;
+
+    /// A quantity named keeps its own count (`None`: every bit), the others the default; a
+    /// quantity given the default's count is not listed again.
+    #[test]
+    fn bits_by_quantity_fall_back_to_the_default() {
+        let bits = Bits {
+            default: Some(28),
+            by_quantity: vec![
+                ("position".into(), Some(28)),
+                ("reaction_force".into(), None),
+                ("velocity".into(), Some(20)),
+            ],
+        };
+        let of = |q| bits.of(q);
+        assert_eq!(
+            (of("velocity"), of("reaction_force"), of("energy")),
+            (Some(20), None, Some(28))
+        );
+        assert_eq!(
+            bits.describe().as_deref(),
+            Some("28 mantissa bits (reaction_force 52, velocity 20)")
+        );
+        let only = Bits {
+            default: None,
+            by_quantity: vec![("force".into(), Some(16))],
+        };
+        assert_eq!((only.of("force"), only.of("position")), (Some(16), None));
+        assert_eq!(
+            only.describe().as_deref(),
+            Some("52 mantissa bits (force 16)")
+        );
+        assert_eq!(Bits::all(52).describe(), None);
+        assert_eq!(
+            Bits::all(30).describe().as_deref(),
+            Some("30 mantissa bits")
+        );
     }
 }
