@@ -1207,6 +1207,66 @@ mod tests {
         }
     }
 
+    /// Blocks that do not start a chunk (appended through HDF5's own filters) and blocks that do
+    /// (packed by the program), in any mix, give the file of the run written at its end, values
+    /// rounded by quantity included, bit for bit.
+    #[test]
+    fn blocks_appended_at_any_row_give_the_run_written_at_its_end() {
+        let (mut m, state) = model("pendulum.toml");
+        m.settings.end_time = 5.0;
+        m.outputs.significant_bits = jointplay_solver::model::Bits {
+            default: Some(24),
+            by_quantity: vec![("position".into(), None)],
+        };
+        let dir = tempfile::tempdir().unwrap();
+        let file = PathBuf::from("pendulum.toml");
+        let meta = Meta::of(&m, &file, "scene text", "test");
+        let whole = simulate(&m, state, &mut |_| {}).unwrap();
+        let a = crate::h5::write_run(&dir.path().join("a"), &meta, &whole).unwrap();
+        let rec = &whole.recording;
+        let n = rec.time.len();
+        let mut writer = RunWriter::create(&dir.path().join("b"), &meta, rec).unwrap();
+        // Rows 0-999 (packed), 1000-2047 (filters, ends at a chunk), 2048-4095 (packed),
+        // 4096-4999 (packed, a partial chunk), 5000 (filters).
+        for (from, to) in [
+            (0, 1000),
+            (1000, 2048),
+            (2048, 4096),
+            (4096, 5000),
+            (5000, n),
+        ] {
+            let mut block = rec.clone();
+            block.time = rec.time[from..to].to_vec();
+            for (c, full) in block.channels.iter_mut().zip(&rec.channels) {
+                let w = c.width();
+                c.values = full.values[from * w..to * w].to_vec();
+            }
+            assert_eq!(writer.rows(), from);
+            writer.append(&block, from == 4096).unwrap();
+        }
+        let b = writer.finish(&meta, &whole).unwrap();
+        let read = |p: &Path| {
+            let f = hdf5::File::open(p).unwrap();
+            let mut d = Vec::new();
+            datasets(&f, "", &mut d);
+            d.sort_by(|x, y| x.0.cmp(&y.0));
+            d
+        };
+        let (da, db) = (read(&a), read(&b));
+        assert_eq!(da.len(), db.len());
+        assert!(
+            da.iter()
+                .any(|d| d.0 == "bodies/bob/velocity" && d.1 == [n, 3])
+        );
+        for ((na, sa, va), (nb, sb, vb)) in da.iter().zip(&db) {
+            assert_eq!((na, sa), (nb, sb));
+            assert!(
+                va.iter().zip(vb).all(|(x, y)| x.to_bits() == y.to_bits()),
+                "{na} differs"
+            );
+        }
+    }
+
     /// A run written while it goes, over several appended blocks, holds the datasets (names,
     /// shapes, values bit for bit) and the attributes of the same run written at its end; what
     /// it keeps in memory is every `stride`-th sample of the figures' datasets.
