@@ -938,6 +938,7 @@ fn slurm_cmd(study: &Path, out: &Path, o: SlurmOptions, submit: bool) -> Result<
         mem: o.mem,
         max_running: o.max_running,
         version: VERSION.into(),
+        hdf5_format: jointplay_analysis::h5::format(),
     };
     b.check().map_err(|m| anyhow::anyhow!("{m}"))?;
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;

@@ -31,6 +31,9 @@ pub struct Batch {
     pub max_running: Option<usize>,
     /// The program version, for the header.
     pub version: String,
+    /// The format the jobs write their files in (`jointplay --hdf5-format`), passed on to
+    /// every command.
+    pub hdf5_format: crate::h5::Format,
 }
 
 /// Quotes `s` for bash (single quotes).
@@ -169,12 +172,22 @@ impl Batch {
         ));
         l.push("set -euo pipefail".into());
         l.push(format!(
-            "exec {} run {} --out {} --shard \"$SLURM_ARRAY_TASK_ID/{n}\" --resume --quiet",
+            "exec {}{} run {} --out {} --shard \"$SLURM_ARRAY_TASK_ID/{n}\" --resume --quiet",
             path(&self.program),
+            self.format_option(),
             path(&self.study),
             path(&self.out)
         ));
         l.join("\n") + "\n"
+    }
+
+    /// ` --hdf5-format 1.8` when the files are to be written in the oldest format, else nothing
+    /// (the program's default, 1.10).
+    fn format_option(&self) -> &'static str {
+        match self.hdf5_format {
+            crate::h5::Format::V18 => " --hdf5-format 1.8",
+            crate::h5::Format::V110 => "",
+        }
     }
 
     /// The merge job's script.
@@ -213,8 +226,9 @@ impl Batch {
         ));
         l.push("set -euo pipefail".into());
         l.push(format!(
-            "exec {} merge {}/{}.shard-*-of-{n}.h5 --out {}",
+            "exec {}{} merge {}/{}.shard-*-of-{n}.h5 --out {}",
             path(&self.program),
+            self.format_option(),
             path(&self.out),
             self.name,
             path(&self.merged_file())
@@ -242,6 +256,7 @@ mod tests {
             mem: None,
             max_running: Some(5),
             version: "0.1.0".into(),
+            hdf5_format: crate::h5::Format::V110,
         }
     }
 
@@ -275,6 +290,22 @@ mod tests {
         assert!(
             s.contains("#SBATCH --job-name=duffing-cascade-merge"),
             "{s}"
+        );
+    }
+
+    /// Files asked for in the oldest HDF5 format are written so by every job, the merge included.
+    #[test]
+    fn the_jobs_keep_the_hdf5_format_asked_for() {
+        let mut b = batch();
+        b.hdf5_format = crate::h5::Format::V18;
+        let (array, merge) = (b.array_script(), b.merge_script());
+        assert!(
+            array.contains("exec /opt/jp/bin/jointplay --hdf5-format 1.8 run "),
+            "{array}"
+        );
+        assert!(
+            merge.contains("exec /opt/jp/bin/jointplay --hdf5-format 1.8 merge "),
+            "{merge}"
         );
     }
 

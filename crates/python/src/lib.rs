@@ -1316,6 +1316,24 @@ fn run_study(
 }
 
 /// jointplay: nonlinear dynamics of mechanisms whose joints have clearance.
+/// Sets the HDF5 format of every file written from now on in this process: ``"1.10"`` (the
+/// default; smaller files, read by HDF5 1.10 and later) or ``"1.8"`` (the oldest format, for
+/// readers built on HDF5 1.8), as the program's ``--hdf5-format``. The values are the same.
+#[pyfunction]
+fn set_hdf5_format(version: &str) -> PyResult<()> {
+    let format = match version {
+        "1.10" => jointplay_analysis::h5::Format::V110,
+        "1.8" => jointplay_analysis::h5::Format::V18,
+        other => {
+            return Err(err(format!(
+                "hdf5 format '{other}': one of \"1.10\" (the default) or \"1.8\""
+            )));
+        }
+    };
+    jointplay_analysis::h5::set_format(format);
+    Ok(())
+}
+
 #[pymodule]
 fn _jointplay(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", VERSION)?;
@@ -1328,5 +1346,6 @@ fn _jointplay(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(load_scene, m)?)?;
     m.add_function(wrap_pyfunction!(load, m)?)?;
     m.add_function(wrap_pyfunction!(run_study, m)?)?;
+    m.add_function(wrap_pyfunction!(set_hdf5_format, m)?)?;
     Ok(())
 }

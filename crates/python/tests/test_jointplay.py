@@ -141,6 +141,25 @@ def test_significant_bits_by_quantity_round_each_dataset_to_its_own_bits(tmp_pat
         assert 0 < rel.max() <= 2.0 ** -(bits + 1), name
 
 
+def test_files_are_written_in_the_hdf5_format_asked_for(tmp_path):
+    """`set_hdf5_format`: the superblock's version (the byte after the signature) is 3 in the
+    1.10 format, 0 in the oldest; the values are the same."""
+    scene = jointplay.load_scene(SCENES / "pendulum.toml")
+    scene["solver.end_time"] = 1.0
+    run = scene.run(progress=False)
+    try:
+        jointplay.set_hdf5_format("1.8")
+        old = run.write(tmp_path / "old")
+    finally:
+        jointplay.set_hdf5_format("1.10")
+    new = run.write(tmp_path / "new")
+    assert (pathlib.Path(new).read_bytes()[8], pathlib.Path(old).read_bytes()[8]) == (3, 0)
+    assert np.array_equal(jointplay.load(old)["bodies/bob/position"],
+                          jointplay.load(new)["bodies/bob/position"])
+    with pytest.raises(jointplay.JointplayError, match="1.6"):
+        jointplay.set_hdf5_format("1.6")
+
+
 def test_errors_name_the_path():
     scene = jointplay.load_scene(SCENES / "pendulum.toml")
     with pytest.raises(KeyError, match="joints.nope.kind: no element 'nope'"):

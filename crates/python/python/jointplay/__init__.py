@@ -9,7 +9,8 @@ The package is the jointplay program's own Rust code (not a wrapper around the c
   written to the usual HDF5 file by ``run.write(out)``;
 * ``run_study(path_or_text, out=..., threads=..., progress=True)``: comparison, analysis (sweep)
   and work-precision studies, returning the HDF5 file loaded as a ``StudyResult``;
-* ``load(path)``: any HDF5 file jointplay writes, dataset by dataset as numpy arrays.
+* ``load(path)``: any HDF5 file jointplay writes, dataset by dataset as numpy arrays;
+* ``set_hdf5_format("1.8")``: files from then on in the oldest HDF5 format (default ``"1.10"``).
 
 All quantities are SI: m, kg, s, rad, N, N m, J. Errors raise ``JointplayError`` with the
 program's message (file, field or path, value, time). Long runs release the GIL and show a
@@ -28,6 +29,7 @@ from ._jointplay import (
     load,
     load_scene,
     run_study,
+    set_hdf5_format,
 )
 
 __all__ = [
@@ -41,4 +43,5 @@ __all__ = [
     "load",
     "load_scene",
     "run_study",
+    "set_hdf5_format",
 ]

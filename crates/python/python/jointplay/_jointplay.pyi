@@ -158,3 +158,5 @@ def run_study(
     ``--max-jobs`` (sweep values, or a continuation's points). ``plots``: draw the figures. A
     ``[continuation]`` is followed after the analysis, into the same file. A failed case or value raises
     ``JointplayError`` after the file is written. Ctrl-C raises ``Interrupted``."""
+
+def set_hdf5_format(version: str) -> None: ...
