@@ -112,7 +112,8 @@ def main():
     ap.add_argument("--bits", default="44,36,30,28,26,23,20,18,16")
     ap.add_argument("--by-quantity", default=BY_QUANTITY)
     args = ap.parse_args()
-    settings = [None] + [int(b) for b in args.bits.split(",") if b] + [args.by_quantity]
+    settings = ([None] + [int(b) for b in args.bits.split(",") if b]
+                + ([args.by_quantity] if args.by_quantity.strip() else []))
     scene = os.path.join(ROOT, "data/scenes/4ups-rpu-mixed.toml")
     study = os.path.join(ROOT, "analyses/4ups-rpu/clearance-size.toml")
     with open(scene) as f:

@@ -286,6 +286,44 @@ fn shards_run_as_separate_processes_merge_into_the_single_process_file() {
     assert_same(&single, &merged2);
 }
 
+/// A sweep's file, its shards and their merge are written in the HDF5 format asked for: the
+/// superblock's version (the byte after the signature) is 3 in the 1.10 format (the default),
+/// 0 in the oldest (`--hdf5-format 1.8`); the merged file of 1.8 shards equals the 1.10 one.
+#[test]
+fn sweeps_shards_and_merges_keep_the_hdf5_format_asked_for() {
+    let s = Setup::new(SWEEP);
+    let superblock = |p: &Path| std::fs::read(p).unwrap()[8];
+    s.run("new", &[]);
+    let new = s.path("new").join(format!("{NAME}.h5"));
+    assert_eq!(superblock(&new), 3);
+    let mut files = Vec::new();
+    for i in 0..2 {
+        let o = bin()
+            .args(["--hdf5-format", "1.8", "run"])
+            .arg(&s.study)
+            .arg("--out")
+            .arg(s.path("old"))
+            .args(["-q", "--no-plots", "--shard", &format!("{i}/2")])
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{:?}", text(&o));
+        files.push(s.shard("old", i, 2));
+        assert_eq!(superblock(&files[i]), 0);
+    }
+    let merged = s.path("old").join(format!("{NAME}.h5"));
+    let o = bin()
+        .args(["--hdf5-format", "1.8", "merge"])
+        .args(&files)
+        .arg("--out")
+        .arg(&merged)
+        .arg("--no-plots")
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{:?}", text(&o));
+    assert_eq!(superblock(&merged), 0);
+    assert_same(&new, &merged);
+}
+
 #[test]
 fn a_merge_with_a_shard_missing_or_of_another_study_refuses() {
     let s = Setup::new(SWEEP);

@@ -422,7 +422,7 @@ mod tests {
             store: Store::F64(None),
         }];
         let err = append_all(&sets, 0, false).unwrap_err().to_string();
-        assert!(err.contains("rows") && err.contains("[4, 2]"), "{err}");
+        assert!(err.contains("'/rows'") && err.contains("[4, 2]"), "{err}");
         assert_eq!(rows.shape(), vec![0, 2], "nothing written");
     }
 }

@@ -1909,7 +1909,7 @@ pub(crate) fn create_sweep_file(
     let l = layout;
     let n = jobs.len();
     let (kept, hl) = (l.kept, l.history);
-    let file = hdf5::File::create(path).map_err(&e)?;
+    let file = crate::h5::create_file(path).map_err(&e)?;
     (|| -> hdf5::Result<()> {
         str_attr(&file, "program", "jointplay")?;
         str_attr(&file, "program_version", version)?;

@@ -1208,8 +1208,8 @@ mod tests {
     }
 
     /// Blocks that do not start a chunk (appended through HDF5's own filters) and blocks that do
-    /// (packed by the program), in any mix, give the file of the run written at its end, values
-    /// rounded by quantity included, bit for bit.
+    /// (packed by the program), in any mix, give the datasets of the run written at its end
+    /// (names, shapes, values bit for bit), values rounded by quantity included.
     #[test]
     fn blocks_appended_at_any_row_give_the_run_written_at_its_end() {
         let (mut m, state) = model("pendulum.toml");

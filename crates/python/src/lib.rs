@@ -1315,7 +1315,6 @@ fn run_study(
     }
 }
 
-/// jointplay: nonlinear dynamics of mechanisms whose joints have clearance.
 /// Sets the HDF5 format of every file written from now on in this process: ``"1.10"`` (the
 /// default; smaller files, read by HDF5 1.10 and later) or ``"1.8"`` (the oldest format, for
 /// readers built on HDF5 1.8), as the program's ``--hdf5-format``. The values are the same.
@@ -1334,6 +1333,7 @@ fn set_hdf5_format(version: &str) -> PyResult<()> {
     Ok(())
 }
 
+/// jointplay: nonlinear dynamics of mechanisms whose joints have clearance.
 #[pymodule]
 fn _jointplay(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add("__version__", VERSION)?;

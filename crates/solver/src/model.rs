@@ -341,7 +341,8 @@ impl Bits {
     }
 
     /// As `jointplay check` says it: "28 mantissa bits", "28 mantissa bits (reaction_force 52,
-    /// velocity 20)" (52: every bit kept); `None` when nothing is rounded.
+    /// velocity 20)" (52: every bit kept), "force 16 mantissa bits (the others every bit)";
+    /// `None` when nothing is rounded.
     pub fn describe(&self) -> Option<String> {
         if !self.any() {
             return None;
@@ -353,10 +354,10 @@ impl Bits {
             .filter(|(_, b)| *b != self.default)
             .map(|(q, b)| format!("{q} {}", count(*b)))
             .collect();
-        let all = format!("{} mantissa bits", count(self.default));
-        Some(match others.is_empty() {
-            true => all,
-            false => format!("{all} ({})", others.join(", ")),
+        Some(match (self.default, others.is_empty()) {
+            (Some(d), true) => format!("{d} mantissa bits"),
+            (Some(d), false) => format!("{d} mantissa bits ({})", others.join(", ")),
+            (None, _) => format!("{} mantissa bits (the others every bit)", others.join(", ")),
         })
     }
 }
@@ -461,7 +462,7 @@ mod tests {
         assert_eq!((only.of("force"), only.of("position")), (Some(16), None));
         assert_eq!(
             only.describe().as_deref(),
-            Some("52 mantissa bits (force 16)")
+            Some("force 16 mantissa bits (the others every bit)")
         );
         assert_eq!(Bits::all(52).describe(), None);
         assert_eq!(

@@ -159,4 +159,7 @@ def run_study(
     ``[continuation]`` is followed after the analysis, into the same file. A failed case or value raises
     ``JointplayError`` after the file is written. Ctrl-C raises ``Interrupted``."""
 
-def set_hdf5_format(version: str) -> None: ...
+def set_hdf5_format(version: str) -> None:
+    """Sets the HDF5 format of every file written from now on in this process: ``"1.10"`` (the
+    default; smaller files, read by HDF5 1.10 and later) or ``"1.8"`` (the oldest format, for
+    readers built on HDF5 1.8), as the program's ``--hdf5-format``. The values are the same."""
