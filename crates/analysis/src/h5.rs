@@ -610,7 +610,7 @@ fn write_groups(g: &hdf5::Group, rec: &Recording) -> hdf5::Result<()> {
 fn write_recording(g: &hdf5::Group, rec: &Recording) -> hdf5::Result<()> {
     use crate::chunk::Store;
     write_groups(g, rec)?;
-    mark_bits(g, rec.significant_bits)?;
+    mark_bits(g, rec.significant_bits())?;
     let time = NewSet {
         name: "time",
         values: &rec.time,
@@ -818,7 +818,7 @@ impl RunWriter {
             u8_attr_set(file, "complete", 0)?;
             let time = extendable::<f64>(file, "time", 1, true, "s", "sample times")?;
             write_groups(file, rec)?;
-            mark_bits(file, rec.significant_bits)?;
+            mark_bits(file, rec.significant_bits())?;
             let sets = rec
                 .channels
                 .iter()

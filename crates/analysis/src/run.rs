@@ -134,9 +134,6 @@ pub struct Recording {
     pub groups: Vec<Group>,
     /// The recorded joints with clearance.
     pub clearances: Vec<Clearance>,
-    /// The fewest mantissa bits any channel keeps in the file ([`Channel::bits`]), marked on the
-    /// run's group; `None`: every value exact.
-    pub significant_bits: Option<u32>,
 }
 
 /// Declares the channels of a recording, group by group.
@@ -412,8 +409,13 @@ impl Recording {
                 )?;
             }
         }
-        d.rec.significant_bits = d.rec.channels.iter().filter_map(|c| c.bits).min();
         Ok(d.rec)
+    }
+
+    /// The fewest mantissa bits any channel keeps in the file ([`Channel::bits`]), marked on the
+    /// run's group; `None`: every value exact.
+    pub fn significant_bits(&self) -> Option<u32> {
+        self.channels.iter().filter_map(|c| c.bits).min()
     }
 
     /// The channel written to `dataset` (e.g. `bodies/bob/position`), if recorded.
@@ -1381,12 +1383,11 @@ mod tests {
         let file = PathBuf::from("pendulum.toml");
         let meta = Meta::of(&m, &file, "scene text", "test");
         let whole = simulate(&m, state.clone(), &mut |_| {}).unwrap();
-        assert_eq!(whole.recording.significant_bits, Some(16));
+        assert_eq!(whole.recording.significant_bits(), Some(16));
         let a = crate::h5::write_run(&dir.path().join("a"), &meta, &whole).unwrap();
         let (_, w) =
             simulate_to_file(&m, state, &mut |_| {}, &dir.path().join("b"), &meta).unwrap();
         let mut exact = whole.clone();
-        exact.recording.significant_bits = None;
         for c in &mut exact.recording.channels {
             c.bits = None;
         }
