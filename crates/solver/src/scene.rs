@@ -583,15 +583,10 @@ impl<'de> Deserialize<'de> for SignificantBits {
             }
             fn visit_map<A: serde::de::MapAccess<'de>>(
                 self,
-                mut map: A,
+                map: A,
             ) -> std::result::Result<Self::Value, A::Error> {
-                let mut by = BTreeMap::new();
-                while let Some(k) = map.next_key::<String>()? {
-                    let v = map.next_value::<i64>()?;
-                    if by.insert(k.clone(), v).is_some() {
-                        return Err(serde::de::Error::custom(format!("'{k}' given twice")));
-                    }
-                }
+                // A key given twice is refused by the TOML parser before this.
+                let by = BTreeMap::deserialize(serde::de::value::MapAccessDeserializer::new(map))?;
                 Ok(SignificantBits::ByQuantity(by))
             }
         }
