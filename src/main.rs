@@ -50,9 +50,8 @@ const VERSION: &str = env!("CARGO_PKG_VERSION");
 struct Cli {
     /// The oldest HDF5 library the files written must open in: 1.10 (default; smaller files:
     /// chunk indexes and object headers of the 1.10 format) or 1.8 (the oldest format).
-    #[arg(long, global = true, value_name = "VERSION", default_value = "1.10",
-          value_parser = ["1.10", "1.8"])]
-    hdf5_format: String,
+    #[arg(long, global = true, value_name = "VERSION", default_value = "1.10")]
+    hdf5_format: jointplay_analysis::h5::Format,
     #[command(subcommand)]
     command: Command,
 }
@@ -206,10 +205,7 @@ enum Command {
 
 fn main() {
     let cli = Cli::parse();
-    jointplay_analysis::h5::set_format(match cli.hdf5_format.as_str() {
-        "1.8" => jointplay_analysis::h5::Format::V18,
-        _ => jointplay_analysis::h5::Format::V110,
-    });
+    jointplay_analysis::h5::set_format(cli.hdf5_format);
     if let Err(e) = threads_from_slurm() {
         eprintln!("error: {e:#}");
         std::process::exit(1);

@@ -382,6 +382,21 @@ pub enum Format {
     V110,
 }
 
+impl std::str::FromStr for Format {
+    type Err = String;
+
+    /// "1.10" or "1.8", as `--hdf5-format` and Python's `set_hdf5_format` take it.
+    fn from_str(s: &str) -> std::result::Result<Format, String> {
+        match s {
+            "1.10" => Ok(Format::V110),
+            "1.8" => Ok(Format::V18),
+            other => Err(format!(
+                "hdf5 format '{other}': one of \"1.10\" (the default) or \"1.8\""
+            )),
+        }
+    }
+}
+
 /// [`Format`] of the files [`create_file`] makes: 0 for 1.10, 1 for 1.8.
 static FORMAT: std::sync::atomic::AtomicU8 = std::sync::atomic::AtomicU8::new(0);
 

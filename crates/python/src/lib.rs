@@ -1320,16 +1320,7 @@ fn run_study(
 /// readers built on HDF5 1.8), as the program's ``--hdf5-format``. The values are the same.
 #[pyfunction]
 fn set_hdf5_format(version: &str) -> PyResult<()> {
-    let format = match version {
-        "1.10" => jointplay_analysis::h5::Format::V110,
-        "1.8" => jointplay_analysis::h5::Format::V18,
-        other => {
-            return Err(err(format!(
-                "hdf5 format '{other}': one of \"1.10\" (the default) or \"1.8\""
-            )));
-        }
-    };
-    jointplay_analysis::h5::set_format(format);
+    jointplay_analysis::h5::set_format(version.parse().map_err(err)?);
     Ok(())
 }
 
