@@ -469,6 +469,34 @@ impl Recording {
         Ok(())
     }
 
+    /// Evaluates the model's accelerations and multipliers at `(t, y)` in `ws` (which holds the
+    /// contacts' onset history), then every channel ([`Recording::sample`]); a sample that fails
+    /// is dropped whole.
+    fn sample_at(
+        &mut self,
+        order: &[usize],
+        model: &Model,
+        ws: &mut Workspace,
+        t: f64,
+        y: &[f64],
+    ) -> Result<()> {
+        model.accelerations(t, y, ws);
+        let n = self.time.len();
+        let sampled = self.sample(order, model, ws, t, y);
+        if sampled.is_err() {
+            self.truncate(n);
+        }
+        sampled
+    }
+
+    /// Appends the samples of `other`, a recording of the same channels.
+    fn extend(&mut self, other: &Recording) {
+        self.time.extend_from_slice(&other.time);
+        for (c, o) in self.channels.iter_mut().zip(&other.channels) {
+            c.values.extend_from_slice(&o.values);
+        }
+    }
+
     /// Keeps the first `n` samples of every channel.
     fn truncate(&mut self, n: usize) {
         self.time.truncate(n);
@@ -498,6 +526,17 @@ impl std::fmt::Display for Stopped {
 }
 
 impl Stopped {
+    /// Where and why `e` stopped the run; `fallback_time` when it names no time.
+    fn of(e: &crate::Error, fallback_time: f64) -> Stopped {
+        match e {
+            crate::Error::Solver(se) => Stopped::from_error(se, fallback_time),
+            other => Stopped {
+                time: fallback_time,
+                message: other.to_string(),
+            },
+        }
+    }
+
     fn from_error(e: &jointplay_solver::Error, fallback_time: f64) -> Stopped {
         match e {
             jointplay_solver::Error::Diverged { time, message } => Stopped {
@@ -600,111 +639,68 @@ pub struct Written {
     pub stride: usize,
 }
 
-/// Where a streamed run's samples go: the file, and every `stride`-th sample of the channels
-/// the figures draw into `thin`.
-///
-/// The file is written by a thread of its own: the integration hands each block of
-/// [`STREAM_ROWS`] samples over a channel that holds at most one waiting block and goes on while
-/// the writer shuffles, deflates and appends the one before (with zlib, the compression took
-/// about a quarter of a single run's time on the 4-UPS/RPU when done in line; libdeflate, in
-/// [`crate::chunk`], takes half as long). The last block, which the integration no longer runs
-/// beside, is compressed by every thread of rayon's pool. At most four blocks are
-/// held at once: the one filling, one handed over while the channel is full, the one waiting and
-/// the one being written. The writer hands each written block back, emptied, and the integration
-/// fills it again: on the 10 s bench run of the mixed 4-UPS/RPU this made the integration 2 %
-/// faster than copying every block into a new allocation (whose pages the kernel had to fault
-/// in), with the same peak memory.
-struct Stream {
-    /// The blocks for the writer thread; `None` once closed.
-    tx: Option<mpsc::SyncSender<(Recording, bool)>>,
-    /// The writer thread, which gives its writer back with the first error it met.
-    thread: Option<std::thread::JoinHandle<(RunWriter, Result<()>)>>,
-    /// Blocks the writer has written, handed back emptied to be filled again: their memory is
-    /// reused instead of a new block's being allocated (and its pages faulted in) every time.
-    spare: mpsc::Receiver<Recording>,
-    /// The partial file, for the error of a writer thread that panicked.
-    partial: PathBuf,
-    /// Samples handed to the writer.
-    rows: usize,
+/// The states of a block of samples, read on the integrator's dense output: what the writer
+/// thread evaluates the recorded quantities from.
+#[derive(Debug, Default)]
+struct States {
+    time: Vec<f64>,
+    /// The continuous state at each sample, one after the other.
+    y: Vec<f64>,
+    /// The contact-onset history at each sample (the approach velocities the contact laws with
+    /// hysteresis damping read), one after the other; empty for a model without contacts.
+    onset: Vec<f64>,
+}
+
+impl States {
+    fn clear(&mut self) {
+        self.time.clear();
+        self.y.clear();
+        self.onset.clear();
+    }
+}
+
+/// What a streamed run keeps besides its file: every `stride`-th sample of the channels the
+/// figures draw, and the largest constraint and velocity drift.
+struct Kept {
     thin: Recording,
     /// Per channel: kept for the figures.
     keep: Vec<bool>,
     stride: usize,
     /// The channels of the constraint and velocity drift, and their largest values so far.
     drift: Option<([usize; 2], [f64; 2])>,
+    /// Samples seen.
+    rows: usize,
 }
 
-impl Stream {
-    fn new(writer: RunWriter, rec: &Recording) -> Stream {
+impl Kept {
+    fn new(rec: &Recording) -> Kept {
         let mut thin = rec.clone();
+        thin.truncate(0);
+        for c in &mut thin.channels {
+            c.values = Vec::new();
+        }
         let keep = rec
             .channels
             .iter()
             .map(|c| crate::figures::run::drawn(&c.dataset))
             .collect();
-        for c in &mut thin.channels {
-            c.values = Vec::new();
-        }
         let at = |d: &str| rec.channels.iter().position(|c| c.dataset == d);
         let drift = at("diagnostics/constraint_drift")
             .zip(at("diagnostics/velocity_drift"))
             .map(|(p, v)| ([p, v], [0.0; 2]));
-        let partial = writer.partial().to_path_buf();
-        let (tx, rx) = mpsc::sync_channel::<(Recording, bool)>(1);
-        // Room for every block there can be, so that handing one back never waits.
-        let (back, spare) = mpsc::sync_channel::<Recording>(3);
-        let thread = std::thread::spawn(move || {
-            let mut writer = writer;
-            for (mut block, last) in rx {
-                if let Err(e) = writer.append(&block, last) {
-                    return (writer, Err(e));
-                }
-                block.truncate(0);
-                // Nobody to take it back once the run is over.
-                let _ = back.try_send(block);
-            }
-            (writer, Ok(()))
-        });
-        Stream {
-            tx: Some(tx),
-            thread: Some(thread),
-            spare,
-            partial,
-            rows: 0,
+        Kept {
             thin,
             keep,
             stride: 1,
             drift,
+            rows: 0,
         }
     }
 
-    /// Waits for the writer thread to write every block handed to it and returns the writer;
-    /// on the thread's error the partial file is removed and the error returned. `None` when
-    /// already closed.
-    fn close(&mut self) -> Option<Result<RunWriter>> {
-        self.tx = None;
-        let thread = self.thread.take()?;
-        Some(match thread.join() {
-            Ok((writer, Ok(()))) => Ok(writer),
-            Ok((writer, Err(e))) => {
-                writer.discard();
-                Err(e)
-            }
-            Err(_) => Err(crate::Error::Io {
-                file: self.partial.clone(),
-                message: "the thread writing the file stopped unexpectedly".into(),
-            }),
-        })
-    }
-
-    /// Writes the samples of `rec`, keeps those of the figures and empties it; `last` for the
-    /// run's last samples, which the writer compresses with every thread of rayon's pool (the
-    /// integration is over: nothing else runs beside it).
-    fn take(&mut self, rec: &mut Recording, last: bool) -> Result<()> {
+    /// Takes in the next samples of the run.
+    fn add(&mut self, rec: &Recording) {
         let base = self.rows;
-        if rec.time.is_empty() {
-            return Ok(());
-        }
+        self.rows += rec.time.len();
         if let Some((idx, max)) = &mut self.drift {
             for (m, &i) in max.iter_mut().zip(idx.iter()) {
                 *m = rec.channels[i]
@@ -742,26 +738,203 @@ impl Stream {
             }
             self.stride *= 2;
         }
-        // The samples go to the writer; `rec` goes on in a written block's memory, or a new one.
-        let empty = match self.spare.try_recv() {
-            Ok(b) => b,
-            Err(_) => {
-                let mut b = rec.clone();
-                b.truncate(0);
-                b
-            }
+    }
+}
+
+/// The writer thread's side: evaluates the recorded quantities at the states it is handed, in a
+/// model and workspace of its own.
+struct Sampler {
+    model: Model,
+    ws: Workspace,
+    order: Vec<usize>,
+    /// The block being evaluated and written; its memory is reused from block to block.
+    block: Recording,
+}
+
+impl Sampler {
+    /// Evaluates the samples of `s` into [`Sampler::block`]: by the threads of rayon's pool,
+    /// each with a workspace of its own, when `parallel` (the run's last block, which nothing
+    /// else runs beside), in turn otherwise. The samples are independent of one another (each
+    /// carries its onset history), so the values are the same either way, bit for bit. A sample
+    /// that fails ends the block before it and gives where and why the run stops.
+    fn evaluate(&mut self, s: &States, parallel: bool) -> Option<Stopped> {
+        use rayon::prelude::*;
+        self.block.truncate(0);
+        let n = s.time.len();
+        let parts = if parallel {
+            rayon::current_num_threads().min(n)
+        } else {
+            1
         };
-        let block = std::mem::replace(rec, empty);
-        self.rows += block.time.len();
-        let sent = self.tx.as_ref().map(|tx| tx.send((block, last)).is_ok());
-        if sent == Some(true) {
-            return Ok(());
+        if parts <= 1 {
+            return sample_states(&mut self.block, &self.order, &self.model, &mut self.ws, s, 0..n);
         }
-        // The writer thread has stopped at an error (or the stream was closed).
-        match self.close() {
-            Some(Err(e)) => Err(e),
-            _ => Err(self.ended_early()),
+        let len = n.div_ceil(parts);
+        let (model, order) = (&self.model, &self.order);
+        let mut empty = self.block.clone();
+        empty.truncate(0);
+        let done: Vec<(Recording, Option<Stopped>)> = (0..parts)
+            .into_par_iter()
+            .map(|p| {
+                let mut rec = empty.clone();
+                let mut ws = Workspace::new(model);
+                let end = ((p + 1) * len).min(n);
+                let stopped = sample_states(&mut rec, order, model, &mut ws, s, p * len..end);
+                (rec, stopped)
+            })
+            .collect();
+        for (rec, stopped) in done {
+            self.block.extend(&rec);
+            if stopped.is_some() {
+                return stopped;
+            }
         }
+        None
+    }
+}
+
+/// Evaluates the samples `range` of `s` into `rec`, in turn, in `ws`; the first that fails is
+/// dropped whole and ends the evaluation, with where and why.
+fn sample_states(
+    rec: &mut Recording,
+    order: &[usize],
+    model: &Model,
+    ws: &mut Workspace,
+    s: &States,
+    range: std::ops::Range<usize>,
+) -> Option<Stopped> {
+    let dim = s.y.len() / s.time.len().max(1);
+    let contacts = s.onset.len() / s.time.len().max(1);
+    for i in range {
+        ws.onset
+            .copy_from_slice(&s.onset[i * contacts..(i + 1) * contacts]);
+        let t = s.time[i];
+        if let Err(e) = rec.sample_at(order, model, ws, t, &s.y[i * dim..(i + 1) * dim]) {
+            return Some(Stopped::of(&e, t));
+        }
+    }
+    None
+}
+
+/// How the writer thread ended: the writer, what the run keeps besides its file, and either the
+/// first error writing it or where the recorded values stopped the run ([`Sampler::evaluate`]).
+type Ended = (RunWriter, Kept, Result<Option<Stopped>>);
+
+/// Where a streamed run's samples go: the states at the sample times to a thread of their own,
+/// which evaluates the recorded quantities from them, writes them to the file and keeps every
+/// `stride`-th sample of the channels the figures draw ([`Kept`]).
+///
+/// The integration only reads the states on its dense output (and the contacts' onset history)
+/// and hands each block of [`STREAM_ROWS`] of them over a channel that holds at most one waiting
+/// block; the writer thread evaluates the recording at them (the accelerations and multipliers
+/// that forces and reactions need, then every observable: before, a sixth of the run's time on
+/// the integrating thread of the mixed 4-UPS/RPU with its 1 ms output), then shuffles,
+/// deflates ([`crate::chunk`]) and appends them, beside the integration on the other core. The
+/// last block, which the integration no longer runs beside, is evaluated and compressed by every
+/// thread of rayon's pool. The writer hands each block of states back, emptied, and the
+/// integration fills it again, so that no block's memory is allocated (and its pages faulted
+/// in) anew. A sample whose recorded value is not finite stops the run there: the writer
+/// thread writes the samples before it and ends, and the integration stops at its next block.
+struct Stream {
+    /// The blocks of states for the writer thread; `None` once closed.
+    tx: Option<mpsc::SyncSender<(States, bool)>>,
+    thread: Option<std::thread::JoinHandle<Ended>>,
+    /// Blocks of states the writer has evaluated, handed back emptied to be filled again.
+    spare: mpsc::Receiver<States>,
+    /// The block filling.
+    states: States,
+    /// The partial file, for the error of a writer thread that panicked.
+    partial: PathBuf,
+    /// Set when the writer thread was found gone before the run's end.
+    gone: bool,
+}
+
+impl Stream {
+    fn new(model: &Model, writer: RunWriter, rec: &Recording) -> Stream {
+        let mut block = rec.clone();
+        block.truncate(0);
+        let mut sampler = Sampler {
+            model: model.clone(),
+            ws: Workspace::new(model),
+            order: rec.order(),
+            block,
+        };
+        let mut kept = Kept::new(rec);
+        let partial = writer.partial().to_path_buf();
+        let (tx, rx) = mpsc::sync_channel::<(States, bool)>(1);
+        // Room for every block there can be, so that handing one back never waits.
+        let (back, spare) = mpsc::sync_channel::<States>(3);
+        let thread = std::thread::spawn(move || {
+            let mut writer = writer;
+            for (mut states, last) in rx {
+                let stopped = sampler.evaluate(&states, last);
+                kept.add(&sampler.block);
+                if let Err(e) = writer.append(&sampler.block, last) {
+                    return (writer, kept, Err(e));
+                }
+                if stopped.is_some() {
+                    return (writer, kept, Ok(stopped));
+                }
+                states.clear();
+                // Nobody to take it back once the run is over.
+                let _ = back.try_send(states);
+            }
+            (writer, kept, Ok(None))
+        });
+        Stream {
+            tx: Some(tx),
+            thread: Some(thread),
+            spare,
+            states: States::default(),
+            partial,
+            gone: false,
+        }
+    }
+
+    /// Adds the sample at `t`, state `y`, with the contacts' onset history `onset`, and hands
+    /// the block over when it is full. False when the writer thread is gone (at an error, or
+    /// where the recorded values stopped the run: [`Stream::close`] says which).
+    fn push(&mut self, t: f64, y: &[f64], onset: &[f64]) -> bool {
+        self.states.time.push(t);
+        self.states.y.extend_from_slice(y);
+        self.states.onset.extend_from_slice(onset);
+        self.states.time.len() < STREAM_ROWS || self.send(false)
+    }
+
+    /// Hands the block over (`last`: the run's last samples); false when the writer thread is
+    /// gone.
+    fn send(&mut self, last: bool) -> bool {
+        if self.gone {
+            return false;
+        }
+        let empty = self.spare.try_recv().unwrap_or_default();
+        let block = std::mem::replace(&mut self.states, empty);
+        let sent = self
+            .tx
+            .as_ref()
+            .is_some_and(|tx| tx.send((block, last)).is_ok());
+        self.gone = !sent;
+        sent
+    }
+
+    /// Waits for the writer thread to write every block handed to it and returns the writer,
+    /// what the run keeps and where the recorded values stopped the run, if they did; on the
+    /// thread's error the partial file is removed and the error returned. `None` when already
+    /// closed.
+    fn close(&mut self) -> Option<Result<(RunWriter, Kept, Option<Stopped>)>> {
+        self.tx = None;
+        let thread = self.thread.take()?;
+        Some(match thread.join() {
+            Ok((writer, kept, Ok(stopped))) => Ok((writer, kept, stopped)),
+            Ok((writer, _, Err(e))) => {
+                writer.discard();
+                Err(e)
+            }
+            Err(_) => Err(crate::Error::Io {
+                file: self.partial.clone(),
+                message: "the thread writing the file stopped unexpectedly".into(),
+            }),
+        })
     }
 
     /// The error of a writer that is gone before the run's end without an error of its own.
@@ -819,7 +992,7 @@ fn stream(
 ) -> Result<(RunResult, Written)> {
     let rec = Recording::of(model)?;
     let writer = RunWriter::create(dir, meta, &rec)?;
-    let mut sink = Stream::new(writer, &rec);
+    let mut sink = Stream::new(model, writer, &rec);
     let res = record(
         model,
         state,
@@ -829,10 +1002,10 @@ fn stream(
         Some(&mut sink),
     );
     let closed = sink.close();
-    let (run, writer) = match (res, closed) {
-        (Ok(run), Some(Ok(writer))) => (run, writer),
+    let (run, writer, kept, stopped) = match (res, closed) {
+        (Ok(run), Some(Ok((writer, kept, stopped)))) => (run, writer, kept, stopped),
         (Err(e), closed) => {
-            if let Some(Ok(writer)) = closed {
+            if let Some(Ok((writer, ..))) = closed {
                 writer.discard();
             }
             return Err(e);
@@ -840,15 +1013,26 @@ fn stream(
         (Ok(_), Some(Err(e))) => return Err(e),
         (Ok(_), None) => return Err(sink.ended_early()),
     };
-    let Stream {
+    // Where the recorded values stopped the run comes first: the integration went on past it
+    // until it learnt of it.
+    let stopped = match (stopped, sink.gone) {
+        (Some(s), _) => Some(s),
+        (None, false) => run.stopped,
+        (None, true) => {
+            writer.discard();
+            return Err(sink.ended_early());
+        }
+    };
+    let samples = writer.rows();
+    let Kept {
         thin,
         stride,
         drift,
         ..
-    } = sink;
-    let samples = writer.rows();
+    } = kept;
     let run = RunResult {
         recording: thin,
+        stopped,
         ..run
     };
     let path = writer.finish(meta, &run)?;
@@ -908,8 +1092,9 @@ fn resumable(model: &Model, state: &HybridState) -> Result<AssemblyReport> {
 }
 
 /// Integrates `model` from the hybrid state `state` to the end time and records the outputs at
-/// the sample times from `state.t` on; with a `sink`, every [`STREAM_ROWS`] samples and those
-/// left at the end go to it (an error writing them is returned as such).
+/// the sample times from `state.t` on; with a `sink`, the states at the sample times go to it
+/// instead, to be evaluated and written by its thread (whose end, early or not, the caller
+/// learns from [`Stream::close`]).
 fn record(
     model: &Model,
     mut state: HybridState,
@@ -924,20 +1109,20 @@ fn record(
     let order = rec.order();
     let (t0, t1) = (state.t, model.settings.end_time);
     let mut failure = None;
-    let mut write_failure = None;
-    // Outputs are evaluated with the system's own workspace, so that they see its contact history.
+    // Outputs are evaluated with the system's own workspace, so that they see its contact
+    // history; a sink is handed the history with each state.
     let mut observe = |sys: &mut Mechanism, t: f64, y: &[f64]| -> Result<()> {
         if stop.requested() {
             return Err(crate::Error::Interrupted { time: Some(t) });
         }
-        model.accelerations(t, y, &mut sys.ws);
-        rec.sample(&order, model, &mut sys.ws, t, y)?;
-        if let Some(s) = sink.as_deref_mut()
-            && rec.time.len() >= STREAM_ROWS
-            && let Err(e) = s.take(&mut rec, false)
-        {
-            write_failure = Some(e);
-            return Err(crate::Error::Interrupted { time: Some(t) });
+        match sink.as_deref_mut() {
+            Some(s) => {
+                // The writer thread is gone: the caller learns why when it closes the stream.
+                if !s.push(t, y, &sys.ws.onset) {
+                    return Err(crate::Error::Interrupted { time: Some(t) });
+                }
+            }
+            None => rec.sample_at(&order, model, &mut sys.ws, t, y)?,
         }
         progress((t - t0) / (t1 - t0));
         Ok(())
@@ -957,7 +1142,7 @@ fn record(
             |sys, t, y| match observe(sys, t, y) {
                 Ok(()) => Flow::Continue,
                 Err(e) => {
-                    failure = Some(e);
+                    failure = Some((e, t));
                     Flow::Stop
                 }
             },
@@ -966,31 +1151,18 @@ fn record(
     };
     let stopped = match (failure, res) {
         // Nothing of the sample at `time` was recorded.
-        (Some(crate::Error::Interrupted { time: Some(time) }), _) => Some(Stopped {
+        (Some((crate::Error::Interrupted { time: Some(time) }, _)), _) => Some(Stopped {
             time,
             message: INTERRUPTED.into(),
         }),
-        (Some(e), _) => {
-            // The failed sample may be partly recorded: keep only the complete ones.
-            let t_fail = rec.time.last().copied().unwrap_or(t0);
-            let n = rec.time.len().saturating_sub(1);
-            rec.truncate(n);
-            Some(match &e {
-                crate::Error::Solver(se) => Stopped::from_error(se, t_fail),
-                other => Stopped {
-                    time: t_fail,
-                    message: other.to_string(),
-                },
-            })
-        }
+        // The failed sample was dropped whole.
+        (Some((e, t_fail)), _) => Some(Stopped::of(&e, t_fail)),
         (None, Err(e)) => Some(Stopped::from_error(&e, t0)),
         (None, Ok(())) => None,
     };
-    if let Some(e) = write_failure {
-        return Err(e);
-    }
     if let Some(s) = sink {
-        s.take(&mut rec, true)?;
+        // A writer thread found gone here is reported by `Stream::close`.
+        s.send(true);
     }
     Ok(RunResult {
         recording: rec,
@@ -1355,6 +1527,111 @@ mod tests {
                 max("diagnostics/velocity_drift")
             ))
         );
+    }
+
+    /// The writer thread evaluates the recording from the states and onset histories it is
+    /// handed, in a workspace of its own: on a clearance joint's impacts and flights (the
+    /// slider-crank, over three blocks) the run written as it goes holds the values of the run
+    /// recorded on the integrating thread, bit for bit, and the same statistics.
+    #[test]
+    fn a_clearance_run_written_as_it_goes_is_the_run_recorded_in_line() {
+        let (mut m, state) = model("slider-crank-clearance.toml");
+        m.settings.end_time = 0.05;
+        let dir = tempfile::tempdir().unwrap();
+        let meta = Meta::of(&m, Path::new("slider-crank-clearance.toml"), "text", "test");
+        let whole = simulate(&m, state.clone(), &mut |_| {}).unwrap();
+        let a = crate::h5::write_run(&dir.path().join("a"), &meta, &whole).unwrap();
+        let (run, w) =
+            simulate_to_file(&m, state, &mut |_| {}, &dir.path().join("b"), &meta).unwrap();
+        let n = whole.recording.time.len();
+        assert!(n > 2 * STREAM_ROWS, "{n}");
+        assert_eq!(w.samples, n);
+        assert!(run.stopped.is_none() && whole.stopped.is_none());
+        assert_eq!(run.stats.rhs_evals, whole.stats.rhs_evals);
+        // The pin both flies and touches in the span: the onset history is met open and closed.
+        let force = whole.recording.channels.iter().find(|c| c.dataset.ends_with("normal_force"));
+        let force = &force.unwrap().values;
+        assert!(force.iter().any(|&f| f > 0.0) && force.contains(&0.0));
+        let read = |p: &Path| {
+            let mut d = Vec::new();
+            datasets(&hdf5::File::open(p).unwrap(), "", &mut d);
+            d.sort_by(|x, y| x.0.cmp(&y.0));
+            d
+        };
+        let (da, db) = (read(&a), read(&w.path));
+        assert!(da.len() > 20, "{}", da.len());
+        assert_eq!(da.len(), db.len());
+        for ((na, sa, va), (nb, sb, vb)) in da.iter().zip(&db) {
+            assert_eq!((na, sa), (nb, sb));
+            assert!(
+                va.iter().zip(vb).all(|(x, y)| x.to_bits() == y.to_bits()),
+                "{na} differs"
+            );
+        }
+    }
+
+    /// The states of a pendulum run at its sample times, with their onset histories, as the
+    /// integration hands them to a [`Stream`].
+    fn states(m: &Model, state: &State) -> Vec<(f64, Vec<f64>, Vec<f64>)> {
+        let mut y = state.y.clone();
+        let mut sys = Mechanism::new(m);
+        let mut out = Vec::new();
+        jointplay_solver::ode::integrate(
+            &mut sys,
+            m.settings.method,
+            0.0,
+            &mut y,
+            m.settings.end_time,
+            &m.sample_times(),
+            |sys, t, y| {
+                out.push((t, y.to_vec(), sys.ws.onset.clone()));
+                Flow::Continue
+            },
+        )
+        .unwrap();
+        out
+    }
+
+    /// A sample whose recorded value is not finite (a state with a velocity so large that the
+    /// accelerations overflow) stops the run where it is, in a block evaluated beside the
+    /// integration and in the last block, evaluated by every thread: the samples before it are
+    /// written, none after, and the stop names the quantity and the time.
+    #[test]
+    fn a_non_finite_recorded_value_stops_a_run_written_as_it_goes_at_its_sample() {
+        let (mut m, state) = model("pendulum.toml");
+        m.settings.end_time = 3.0;
+        let all = states(&m, &state);
+        assert!(all.len() > STREAM_ROWS + 500, "{}", all.len());
+        let dir = tempfile::tempdir().unwrap();
+        let meta = Meta::of(&m, Path::new("pendulum.toml"), "text", "test");
+        // In the first block, and in the last one (a hundred samples before the end).
+        for bad in [1000, all.len() - 100] {
+            let rec = Recording::of(&m).unwrap();
+            let writer = RunWriter::create(&dir.path().join(bad.to_string()), &meta, &rec).unwrap();
+            let mut sink = Stream::new(&m, writer, &rec);
+            let mut pushed = 0;
+            for (i, (t, y, onset)) in all.iter().enumerate() {
+                let mut y = y.clone();
+                if i == bad {
+                    let v = y.len() / 2;
+                    y[v..].iter_mut().for_each(|x| *x = 1e300);
+                }
+                pushed += 1;
+                if !sink.push(*t, &y, onset) {
+                    break;
+                }
+            }
+            sink.send(true);
+            let (writer, kept, stopped) = sink.close().unwrap().unwrap();
+            let stopped = stopped.expect("the run stops at the bad sample");
+            assert_eq!(stopped.time, all[bad].0, "{bad}");
+            assert!(stopped.message.ends_with("became non-finite"), "{}", stopped.message);
+            assert_eq!(writer.rows(), bad);
+            assert_eq!(kept.rows, bad);
+            // The integration learns of it at its next block at the latest.
+            assert!(pushed <= (bad / STREAM_ROWS + 2) * STREAM_ROWS, "{pushed}");
+            writer.discard();
+        }
     }
 
     /// With `output.significant_bits`, both writers (the run written at its end, as a study case
