@@ -362,6 +362,21 @@ pub(crate) fn write_table<T: hdf5::H5Type + Clone>(
     describe(&ds, Some(unit), desc)
 }
 
+/// Moves the finished file `from` to its name `to`, replacing a file of that name.
+///
+/// The file under `to` is removed first rather than renamed over: ext4 (with its default
+/// `auto_da_alloc`) writes a file renamed over another out to disk before the rename returns,
+/// which took 0.4 s for the 215 MB file of a 50-period run of the mixed 4-UPS/RPU (`strace -T`),
+/// where removing the earlier file and renaming take milliseconds and the kernel writes the new
+/// file out later, as any other. Between the two no file has the name; a file under it is never
+/// half written.
+pub fn move_into_place(from: &Path, to: &Path) -> std::io::Result<()> {
+    match std::fs::remove_file(to) {
+        Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(e),
+        _ => std::fs::rename(from, to),
+    }
+}
+
 /// A file written under the temporary name `<name>.h5.partial` and moved to `<name>.h5` only once
 /// it is complete and closed.
 pub(crate) struct PartialFile {
@@ -470,7 +485,7 @@ impl PartialFile {
             let _ = std::fs::remove_file(&partial);
             return Err(h5err(&partial)(err));
         }
-        std::fs::rename(&partial, &path).map_err(|e| Error::Io {
+        move_into_place(&partial, &path).map_err(|e| Error::Io {
             file: path.clone(),
             message: format!("cannot move the finished file into place: {e}"),
         })?;

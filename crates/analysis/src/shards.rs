@@ -558,7 +558,7 @@ pub fn merge(inputs: &[PathBuf], out: &Path, version: &str, partial: bool) -> Re
             return Err(err);
         }
     };
-    std::fs::rename(&tmp, out).map_err(|err| {
+    crate::h5::move_into_place(&tmp, out).map_err(|err| {
         io(
             out,
             format!("cannot move the merged file into place: {err}"),
