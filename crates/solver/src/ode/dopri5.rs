@@ -143,8 +143,14 @@ impl Stepper for Dopri5 {
             &[(A71, k1), (A73, k3), (A74, k4), (A75, k5), (A76, k6)],
         );
         sys.rhs(t + h, &w.y_new, k7);
-        for i in 0..y.len() {
-            w.tmp[i] =
+        // Slices cut to one length, not the vectors: stores through `err` cannot then be taken
+        // to change where the stages' data lie, so their addresses are not reloaded for every
+        // component (this loop was a third of the stepper's own time, by `perf annotate`).
+        let n = y.len();
+        let err = &mut w.tmp[..n];
+        let (k1, k3, k4, k5, k6, k7) = (&k1[..n], &k3[..n], &k4[..n], &k5[..n], &k6[..n], &k7[..n]);
+        for i in 0..n {
+            err[i] =
                 h * (E1 * k1[i] + E3 * k3[i] + E4 * k4[i] + E5 * k5[i] + E6 * k6[i] + E7 * k7[i]);
         }
         stats.rhs_evals += 6;
@@ -167,8 +173,19 @@ impl Stepper for Dopri5 {
         let [c0, c1, c2, c3, c4] = &mut w.cont[..] else {
             unreachable!("DOPRI5 has five dense-output vectors")
         };
-        for i in 0..y.len() {
-            let ydiff = w.y_new[i] - y[i];
+        // Slices of one length, as in `step`.
+        let n = y.len();
+        let (c0, c1, c2, c3, c4) = (
+            &mut c0[..n],
+            &mut c1[..n],
+            &mut c2[..n],
+            &mut c3[..n],
+            &mut c4[..n],
+        );
+        let (k1, k3, k4, k5, k6, k7) = (&k1[..n], &k3[..n], &k4[..n], &k5[..n], &k6[..n], &k7[..n]);
+        let y_new = &w.y_new[..n];
+        for i in 0..n {
+            let ydiff = y_new[i] - y[i];
             let bspl = h * k1[i] - ydiff;
             c0[i] = y[i];
             c1[i] = ydiff;
