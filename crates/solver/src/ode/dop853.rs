@@ -62,12 +62,23 @@ fn stability(re: f64, im: f64) -> (f64, f64) {
 /// `out = y + h * sum_j a_j k[j]` over the nonzero coefficients `row` = [(j, a_j)].
 #[inline]
 fn rk_stage(out: &mut [f64], y: &[f64], h: f64, row: &[(usize, f64)], k: &[Vec<f64>]) {
-    for i in 0..out.len() {
-        let mut s = 0.0;
-        for &(j, a) in row {
-            s += a * k[j][i];
+    combine(out, row, k);
+    for (o, &yi) in out.iter_mut().zip(y) {
+        *o = yi + h * *o;
+    }
+}
+
+/// `out = sum_j a_j k[j]` over `row` = [(j, a_j)], summed in the order of `row` from 0 for every
+/// component, one stage at a time: each pass is a loop over slices the compiler vectorises,
+/// where a sum over the row for each component in turn (the same sums, bit for bit) was not,
+/// and took a tenth of a DOP853 run of the mixed 4-UPS/RPU (`perf`).
+fn combine(out: &mut [f64], row: &[(usize, f64)], k: &[Vec<f64>]) {
+    let n = out.len();
+    out.fill(0.0);
+    for &(j, a) in row {
+        for (o, &v) in out.iter_mut().zip(&k[j][..n]) {
+            *o += a * v;
         }
-        out[i] = y[i] + h * s;
     }
 }
 
@@ -149,12 +160,10 @@ impl Stepper for Dop853 {
             first[2][i] = 2.0 * dy - h * (f_new[i] + f_old[i]);
         }
         for (c, row) in rest.iter_mut().zip(D) {
-            for i in 0..y.len() {
-                let mut s = 0.0;
-                for &(j, d) in row {
-                    s += d * w.k[j][i];
-                }
-                c[i] = h * s;
+            let c = &mut c[..y.len()];
+            combine(c, row, &w.k);
+            for v in c {
+                *v *= h;
             }
         }
         stats.rhs_evals += (STAGES - FSAL - 1) as u64;
