@@ -77,23 +77,30 @@ impl Stepper for Bs3 {
         _retry: bool,
     ) -> Result<()> {
         let n = y.len();
+        let y = &y[..n];
         let [k1, k2, k3, k4] = &mut w.k[..] else {
             unreachable!("BS3 has four stage vectors")
         };
-        for i in 0..n {
-            w.tmp[i] = y[i] + h * A21 * k1[i];
-        }
+        // Each loop over slices cut to one length (see `dopri5`'s `step`).
+        let stage = |out: &mut [f64], c: f64, k: &[f64]| {
+            for ((o, &yi), &ki) in out.iter_mut().zip(y).zip(&k[..n]) {
+                *o = yi + c * ki;
+            }
+        };
+        stage(&mut w.tmp[..n], h * A21, k1);
         sys.rhs(t + C2 * h, &w.tmp, k2);
-        for i in 0..n {
-            w.tmp[i] = y[i] + h * A32 * k2[i];
-        }
+        stage(&mut w.tmp[..n], h * A32, k2);
         sys.rhs(t + C3 * h, &w.tmp, k3);
-        for i in 0..n {
-            w.y_new[i] = y[i] + h * (B1 * k1[i] + B2 * k2[i] + B3 * k3[i]);
+        {
+            let (out, k1, k2, k3) = (&mut w.y_new[..n], &k1[..n], &k2[..n], &k3[..n]);
+            for i in 0..n {
+                out[i] = y[i] + h * (B1 * k1[i] + B2 * k2[i] + B3 * k3[i]);
+            }
         }
         sys.rhs(t + h, &w.y_new, k4);
+        let (err, k1, k2, k3, k4) = (&mut w.tmp[..n], &k1[..n], &k2[..n], &k3[..n], &k4[..n]);
         for i in 0..n {
-            w.tmp[i] = h * (E1 * k1[i] + E2 * k2[i] + E3 * k3[i] + E4 * k4[i]);
+            err[i] = h * (E1 * k1[i] + E2 * k2[i] + E3 * k3[i] + E4 * k4[i]);
         }
         stats.rhs_evals += 3;
         Ok(())

@@ -44,23 +44,27 @@ impl Stepper for Rk4 {
         _retry: bool,
     ) -> Result<()> {
         let n = y.len();
+        let y = &y[..n];
         let [k1, k2, k3, k4, k5] = &mut w.k[..] else {
             unreachable!("RK4 has five stage vectors")
         };
-        for i in 0..n {
-            w.tmp[i] = y[i] + 0.5 * h * k1[i];
-        }
+        // Each loop over slices cut to one length (see `dopri5`'s `step`).
+        let stage = |out: &mut [f64], c: f64, k: &[f64]| {
+            for ((o, &yi), &ki) in out.iter_mut().zip(y).zip(&k[..n]) {
+                *o = yi + c * ki;
+            }
+        };
+        stage(&mut w.tmp[..n], 0.5 * h, k1);
         sys.rhs(t + 0.5 * h, &w.tmp, k2);
-        for i in 0..n {
-            w.tmp[i] = y[i] + 0.5 * h * k2[i];
-        }
+        stage(&mut w.tmp[..n], 0.5 * h, k2);
         sys.rhs(t + 0.5 * h, &w.tmp, k3);
-        for i in 0..n {
-            w.tmp[i] = y[i] + h * k3[i];
-        }
+        stage(&mut w.tmp[..n], h, k3);
         sys.rhs(t + h, &w.tmp, k4);
-        for i in 0..n {
-            w.y_new[i] = y[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+        {
+            let (out, k1, k2, k3, k4) = (&mut w.y_new[..n], &k1[..n], &k2[..n], &k3[..n], &k4[..n]);
+            for i in 0..n {
+                out[i] = y[i] + h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+            }
         }
         sys.rhs(t + h, &w.y_new, k5);
         stats.rhs_evals += 4;
