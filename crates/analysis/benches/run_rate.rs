@@ -8,9 +8,11 @@
 //! The run is `data/scenes/4ups-rpu-mixed.toml` over its first 10 s (five drive periods, five
 //! blocks of samples for the file's writer thread; over 2 s the one block was compressed after
 //! the integration, not beside it) with DOPRI5 at rtol 1e-6 (atol 1e-9) and the scene's 1 ms
-//! output, with contact onsets as events off and on, and (`whole_run_unrecorded`) with one sample
-//! a second instead, which leaves out the recording's own evaluation at each sample, its
-//! observables and its compression. Divan reports each as items per second, one item being one
+//! output, with contact onsets as events off and on, (`whole_run_unrecorded`) with one sample a
+//! second instead, which leaves out the recording's work (its evaluation at each sample, its
+//! observables and its compression, all on the file's writer thread, beside the integration),
+//! and (`whole_run_50_periods`) over the 50 drive periods of section 3, where the file's fixed
+//! costs weigh ten times less. Divan reports each as items per second, one item being one
 //! right-hand-side evaluation of the integrator (the run's count, fixed: the run is
 //! deterministic); the `rhs` bench is one evaluation at the state the run reaches after 0.15 s,
 //! repeated, and `rhs_along_the_run` one at each of 1 000 states along the run, in turn (the
@@ -83,8 +85,8 @@ fn whole_run(bencher: divan::Bencher, events: bool) {
 }
 
 /// [`whole_run`] (onset events off) sampled once a second instead of every millisecond: what the
-/// run costs besides its evaluations without the recording's own evaluation at each sample, its
-/// observables and its file's compression.
+/// run costs besides its evaluations without the recording's work beside it (its evaluation at
+/// each sample, its observables and its file's compression).
 #[divan::bench(sample_count = 5)]
 fn whole_run_unrecorded(bencher: divan::Bencher) {
     let (model, state, file) = scene_sampled(false, Some(1.0), "end_time = 10.0");
