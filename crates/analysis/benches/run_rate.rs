@@ -110,6 +110,80 @@ fn whole_run_50_periods(bencher: divan::Bencher) {
         .bench_local(|| run(&model, &state, &file, dir.path()));
 }
 
+/// The mixed 4-UPS/RPU's system keeping every [`EVERY`]-th state it is evaluated at, with the
+/// contacts' onset history then: the states a run's integrator evaluates the right-hand side at
+/// (its stages), not only those at the sample times.
+struct Keeping<'m> {
+    sys: Mechanism<'m>,
+    calls: usize,
+    kept: Vec<(f64, Vec<f64>, Vec<f64>)>,
+}
+
+const EVERY: usize = 10;
+
+impl OdeSystem for Keeping<'_> {
+    fn dim(&self) -> usize {
+        self.sys.dim()
+    }
+
+    fn rhs(&mut self, t: f64, y: &[f64], dydt: &mut [f64]) {
+        if self.calls.is_multiple_of(EVERY) {
+            self.kept.push((t, y.to_vec(), self.sys.ws.onset.clone()));
+        }
+        self.calls += 1;
+        self.sys.rhs(t, y, dydt);
+    }
+
+    fn error_dim(&self) -> usize {
+        self.sys.error_dim()
+    }
+
+    fn step_accepted(&mut self, t0: f64, y0: &[f64], t1: f64, y1: &[f64]) -> bool {
+        self.sys.step_accepted(t0, y0, t1, y1)
+    }
+
+    fn check_step(&mut self, t: f64, y: &[f64]) -> Option<String> {
+        self.sys.check_step(t, y)
+    }
+}
+
+/// One right-hand side at every tenth state the integrator of [`whole_run`] (onset events off)
+/// evaluates it at over the 10 s, about 21 000 states, in turn, each with its onset history: the
+/// states of the run's stages, which `rhs_along_the_run` (states at sample times) does not
+/// repeat. Against this rate a whole run's rate is the share of its time spent in evaluations
+/// like its own.
+#[divan::bench(sample_count = 10)]
+fn rhs_at_the_runs_stages(bencher: divan::Bencher) {
+    let (model, mut state, _) = scene(false);
+    model.assemble(&mut state).unwrap();
+    let mut keeping = Keeping {
+        sys: Mechanism::new(&model),
+        calls: 0,
+        kept: Vec::new(),
+    };
+    integrate(
+        &mut keeping,
+        model.settings.method,
+        0.0,
+        &mut state.y,
+        10.0,
+        &[],
+        |_, _, _| Flow::Continue,
+    )
+    .unwrap();
+    let Keeping { mut sys, kept, .. } = keeping;
+    let mut dy = vec![0.0; state.y.len()];
+    bencher
+        .counter(divan::counter::ItemsCount::new(kept.len() as u64))
+        .bench_local(|| {
+            for (t, y, onset) in &kept {
+                sys.ws.onset.copy_from_slice(onset);
+                sys.rhs(*t, divan::black_box(y), &mut dy);
+                divan::black_box(&dy);
+            }
+        });
+}
+
 #[divan::bench(sample_count = 200)]
 fn rhs(bencher: divan::Bencher) {
     let (model, mut state, _) = scene(false);

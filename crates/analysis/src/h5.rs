@@ -368,9 +368,10 @@ pub(crate) fn write_table<T: hdf5::H5Type + Clone>(
 /// `auto_da_alloc`) writes a file renamed over another out to disk before the rename returns,
 /// which took 0.4 s for the 215 MB file of a 50-period run of the mixed 4-UPS/RPU (`strace -T`),
 /// where removing the earlier file and renaming take milliseconds and the kernel writes the new
-/// file out later, as any other. Between the two no file has the name; a file under it is never
-/// half written.
-pub fn move_into_place(from: &Path, to: &Path) -> std::io::Result<()> {
+/// file out later, as any other. The replacement is not atomic: between the two no file has the
+/// name (a process killed there leaves the finished `from`), and nothing forces the new file to
+/// disk before a power failure; a file under the name is never one that was still being written.
+pub(crate) fn move_into_place(from: &Path, to: &Path) -> std::io::Result<()> {
     match std::fs::remove_file(to) {
         Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(e),
         _ => std::fs::rename(from, to),

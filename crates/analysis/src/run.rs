@@ -682,7 +682,6 @@ struct Kept {
 impl Kept {
     fn new(rec: &Recording) -> Kept {
         let mut thin = rec.clone();
-        thin.truncate(0);
         for c in &mut thin.channels {
             c.values = Vec::new();
         }
@@ -785,19 +784,33 @@ impl Sampler {
         }
         let len = n.div_ceil(parts);
         let (model, order) = (&self.model, &self.order);
-        let mut empty = self.block.clone();
-        empty.truncate(0);
-        let done: Vec<(Recording, Option<Stopped>)> = (0..parts)
-            .into_par_iter()
-            .map(|p| {
-                let mut rec = empty.clone();
-                let mut ws = Workspace::new(model);
-                let end = ((p + 1) * len).min(n);
-                let stopped = sample_states(&mut rec, order, model, &mut ws, s, p * len..end);
-                (rec, stopped)
+        // The first part goes into the block itself (whose memory holds a whole block), the
+        // others into recordings of their own (the block is empty: so are its clones), appended
+        // in order.
+        let empty = self.block.clone();
+        let mut parts: Vec<Recording> = (0..parts)
+            .map(|p| match p {
+                0 => std::mem::take(&mut self.block),
+                _ => empty.clone(),
             })
             .collect();
-        for (rec, stopped) in done {
+        let stops: Vec<Option<Stopped>> = parts
+            .par_iter_mut()
+            .enumerate()
+            .map(|(p, rec)| {
+                let mut ws = Workspace::new(model);
+                let end = ((p + 1) * len).min(n);
+                sample_states(rec, order, model, &mut ws, s, p * len..end)
+            })
+            .collect();
+        let mut parts = parts.into_iter().zip(stops);
+        // There are at least two parts.
+        let (block, stopped) = parts.next()?;
+        self.block = block;
+        if stopped.is_some() {
+            return stopped;
+        }
+        for (rec, stopped) in parts {
             self.block.extend(&rec);
             if stopped.is_some() {
                 return stopped;
@@ -848,7 +861,8 @@ type Ended = (RunWriter, Kept, Result<Option<Stopped>>);
 /// thread of rayon's pool. The writer hands each block of states back, emptied, and the
 /// integration fills it again, so that no block's memory is allocated (and its pages faulted
 /// in) anew. A sample whose recorded value is not finite stops the run there: the writer
-/// thread writes the samples before it and ends, and the integration stops at its next block.
+/// thread writes the samples before it and ends, and the integration stops when it next hands a
+/// block over, at most two blocks after the one that failed (one may wait in the channel).
 struct Stream {
     /// The blocks of states for the writer thread; `None` once closed.
     tx: Option<mpsc::SyncSender<(States, bool)>>,
@@ -944,10 +958,14 @@ impl Stream {
                 writer.discard();
                 Err(e)
             }
-            Err(_) => Err(crate::Error::Io {
-                file: self.partial.clone(),
-                message: "the thread writing the file stopped unexpectedly".into(),
-            }),
+            Err(_) => {
+                // The thread's writer was dropped as it unwound, closing the file.
+                let _ = std::fs::remove_file(&self.partial);
+                Err(crate::Error::Io {
+                    file: self.partial.clone(),
+                    message: "the thread writing the file stopped unexpectedly".into(),
+                })
+            }
         })
     }
 

@@ -689,6 +689,16 @@ trait Stepper: Sync {
     fn eval(&self, y0: &[f64], w: &Work, h: f64, theta: f64, out: &mut [f64]);
 }
 
+/// `out = y + c k`, over slices cut to the length of `out` first: the loop then runs without
+/// bounds checks and vectorised (the steppers' loops over their stage vectors themselves reloaded
+/// the vectors' addresses for every component).
+fn axpy(out: &mut [f64], y: &[f64], c: f64, k: &[f64]) {
+    let n = out.len();
+    for ((o, &yi), &ki) in out.iter_mut().zip(&y[..n]).zip(&k[..n]) {
+        *o = yi + c * ki;
+    }
+}
+
 fn error_norm(err: &[f64], y0: &[f64], y1: &[f64], rtol: f64, atol: f64) -> f64 {
     let mut s = 0.0;
     for i in 0..err.len() {

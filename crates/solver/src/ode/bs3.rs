@@ -17,7 +17,9 @@
 //! estimate to follow the impacts.) Where accuracy bounds the step (tight tolerances, smooth
 //! flows) the low order costs many more steps than DOPRI5.
 
-use super::{Adaptive, Fixed, Integrator, OdeSystem, Stats, Stepper, Work, hermite, polynomial};
+use super::{
+    Adaptive, Fixed, Integrator, OdeSystem, Stats, Stepper, Work, axpy, hermite, polynomial,
+};
 use crate::error::Result;
 
 /// BS3: adaptive (`bs3`) or at a fixed step (`bs3_fixed`).
@@ -81,15 +83,10 @@ impl Stepper for Bs3 {
         let [k1, k2, k3, k4] = &mut w.k[..] else {
             unreachable!("BS3 has four stage vectors")
         };
-        // Each loop over slices cut to one length (see `dopri5`'s `step`).
-        let stage = |out: &mut [f64], c: f64, k: &[f64]| {
-            for ((o, &yi), &ki) in out.iter_mut().zip(y).zip(&k[..n]) {
-                *o = yi + c * ki;
-            }
-        };
-        stage(&mut w.tmp[..n], h * A21, k1);
+        // Each loop over slices cut to one length (see `axpy`).
+        axpy(&mut w.tmp[..n], y, h * A21, k1);
         sys.rhs(t + C2 * h, &w.tmp, k2);
-        stage(&mut w.tmp[..n], h * A32, k2);
+        axpy(&mut w.tmp[..n], y, h * A32, k2);
         sys.rhs(t + C3 * h, &w.tmp, k3);
         {
             let (out, k1, k2, k3) = (&mut w.y_new[..n], &k1[..n], &k2[..n], &k3[..n]);

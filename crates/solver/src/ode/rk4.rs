@@ -3,7 +3,7 @@
 //! (local interpolation error O(h^4), the order of the method itself). 4 right-hand-side
 //! evaluations per step (the 5th, f at the new state, is the next step's first).
 
-use super::{Fixed, Integrator, OdeSystem, Stats, Stepper, Work, hermite, polynomial};
+use super::{Fixed, Integrator, OdeSystem, Stats, Stepper, Work, axpy, hermite, polynomial};
 use crate::error::Result;
 
 /// RK4: fixed step only; the family `rk4` in studies.
@@ -48,17 +48,12 @@ impl Stepper for Rk4 {
         let [k1, k2, k3, k4, k5] = &mut w.k[..] else {
             unreachable!("RK4 has five stage vectors")
         };
-        // Each loop over slices cut to one length (see `dopri5`'s `step`).
-        let stage = |out: &mut [f64], c: f64, k: &[f64]| {
-            for ((o, &yi), &ki) in out.iter_mut().zip(y).zip(&k[..n]) {
-                *o = yi + c * ki;
-            }
-        };
-        stage(&mut w.tmp[..n], 0.5 * h, k1);
+        // Each loop over slices cut to one length (see `axpy`).
+        axpy(&mut w.tmp[..n], y, 0.5 * h, k1);
         sys.rhs(t + 0.5 * h, &w.tmp, k2);
-        stage(&mut w.tmp[..n], 0.5 * h, k2);
+        axpy(&mut w.tmp[..n], y, 0.5 * h, k2);
         sys.rhs(t + 0.5 * h, &w.tmp, k3);
-        stage(&mut w.tmp[..n], h, k3);
+        axpy(&mut w.tmp[..n], y, h, k3);
         sys.rhs(t + h, &w.tmp, k4);
         {
             let (out, k1, k2, k3, k4) = (&mut w.y_new[..n], &k1[..n], &k2[..n], &k3[..n], &k4[..n]);
