@@ -15,8 +15,9 @@
 //! costs weigh ten times less. Divan reports each as items per second, one item being one
 //! right-hand-side evaluation of the integrator (the run's count, fixed: the run is
 //! deterministic); the `rhs` bench is one evaluation at the state the run reaches after 0.15 s,
-//! repeated, and `rhs_along_the_run` one at each of 1 000 states along the run, in turn (the
-//! check that the one state stands for the run's). The ratio of a whole run's rate to the
+//! repeated, `rhs_along_the_run` one at each of 1 000 states along the run, in turn (the check
+//! that the one state stands for the run's), and `rhs_at_the_runs_stages` one at every tenth
+//! state the run's integrator evaluates it at (its stages, not only the sample times). The ratio of a whole run's rate to the
 //! right-hand side's is the share of the run's time spent in its integrator's evaluations.
 
 use std::path::PathBuf;
