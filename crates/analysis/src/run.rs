@@ -1413,6 +1413,29 @@ mod tests {
         }
     }
 
+    /// The datasets of the file at `p` (as [`datasets`] reads them), sorted by path.
+    fn sorted_datasets(p: &Path) -> Vec<(String, Vec<usize>, Vec<f64>)> {
+        let mut d = Vec::new();
+        datasets(&hdf5::File::open(p).unwrap(), "", &mut d);
+        d.sort_by(|x, y| x.0.cmp(&y.0));
+        d
+    }
+
+    /// The same datasets in both lists: names, shapes and values bit for bit.
+    fn assert_same_datasets(
+        da: &[(String, Vec<usize>, Vec<f64>)],
+        db: &[(String, Vec<usize>, Vec<f64>)],
+    ) {
+        assert_eq!(da.len(), db.len());
+        for ((na, sa, va), (nb, sb, vb)) in da.iter().zip(db) {
+            assert_eq!((na, sa), (nb, sb));
+            assert!(
+                va.iter().zip(vb).all(|(x, y)| x.to_bits() == y.to_bits()),
+                "{na} differs"
+            );
+        }
+    }
+
     /// Blocks that do not start a chunk (appended through HDF5's own filters) and blocks that do
     /// (packed by the program), in any mix, give the datasets of the run written at its end
     /// (names, shapes, values bit for bit), values rounded by quantity included.
@@ -1451,26 +1474,12 @@ mod tests {
             writer.append(&block, from == 4096).unwrap();
         }
         let b = writer.finish(&meta, &whole).unwrap();
-        let read = |p: &Path| {
-            let f = hdf5::File::open(p).unwrap();
-            let mut d = Vec::new();
-            datasets(&f, "", &mut d);
-            d.sort_by(|x, y| x.0.cmp(&y.0));
-            d
-        };
-        let (da, db) = (read(&a), read(&b));
-        assert_eq!(da.len(), db.len());
+        let (da, db) = (sorted_datasets(&a), sorted_datasets(&b));
         assert!(
             da.iter()
                 .any(|d| d.0 == "bodies/bob/velocity" && d.1 == [n, 3])
         );
-        for ((na, sa, va), (nb, sb, vb)) in da.iter().zip(&db) {
-            assert_eq!((na, sa), (nb, sb));
-            assert!(
-                va.iter().zip(vb).all(|(x, y)| x.to_bits() == y.to_bits()),
-                "{na} differs"
-            );
-        }
+        assert_same_datasets(&da, &db);
     }
 
     /// A run written while it goes, over several appended blocks, holds the datasets (names,
@@ -1498,20 +1507,9 @@ mod tests {
             hdf5::File::open(&a).unwrap(),
             hdf5::File::open(&w.path).unwrap(),
         );
-        let (mut da, mut db) = (Vec::new(), Vec::new());
-        datasets(&fa, "", &mut da);
-        datasets(&fb, "", &mut db);
-        da.sort_by(|x, y| x.0.cmp(&y.0));
-        db.sort_by(|x, y| x.0.cmp(&y.0));
+        let (da, db) = (sorted_datasets(&a), sorted_datasets(&w.path));
         assert!(da.len() >= 17, "{}", da.len());
-        assert_eq!(da.len(), db.len());
-        for ((na, sa, va), (nb, sb, vb)) in da.iter().zip(&db) {
-            assert_eq!((na, sa), (nb, sb));
-            assert!(
-                va.iter().zip(vb).all(|(x, y)| x.to_bits() == y.to_bits()),
-                "{na} differs"
-            );
-        }
+        assert_same_datasets(&da, &db);
         let names = |f: &hdf5::File| {
             let mut v = f.attr_names().unwrap();
             v.sort();
@@ -1588,22 +1586,9 @@ mod tests {
             .find(|c| c.dataset.ends_with("normal_force"));
         let force = &force.unwrap().values;
         assert!(force.iter().any(|&f| f > 0.0) && force.contains(&0.0));
-        let read = |p: &Path| {
-            let mut d = Vec::new();
-            datasets(&hdf5::File::open(p).unwrap(), "", &mut d);
-            d.sort_by(|x, y| x.0.cmp(&y.0));
-            d
-        };
-        let (da, db) = (read(&a), read(&w.path));
+        let (da, db) = (sorted_datasets(&a), sorted_datasets(&w.path));
         assert!(da.len() > 20, "{}", da.len());
-        assert_eq!(da.len(), db.len());
-        for ((na, sa, va), (nb, sb, vb)) in da.iter().zip(&db) {
-            assert_eq!((na, sa), (nb, sb));
-            assert!(
-                va.iter().zip(vb).all(|(x, y)| x.to_bits() == y.to_bits()),
-                "{na} differs"
-            );
-        }
+        assert_same_datasets(&da, &db);
     }
 
     /// The states of a pendulum run at its sample times, with their onset histories, as the
