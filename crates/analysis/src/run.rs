@@ -804,19 +804,17 @@ impl Sampler {
             })
             .collect();
         let mut parts = parts.into_iter().zip(stops);
-        // There are at least two parts.
-        let (block, stopped) = parts.next()?;
+        // There are at least two parts; those after a stop are dropped.
+        let (block, mut stopped) = parts.next()?;
         self.block = block;
-        if stopped.is_some() {
-            return stopped;
-        }
-        for (rec, stopped) in parts {
-            self.block.extend(&rec);
+        for (rec, s) in parts {
             if stopped.is_some() {
-                return stopped;
+                break;
             }
+            self.block.extend(&rec);
+            stopped = s;
         }
-        None
+        stopped
     }
 }
 
@@ -878,14 +876,13 @@ struct Stream {
 }
 
 impl Stream {
+    /// `rec`: the run's recording, without samples yet ([`Recording::of`]).
     fn new(model: &Model, writer: RunWriter, rec: &Recording) -> Stream {
-        let mut block = rec.clone();
-        block.truncate(0);
         let mut sampler = Sampler {
             model: model.clone(),
             ws: Workspace::new(model),
             order: rec.order(),
-            block,
+            block: rec.clone(),
         };
         let mut kept = Kept::new(rec);
         let partial = writer.partial().to_path_buf();
@@ -1137,7 +1134,11 @@ fn record(
 ) -> Result<RunResult> {
     let mut samples = model.sample_times();
     samples.retain(|&t| t >= state.t);
-    let mut rec = Recording::of(model)?;
+    // A sink's thread has the recording's declaration; the run returns what the sink keeps.
+    let mut rec = match sink {
+        Some(_) => Recording::default(),
+        None => Recording::of(model)?,
+    };
     let order = rec.order();
     let (t0, t1) = (state.t, model.settings.end_time);
     let mut failure = None;
