@@ -98,7 +98,56 @@ fn suggested_step(h: f64) -> f64 {
     d * p
 }
 
+/// The faster mode of a damper-spring (`k` N/m, `c` N s/m) on the mass `1/inv_m` (kg): its
+/// eigenvalue `(re, im)` (1/s; the upper one of a complex pair) and the mass; None when the
+/// inverse mass is not positive.
+fn fastest_mode((k, c): (f64, f64), inv_m: f64) -> Option<((f64, f64), f64)> {
+    if inv_m.is_nan() || inv_m <= 0.0 {
+        return None;
+    }
+    let m = 1.0 / inv_m;
+    let disc = c * c - 4.0 * m * k;
+    let lambda = if disc < 0.0 {
+        (-c / (2.0 * m), (-disc).sqrt() / (2.0 * m))
+    } else {
+        ((-c - disc.sqrt()) / (2.0 * m), 0.0)
+    };
+    Some((lambda, m))
+}
+
 impl Model {
+    /// The linearised normal mode of every penetrating contact (the step-size guard's, above) at
+    /// the state of the last evaluation in `ws`: its kinematics, contact states, onset history
+    /// and constraint factorisation. `out[s]` is the eigenvalue `(re, im)` (1/s) of contact slot
+    /// `s`'s faster mode with the constrained effective mass, None for a contact that does not
+    /// penetrate. With an integrator's stability function it tells whether a step was bounded
+    /// by a contact's stability or by accuracy (`crates/solver/examples/step_census.rs`).
+    pub fn contact_modes(&self, ws: &mut Workspace, out: &mut Vec<Option<(f64, f64)>>) {
+        out.clear();
+        out.resize(self.n_contacts, None);
+        if !self.effects.clearance {
+            return;
+        }
+        let (mut u, mut x) = (Vec::new(), Vec::new());
+        for cl in &self.clearances {
+            for s in cl.first..cl.first + cl.geometry.n_contacts() {
+                let ce = ws.contacts[s];
+                if ce.delta.is_nan() || ce.delta <= 0.0 || ce.n.norm() == 0.0 {
+                    continue;
+                }
+                let onset = if ws.onset[s].is_nan() {
+                    ce.delta_dot
+                } else {
+                    ws.onset[s]
+                };
+                let kc = cl.law.linearised(ce.delta, ce.delta_dot, onset);
+                let free = self.free_inverse_mass(cl, &ce.n, (&ce.pj, &ce.ph), ws);
+                let inv_m = self.constrained((free.0, &free.1), ws, (&mut u, &mut x));
+                out[s] = fastest_mode(kc, inv_m).map(|(lambda, _)| lambda);
+            }
+        }
+    }
+
     fn kin_of<'w>(&self, b: usize, ws: &'w Workspace) -> &'w Kin {
         &ws.kin[if b == GROUND { self.nb() } else { b }]
     }
@@ -275,16 +324,7 @@ impl Model {
         scratch: (&mut Vec<f64>, &mut Vec<f64>),
     ) -> Option<((f64, f64), f64, f64)> {
         let mode = |inv_m: f64| -> Option<((f64, f64), f64)> {
-            if inv_m.is_nan() || inv_m <= 0.0 {
-                return None;
-            }
-            let m = 1.0 / inv_m;
-            let disc = c * c - 4.0 * m * k;
-            let lambda = if disc < 0.0 {
-                (-c / (2.0 * m), (-disc).sqrt() / (2.0 * m))
-            } else {
-                ((-c - disc.sqrt()) / (2.0 * m), 0.0)
-            };
+            let (lambda, m) = fastest_mode((k, c), inv_m)?;
             let a = method.amplification(h * lambda.0, h * lambda.1)?;
             (a > 1.0 + 1e-12).then_some((lambda, m))
         };

@@ -554,3 +554,49 @@ fn onset_events_end_a_step_at_the_onset_and_keep_the_restitution() {
         }
     }
 }
+
+/// The linearised normal mode of a penetrating contact ([`Model::contact_modes`]) is that of the
+/// damper-spring its law gives on the ball's mass. Lankarani-Nikravesh, F = K delta^1.5 (1 +
+/// 3 (1 - c_e^2) / 4 delta_dot / v_on): k = dF/d(delta) = 1.5 K delta^0.5 (1 + 3 (1 - c_e^2) / 4
+/// delta_dot / v_on) and c = dF/d(delta_dot) = 3 (1 - c_e^2) / 4 K delta^1.5 / v_on; the socket is
+/// the ground and the normal passes through the ball's centre, so the effective mass is the
+/// ball's 1 kg and lambda = (-c +- sqrt(c^2 - 4 m k)) / (2 m). The two sides are the same
+/// formulas evaluated in another order, so they agree to round-off (1e-12 leaves a margin of
+/// 1e3 over it); a wrong mass, lever or derivative changes lambda by order 1.
+#[test]
+fn contact_modes_are_the_laws_damper_spring_on_the_effective_mass() {
+    let f = ball_scene(
+        C,
+        r#"{ law = "lankarani_nikravesh", youngs_modulus = 207e9, poisson_ratio = 0.3, restitution = 0.9 }"#,
+        None,
+        [0.0; 3],
+    );
+    let (m, s) = compile(&f);
+    let mut ws = jointplay_solver::dynamics::Workspace::new(&m);
+    let mut modes = Vec::new();
+    let mut y = s.y.clone();
+    let mut dydt = vec![0.0; y.len()];
+    // In the gap: no mode.
+    m.rhs(0.0, &y, &mut ws, &mut dydt);
+    m.contact_modes(&mut ws, &mut modes);
+    assert_eq!(modes, vec![None]);
+    let (delta, rate, v_on, ce) = (1e-5, 0.05, 0.1, 0.9);
+    y[0] = C + delta;
+    y[7] = rate;
+    ws.onset[0] = v_on;
+    m.rhs(0.0, &y, &mut ws, &mut dydt);
+    m.contact_modes(&mut ws, &mut modes);
+    let a = 3.0 * (1.0 - ce * ce) / 4.0;
+    let k = 1.5 * k_ball() * delta.sqrt() * (1.0 + a * rate / v_on);
+    let c = a * k_ball() * delta.powf(1.5) / v_on;
+    let disc = c * c - 4.0 * k;
+    assert!(disc < 0.0, "an underdamped mode at this state");
+    let (re, im) = (-c / 2.0, (-disc).sqrt() / 2.0);
+    let Some(Some((got_re, got_im))) = modes.first().copied() else {
+        panic!("no mode for the penetrating contact: {modes:?}");
+    };
+    assert!(
+        ((got_re - re) / re).abs() < 1e-12 && ((got_im - im) / im).abs() < 1e-12,
+        "mode {got_re:e} +- {got_im:e}i 1/s, expected {re:e} +- {im:e}i 1/s"
+    );
+}
