@@ -10,9 +10,11 @@
 //! A closed step's length h is then set beside h_s, the largest step at which the integrator is
 //! stable (|R(h lambda)| <= 1, R its stability function) on the fastest linearised normal mode
 //! lambda of the contacts at the step's end ([`Model::contact_modes`]: the step-size guard's
-//! mode, m x'' + c x' + k x = 0 with the constrained effective mass). Steps near h_s (h/h_s of
-//! 0.5 or more) are held by stability: a method with a larger stability region per right-hand
-//! side would take fewer. Steps far below it are held by accuracy.
+//! mode, m x'' + c x' + k x = 0 with the constrained effective mass; the friction's modes are
+//! left out). Steps near h_s (h/h_s of 0.5 or more) are held by stability: a method with a
+//! larger stability region per right-hand side would take fewer. Steps far below it are held by
+//! accuracy. A linearly implicit method is stable on these modes at any step (h_s infinite).
+//! The census also gives the spread of |lambda| of the modes that set h_s.
 //!
 //! ```text
 //! cargo run --release -p jointplay-solver --example step_census -- SCENE INTEGRATOR RTOL [--events] [--until T]
@@ -23,19 +25,83 @@
 
 use jointplay_solver::dynamics::Mechanism;
 use jointplay_solver::model::Model;
-use jointplay_solver::ode::{self, Flow, Method, OdeSystem, Step};
+use jointplay_solver::ode::{self, Flow, Method, OdeSystem};
 use jointplay_solver::scene::SceneSpec;
 use jointplay_solver::workspace::Workspace;
 use std::path::Path;
 use std::process::ExitCode;
 
-/// The mechanism, counting its right-hand sides.
-struct Counting<'m> {
+/// The mechanism, counting its right-hand sides and sorting its accepted steps.
+struct Census<'m> {
     mech: Mechanism<'m>,
+    /// Scratch of the contact geometry at the step's ends, and the contact modes.
+    ws: Workspace,
+    rates: Vec<(f64, f64, bool)>,
+    modes: Vec<Option<(f64, f64)>>,
+    stability: fn(f64, f64) -> (f64, f64),
     evaluations: u64,
+    /// Right-hand sides up to the last accepted step.
+    counted: u64,
+    /// Per class of [`CLASSES`]: steps, right-hand sides, simulated time (s).
+    steps: [u64; 4],
+    class_evaluations: [u64; 4],
+    time: [f64; 4],
+    /// Closed steps by h/h_s, in the bins of [`BINS`].
+    bins: [u64; BINS.len() + 1],
+    /// Per closed step, |lambda| (1/s) of the mode that sets h_s.
+    fastest: Vec<f64>,
 }
 
-impl OdeSystem for Counting<'_> {
+impl Census<'_> {
+    fn touching(&mut self, y: &[f64]) -> bool {
+        self.mech
+            .model
+            .contact_rates(y, &mut self.ws, &mut self.rates);
+        self.rates.iter().any(|r| r.0 > 0.0)
+    }
+
+    /// Sorts the step from `(t0, y0)` to `(t1, y1)`, just accepted.
+    fn count(&mut self, (t0, y0): (f64, &[f64]), (t1, y1): (f64, &[f64])) {
+        let class = match (self.touching(y0), self.touching(y1)) {
+            (false, false) => 0,
+            (true, true) => 1,
+            (false, true) => 2,
+            (true, false) => 3,
+        };
+        self.steps[class] += 1;
+        self.class_evaluations[class] += self.evaluations - self.counted;
+        self.counted = self.evaluations;
+        let h = t1 - t0;
+        self.time[class] += h;
+        if class == 1 {
+            // The mechanism's workspace holds the evaluation at the step's end (the method's
+            // last stage, its contact geometry refreshed by `step_accepted`).
+            let model = self.mech.model;
+            model.contact_modes(&mut self.mech.ws, &mut self.modes);
+            let (h_s, lambda) = self
+                .modes
+                .iter()
+                .flatten()
+                .map(|&lambda| (stable_step(self.stability, lambda), lambda))
+                .fold((f64::INFINITY, (0.0, 0.0)), |a, b| {
+                    // The smallest h_s; among modes stable at any step, the fastest.
+                    let speed = |x: &(f64, (f64, f64))| x.1.0.hypot(x.1.1);
+                    if b.0 < a.0 || (b.0 == a.0 && speed(&b) > speed(&a)) {
+                        b
+                    } else {
+                        a
+                    }
+                });
+            self.fastest.push(lambda.0.hypot(lambda.1));
+            let ratio = h / h_s;
+            self.bins[BINS.iter().position(|&b| ratio < b).unwrap_or(BINS.len())] += 1;
+        }
+    }
+}
+
+/// The mechanism's own system, with the census taken at every accepted step. Every method the
+/// integrators call on a mechanism is forwarded, so the run takes the mechanism's steps.
+impl OdeSystem for Census<'_> {
     fn dim(&self) -> usize {
         self.mech.dim()
     }
@@ -44,13 +110,29 @@ impl OdeSystem for Counting<'_> {
         self.mech.rhs(t, y, dydt)
     }
     fn step_accepted(&mut self, t0: f64, y0: &[f64], t1: f64, y1: &[f64]) -> bool {
-        self.mech.step_accepted(t0, y0, t1, y1)
+        let changed = self.mech.step_accepted(t0, y0, t1, y1);
+        self.count((t0, y0), (t1, y1));
+        changed
     }
     fn check_step(&mut self, t: f64, y: &[f64]) -> Option<String> {
         self.mech.check_step(t, y)
     }
     fn explain_non_finite(&mut self, t: f64, y: &[f64], component: usize) -> String {
         self.mech.explain_non_finite(t, y, component)
+    }
+    fn stiff_directions(
+        &mut self,
+        t: f64,
+        y: &[f64],
+        h: f64,
+        dirs: &mut Vec<f64>,
+        pattern: &mut Vec<u32>,
+    ) -> bool {
+        self.mech.stiff_directions(t, y, h, dirs, pattern)
+    }
+    fn stiff_jacobian(&mut self, t: f64, y: &[f64], basis: &[f64], image: &mut [f64]) -> bool {
+        self.evaluations += 1;
+        self.mech.stiff_jacobian(t, y, basis, image)
     }
     fn events(&self) -> usize {
         self.mech.events()
@@ -64,14 +146,19 @@ impl OdeSystem for Counting<'_> {
 }
 
 /// The largest step h at which `stability` (R at h lambda, as real and imaginary part) keeps
-/// |R| <= 1 on the mode `lambda` (1/s), by bisection from a step where it does not.
+/// |R| <= 1 on the mode `lambda` (1/s), by bisection from a step where it does not; infinite
+/// when it is stable up to |h lambda| = 1e6 (a linearly implicit method on a damped mode).
 fn stable_step(stability: fn(f64, f64) -> (f64, f64), lambda: (f64, f64)) -> f64 {
     let stable = |h: f64| {
         let (re, im) = stability(h * lambda.0, h * lambda.1);
         re.hypot(im) <= 1.0
     };
-    let mut hi = 1.0 / lambda.0.hypot(lambda.1);
+    let speed = lambda.0.hypot(lambda.1);
+    let mut hi = 1.0 / speed;
     while stable(hi) {
+        if hi * speed > 1e6 {
+            return f64::INFINITY;
+        }
         hi *= 2.0;
     }
     let mut lo = 0.0;
@@ -104,6 +191,9 @@ fn census() -> Result<(), String> {
     let rtol: f64 = rtol
         .parse()
         .map_err(|_| format!("RTOL '{rtol}' is not a number"))?;
+    if !(rtol.is_finite() && rtol > 0.0) {
+        return Err(format!("RTOL {rtol} must be positive"));
+    }
     let (mut events, mut until) = (false, None);
     let mut rest = rest.iter();
     while let Some(a) = rest.next() {
@@ -128,58 +218,41 @@ fn census() -> Result<(), String> {
     model.settings.method = method;
     model.settings.onset_events = events;
     let t_end = until.unwrap_or(model.settings.end_time);
-    let stability = method.integrator().stability;
 
     let model = &model;
-    let mut ws = Workspace::new(model);
-    let (mut rates, mut modes) = (Vec::new(), Vec::new());
-    let (mut steps, mut evaluations, mut time) = ([0u64; 4], [0u64; 4], [0.0f64; 4]);
-    let mut bins = [0u64; BINS.len() + 1];
-    let mut counted = 0;
-    let mut observe = |sys: &mut Counting, step: &Step| {
-        let mut touching = |y: &[f64]| {
-            model.contact_rates(y, &mut ws, &mut rates);
-            rates.iter().any(|r| r.0 > 0.0)
-        };
-        let class = match (touching(step.y0), touching(step.y1)) {
-            (false, false) => 0,
-            (true, true) => 1,
-            (false, true) => 2,
-            (true, false) => 3,
-        };
-        steps[class] += 1;
-        evaluations[class] += sys.evaluations - counted;
-        counted = sys.evaluations;
-        let h = step.t1 - step.t0;
-        time[class] += h;
-        if class == 1 {
-            // The workspace holds the evaluation at the step's end (its last stage).
-            model.contact_modes(&mut sys.mech.ws, &mut modes);
-            let h_s = modes
-                .iter()
-                .flatten()
-                .map(|&lambda| stable_step(stability, lambda))
-                .fold(f64::INFINITY, f64::min);
-            let ratio = h / h_s;
-            bins[BINS.iter().position(|&b| ratio < b).unwrap_or(BINS.len())] += 1;
-        }
-        Flow::Continue
-    };
-    let mut sys = Counting {
+    let mut census = Census {
         mech: Mechanism::new(model),
+        ws: Workspace::new(model),
+        rates: Vec::new(),
+        modes: Vec::new(),
+        stability: method.integrator().stability,
         evaluations: 0,
+        counted: 0,
+        steps: [0; 4],
+        class_evaluations: [0; 4],
+        time: [0.0; 4],
+        bins: [0; BINS.len() + 1],
+        fastest: Vec::new(),
     };
-    let stats = ode::integrate_steps(
-        &mut sys,
+    let stats = ode::integrate(
+        &mut census,
         method,
         state.t,
         &mut state.y,
         t_end,
         &[],
         |_, _, _| Flow::Continue,
-        Some(&mut observe),
     )
     .map_err(|e| e.to_string())?;
+    let Census {
+        steps,
+        class_evaluations: evaluations,
+        time,
+        bins,
+        evaluations: all_evaluations,
+        mut fastest,
+        ..
+    } = census;
 
     println!(
         "{scene}: {} from {} s to {t_end} s{}: {} steps ({} rejected), {} right-hand sides",
@@ -194,7 +267,7 @@ fn census() -> Result<(), String> {
         "| steps | count | right-hand sides | share | simulated time (s) | share | mean step (s) |"
     );
     println!("|---|---|---|---|---|---|---|");
-    let (all_evaluations, span) = (sys.evaluations as f64, t_end - model.settings.start_time);
+    let (all_evaluations, span) = (all_evaluations as f64, t_end - model.settings.start_time);
     for (k, name) in CLASSES.iter().enumerate() {
         println!(
             "| {name} | {} | {} | {:.1} % | {:.4e} | {:.1} % | {:.3e} |",
@@ -218,5 +291,15 @@ fn census() -> Result<(), String> {
         lower = BINS.get(k).copied().unwrap_or(lower);
     }
     println!();
+    fastest.sort_by(f64::total_cmp);
+    if !fastest.is_empty() {
+        let at = |q: f64| fastest[((fastest.len() - 1) as f64 * q).round() as usize];
+        println!(
+            "|lambda| of the mode that sets h_s in closed steps (1/s): 10 % {:.3e}, median {:.3e}, 90 % {:.3e}",
+            at(0.1),
+            at(0.5),
+            at(0.9)
+        );
+    }
     Ok(())
 }
