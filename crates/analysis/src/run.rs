@@ -20,7 +20,8 @@
 //! and dropped from memory, so a run's memory does not grow with its length. The integration then
 //! only reads the states at the sample times (with the contacts' onset history, which the
 //! contact laws with hysteresis damping read); the file's writer thread evaluates the recorded
-//! quantities from them, beside the integration, to the same values bit for bit. Of the streamed
+//! quantities from them, beside the integration, to the same values bit for bit (a block the
+//! writer is behind with the integrating thread evaluates itself: [`Stream`]). Of the streamed
 //! samples it keeps only those the run figures draw ([`crate::figures::run::drawn`]), and of
 //! those every `stride`-th: at most [`FIGURE_SAMPLES`] to `2 * FIGURE_SAMPLES` samples, the
 //! stride doubling whenever twice the bound is reached (sample `j` of the kept ones is sample
@@ -845,6 +846,14 @@ fn sample_states(
 /// first error writing it or where the recorded values stopped the run ([`Sampler::evaluate`]).
 type Ended = (RunWriter, Kept, Result<Option<Stopped>>);
 
+/// A block of samples handed to the writer thread: the states at its sample times, which the
+/// writer evaluates, or the recorded values the integrating thread evaluated itself while the
+/// writer was behind, with where a sample stopped the run if one did.
+enum Block {
+    States(States),
+    Recorded(Recording, Option<Stopped>),
+}
+
 /// Where a streamed run's samples go: the states at the sample times to a thread of their own,
 /// which evaluates the recorded quantities from them, writes them to the file and keeps every
 /// `stride`-th sample of the channels the figures draw ([`Kept`]).
@@ -856,53 +865,88 @@ type Ended = (RunWriter, Kept, Result<Option<Stopped>>);
 /// the integrating thread of the mixed 4-UPS/RPU with its 1 ms output), then shuffles,
 /// deflates ([`crate::chunk`]) and appends them, beside the integration on the other core. The
 /// last block, which the integration no longer runs beside, is evaluated and compressed by every
-/// thread of rayon's pool. The writer hands each block of states back, emptied, and the
-/// integration fills it again, so that no block's memory is allocated (and its pages faulted
-/// in) anew. A sample whose recorded value is not finite stops the run there: the writer
-/// thread writes the samples before it and ends, and the integration stops when it next hands a
-/// block over, at most two blocks after the one that failed (one may wait in the channel).
+/// thread of rayon's pool. When the writer falls behind (a block already waits in the channel
+/// when the next is full, as with an integrator that needs few right-hand sides per sample), the
+/// integration evaluates that block itself instead of waiting, and hands over its recorded
+/// values, which the writer then only compresses and appends: the work then splits between the
+/// two cores by itself. Every sample is evaluated alike wherever it is (its state and onset
+/// history, in a workspace of the thread's own), so the file is the same bit for bit. The
+/// writer hands each block of states or values back, emptied, and the integration fills it
+/// again, so that no block's memory is allocated (and its pages faulted in) anew. A sample
+/// whose recorded value is not finite stops the run there: the samples before it are written
+/// and the writer thread ends; the integration stops at once when it evaluated the block
+/// itself, and otherwise when it next hands a block over, at most two blocks after the one that
+/// failed (one may wait in the channel).
 struct Stream {
-    /// The blocks of states for the writer thread; `None` once closed.
-    tx: Option<mpsc::SyncSender<(States, bool)>>,
+    /// The blocks for the writer thread; `None` once closed.
+    tx: Option<mpsc::SyncSender<(Block, bool)>>,
     thread: Option<std::thread::JoinHandle<Ended>>,
     /// Blocks of states the writer has evaluated, handed back emptied to be filled again.
     spare: mpsc::Receiver<States>,
+    /// Blocks of recorded values the writer has written, handed back to be filled again.
+    spare_recorded: mpsc::Receiver<Recording>,
     /// The block filling.
     states: States,
+    /// The integrating thread's own evaluation of the blocks the writer was behind with.
+    helper: Sampler,
+    /// The recording's declaration, without samples: a block for the helper when the writer
+    /// has none to give back.
+    declaration: Recording,
+    /// Blocks the integrating thread evaluated itself.
+    helped: usize,
+    /// Tests: the integrating thread evaluates every block but the last, as when the writer is
+    /// always behind.
+    #[cfg(test)]
+    always_help: bool,
     /// The partial file, for the error of a writer thread that panicked.
     partial: PathBuf,
-    /// Set when the writer thread was found gone before the run's end.
+    /// Set when the writer thread was found gone, or a sample stopped the run, before its end.
     gone: bool,
 }
 
 impl Stream {
     /// `rec`: the run's recording, without samples yet ([`Recording::of`]).
     fn new(model: &Model, writer: RunWriter, rec: &Recording) -> Stream {
-        let mut sampler = Sampler {
+        let sampler = || Sampler {
             model: model.clone(),
             ws: Workspace::new(model),
             order: rec.order(),
             block: rec.clone(),
         };
+        let mut own = sampler();
         let mut kept = Kept::new(rec);
         let partial = writer.partial().to_path_buf();
-        let (tx, rx) = mpsc::sync_channel::<(States, bool)>(1);
+        let (tx, rx) = mpsc::sync_channel::<(Block, bool)>(1);
         // Room for every block there can be, so that handing one back never waits.
         let (back, spare) = mpsc::sync_channel::<States>(3);
+        let (back_recorded, spare_recorded) = mpsc::sync_channel::<Recording>(3);
         let thread = std::thread::spawn(move || {
             let mut writer = writer;
-            for (mut states, last) in rx {
-                let stopped = sampler.evaluate(&states, last);
-                kept.add(&sampler.block);
-                if let Err(e) = writer.append(&sampler.block, last) {
+            for (block, last) in rx {
+                let (recorded, stopped) = match &block {
+                    Block::States(states) => {
+                        let stopped = own.evaluate(states, last);
+                        (&own.block, stopped)
+                    }
+                    Block::Recorded(recorded, stopped) => (recorded, stopped.clone()),
+                };
+                kept.add(recorded);
+                if let Err(e) = writer.append(recorded, last) {
                     return (writer, kept, Err(e));
                 }
                 if stopped.is_some() {
                     return (writer, kept, Ok(stopped));
                 }
-                states.clear();
-                // Nobody to take it back once the run is over.
-                let _ = back.try_send(states);
+                // Nobody to take them back once the run is over.
+                match block {
+                    Block::States(mut states) => {
+                        states.clear();
+                        let _ = back.try_send(states);
+                    }
+                    Block::Recorded(recorded, _) => {
+                        let _ = back_recorded.try_send(recorded);
+                    }
+                }
             }
             (writer, kept, Ok(None))
         });
@@ -910,7 +954,13 @@ impl Stream {
             tx: Some(tx),
             thread: Some(thread),
             spare,
+            spare_recorded,
             states: States::default(),
+            helper: sampler(),
+            declaration: rec.clone(),
+            helped: 0,
+            #[cfg(test)]
+            always_help: false,
             partial,
             gone: false,
         }
@@ -927,17 +977,52 @@ impl Stream {
     }
 
     /// Hands the block over (`last`: the run's last samples); false when the writer thread is
-    /// gone.
+    /// gone or a sample of the block stopped the run. A block that is not the last, and finds
+    /// the writer behind (another block waiting), is evaluated here first.
     fn send(&mut self, last: bool) -> bool {
+        use mpsc::TrySendError;
         if self.gone {
             return false;
         }
+        let Some(tx) = self.tx.as_ref() else {
+            self.gone = true;
+            return false;
+        };
         let empty = self.spare.try_recv().unwrap_or_default();
-        let block = std::mem::replace(&mut self.states, empty);
-        let sent = self
-            .tx
-            .as_ref()
-            .is_some_and(|tx| tx.send((block, last)).is_ok());
+        let block = Block::States(std::mem::replace(&mut self.states, empty));
+        let sent = if last {
+            tx.send((block, last)).is_ok()
+        } else {
+            #[cfg(test)]
+            let tried = if self.always_help {
+                Err(TrySendError::Full((block, last)))
+            } else {
+                tx.try_send((block, last))
+            };
+            #[cfg(not(test))]
+            let tried = tx.try_send((block, last));
+            match tried {
+                Ok(()) => true,
+                Err(TrySendError::Disconnected(_)) => false,
+                Err(TrySendError::Full((Block::States(mut states), _))) => {
+                    let stopped = self.helper.evaluate(&states, false);
+                    self.helped += 1;
+                    // The block's states are done with: they are filled again, and the
+                    // helper's values go over, replaced by a block the writer gave back.
+                    states.clear();
+                    self.states = states;
+                    let recorded = std::mem::replace(
+                        &mut self.helper.block,
+                        self.spare_recorded
+                            .try_recv()
+                            .unwrap_or_else(|_| self.declaration.clone()),
+                    );
+                    let stops = stopped.is_some();
+                    tx.send((Block::Recorded(recorded, stopped), last)).is_ok() && !stops
+                }
+                Err(TrySendError::Full(_)) => unreachable!("a block of states was sent"),
+            }
+        };
         self.gone = !sent;
         sent
     }
@@ -1592,8 +1677,41 @@ mod tests {
         assert_same_datasets(&da, &db);
     }
 
-    /// The states of a pendulum run at its sample times, with their onset histories, as the
-    /// integration hands them to a [`Stream`].
+    /// Blocks the integrating side evaluates while the writer is behind (here every block but
+    /// the last) give the run recorded in line, bit for bit: the clearance slider-crank, its pin
+    /// flying and touching, over five blocks, the last evaluated by the writer's threads.
+    #[test]
+    fn blocks_evaluated_while_the_writer_is_behind_give_the_run_recorded_in_line() {
+        let (mut m, state) = model("slider-crank-clearance.toml");
+        m.settings.end_time = 0.1;
+        let dir = tempfile::tempdir().unwrap();
+        let meta = Meta::of(&m, Path::new("slider-crank-clearance.toml"), "text", "test");
+        let whole = simulate(&m, state.clone(), &mut |_| {}).unwrap();
+        let a = crate::h5::write_run(&dir.path().join("a"), &meta, &whole).unwrap();
+        let mut assembled = state.clone();
+        m.assemble(&mut assembled).unwrap();
+        let all = states(&m, &assembled);
+        assert_eq!(all.len(), whole.recording.time.len());
+        assert!(all.len() > 4 * STREAM_ROWS, "{}", all.len());
+        let rec = Recording::of(&m).unwrap();
+        let writer = RunWriter::create(&dir.path().join("b"), &meta, &rec).unwrap();
+        let mut sink = Stream::new(&m, writer, &rec);
+        sink.always_help = true;
+        for (t, y, onset) in &all {
+            assert!(sink.push(*t, y, onset));
+        }
+        assert!(sink.send(true));
+        let full = all.len() / STREAM_ROWS;
+        assert_eq!(sink.helped, full);
+        let (writer, kept, stopped) = sink.close().unwrap().unwrap();
+        assert!(stopped.is_none());
+        assert_eq!(kept.rows, all.len());
+        let b = writer.finish(&meta, &whole).unwrap();
+        assert_same_datasets(&sorted_datasets(&a), &sorted_datasets(&b));
+    }
+
+    /// The states of a run from `state` (assembled) at its sample times, with their onset
+    /// histories, as the integration hands them to a [`Stream`].
     fn states(m: &Model, state: &State) -> Vec<(f64, Vec<f64>, Vec<f64>)> {
         let mut y = state.y.clone();
         let mut sys = Mechanism::new(m);
@@ -1616,8 +1734,9 @@ mod tests {
 
     /// A sample whose recorded value is not finite (a state with a velocity so large that the
     /// accelerations overflow) stops the run where it is, in a block evaluated beside the
-    /// integration and in the last block, evaluated by every thread: the samples before it are
-    /// written, none after, and the stop names the quantity and the time.
+    /// integration, in one the integrating side evaluated while the writer was behind and in
+    /// the last block, evaluated by every thread: the samples before it are written, none after,
+    /// and the stop names the quantity and the time.
     #[test]
     fn a_non_finite_recorded_value_stops_a_run_written_as_it_goes_at_its_sample() {
         let (mut m, state) = model("pendulum.toml");
@@ -1626,11 +1745,14 @@ mod tests {
         assert!(all.len() > 3 * STREAM_ROWS + 500, "{}", all.len());
         let dir = tempfile::tempdir().unwrap();
         let meta = Meta::of(&m, Path::new("pendulum.toml"), "text", "test");
-        // In the first block, and in the last one (a hundred samples before the end).
-        for bad in [1000, all.len() - 100] {
+        // In the first block (which the writer evaluates), in the third (evaluated by the
+        // integrating side, as when the writer is behind: the run stops at once) and in the
+        // last one (a hundred samples before the end).
+        for bad in [1000, 2 * STREAM_ROWS + 500, all.len() - 100] {
             let rec = Recording::of(&m).unwrap();
             let writer = RunWriter::create(&dir.path().join(bad.to_string()), &meta, &rec).unwrap();
             let mut sink = Stream::new(&m, writer, &rec);
+            sink.always_help = bad == 2 * STREAM_ROWS + 500;
             let mut pushed = 0;
             for (i, (t, y, onset)) in all.iter().enumerate() {
                 let mut y = y.clone();
@@ -1659,6 +1781,9 @@ mod tests {
             assert!(pushed <= (bad / STREAM_ROWS + 3) * STREAM_ROWS, "{pushed}");
             if bad < STREAM_ROWS {
                 assert!(pushed < all.len(), "{pushed}");
+            }
+            if sink.always_help {
+                assert_eq!(pushed, (bad / STREAM_ROWS + 1) * STREAM_ROWS);
             }
             writer.discard();
         }
