@@ -4,8 +4,9 @@
 //! 1e-3, no step bound; `jointplay precision`), and sorts every accepted step by its contacts:
 //! *free* (no contact penetrates at either end), *closed* (some contact penetrates at both ends),
 //! *onset* and *end* (a contact begins, or ends, inside the step). Each class gets its steps,
-//! its right-hand sides (rejected attempts counted with the step accepted after them), the
-//! simulated time it covers and its mean step.
+//! its right-hand sides (rejected attempts counted with the step accepted after them, an
+//! evaluation at a step's end state after it, such as the first stage after an onset changed
+//! the history, with that step), the simulated time it covers and its mean step.
 //!
 //! A closed step's length h is then set beside h_s, the largest step at which the integrator is
 //! stable (|R(h lambda)| <= 1, R its stability function) on the fastest linearised normal mode
@@ -42,6 +43,9 @@ struct Census<'m> {
     evaluations: u64,
     /// Right-hand sides up to the last accepted step.
     counted: u64,
+    /// The last accepted step's class and end `(t1, y1)`: an evaluation there (the first stage
+    /// of the next step after an onset changed the history, or after an event) belongs to it.
+    last: Option<(usize, f64, Vec<f64>)>,
     /// Per class of [`CLASSES`]: steps, right-hand sides, simulated time (s).
     steps: [u64; 4],
     class_evaluations: [u64; 4],
@@ -71,6 +75,13 @@ impl Census<'_> {
         self.steps[class] += 1;
         self.class_evaluations[class] += self.evaluations - self.counted;
         self.counted = self.evaluations;
+        match &mut self.last {
+            Some((c, t, y)) => {
+                (*c, *t) = (class, t1);
+                y.copy_from_slice(y1);
+            }
+            None => self.last = Some((class, t1, y1.to_vec())),
+        }
         let h = t1 - t0;
         self.time[class] += h;
         if class == 1 {
@@ -107,6 +118,13 @@ impl OdeSystem for Census<'_> {
     }
     fn rhs(&mut self, t: f64, y: &[f64], dydt: &mut [f64]) {
         self.evaluations += 1;
+        if let Some((class, t1, y1)) = &self.last
+            && t == *t1
+            && y == &y1[..]
+        {
+            self.class_evaluations[*class] += 1;
+            self.counted += 1;
+        }
         self.mech.rhs(t, y, dydt)
     }
     fn step_accepted(&mut self, t0: f64, y0: &[f64], t1: f64, y1: &[f64]) -> bool {
@@ -154,6 +172,9 @@ fn stable_step(stability: fn(f64, f64) -> (f64, f64), lambda: (f64, f64)) -> f64
         re.hypot(im) <= 1.0
     };
     let speed = lambda.0.hypot(lambda.1);
+    if speed == 0.0 {
+        return f64::INFINITY;
+    }
     let mut hi = 1.0 / speed;
     while stable(hi) {
         if hi * speed > 1e6 {
@@ -228,6 +249,7 @@ fn census() -> Result<(), String> {
         stability: method.integrator().stability,
         evaluations: 0,
         counted: 0,
+        last: None,
         steps: [0; 4],
         class_evaluations: [0; 4],
         time: [0.0; 4],
@@ -244,6 +266,10 @@ fn census() -> Result<(), String> {
         |_, _, _| Flow::Continue,
     )
     .map_err(|e| e.to_string())?;
+    // Evaluations after the last accepted step (rejected attempts at the end) go to its class.
+    if let Some((class, ..)) = census.last {
+        census.class_evaluations[class] += census.evaluations - census.counted;
+    }
     let Census {
         steps,
         class_evaluations: evaluations,

@@ -120,7 +120,8 @@ impl Model {
     /// the state of the last evaluation in `ws`: its kinematics, contact states, onset history
     /// and constraint factorisation. `out[s]` is the eigenvalue `(re, im)` (1/s) of contact slot
     /// `s`'s faster mode with the constrained effective mass, None for a contact that does not
-    /// penetrate. With an integrator's stability function it tells whether a step was bounded
+    /// penetrate or whose law gives no stiffness and no damping there. A contact without an
+    /// onset velocity yet uses its penetration rate in its place, as its force does. With an integrator's stability function it tells whether a step was bounded
     /// by a contact's stability or by accuracy (`crates/solver/examples/step_census.rs`).
     pub fn contact_modes(&self, ws: &mut Workspace, out: &mut Vec<Option<(f64, f64)>>) {
         out.clear();
@@ -141,6 +142,10 @@ impl Model {
                     ws.onset[s]
                 };
                 let kc = cl.law.linearised(ce.delta, ce.delta_dot, onset);
+                if kc == (0.0, 0.0) {
+                    // No force depends on the penetration here: no mode.
+                    continue;
+                }
                 let free = self.free_inverse_mass(cl, &ce.n, (&ce.pj, &ce.ph), ws);
                 let inv_m = self.constrained((free.0, &free.1), ws, (&mut u, &mut x));
                 out[s] = fastest_mode(kc, inv_m).map(|(lambda, _)| lambda);

@@ -562,7 +562,9 @@ fn onset_events_end_a_step_at_the_onset_and_keep_the_restitution() {
 /// the ground and the normal passes through the ball's centre, so the effective mass is the
 /// ball's 1 kg and lambda = (-c +- sqrt(c^2 - 4 m k)) / (2 m). The two sides are the same
 /// formulas evaluated in another order, so they agree to round-off (1e-12 leaves a margin of
-/// 1e3 over it); a wrong mass, lever or derivative changes lambda by order 1.
+/// 1e3 over it); a wrong mass or derivative changes lambda by order 1. (The lever arms and the
+/// constraints' share of the effective mass are the step-size guard's, which
+/// `crates/solver/src/guard.rs` shares with it.)
 #[test]
 fn contact_modes_are_the_laws_damper_spring_on_the_effective_mass() {
     let f = ball_scene(
