@@ -892,12 +892,13 @@ struct Stream {
     /// The recording's declaration, without samples: a block for the helper when the writer
     /// has none to give back.
     declaration: Recording,
-    /// Blocks the integrating thread evaluated itself.
+    /// Blocks handed over, and those of them the integrating thread evaluated itself.
+    blocks: usize,
     helped: usize,
-    /// Tests: the integrating thread evaluates every block but the last, as when the writer is
-    /// always behind.
+    /// Tests: whether the integrating thread evaluates block `i` (0, 1, ...; never the last), as
+    /// when the writer is behind with it, and otherwise waits for the writer; `None`: as a run.
     #[cfg(test)]
-    always_help: bool,
+    helps: Option<fn(usize) -> bool>,
     /// The partial file, for the error of a writer thread that panicked.
     partial: PathBuf,
     /// Set when the writer thread was found gone, or a sample stopped the run, before its end.
@@ -958,9 +959,10 @@ impl Stream {
             states: States::default(),
             helper: sampler(),
             declaration: rec.clone(),
+            blocks: 0,
             helped: 0,
             #[cfg(test)]
-            always_help: false,
+            helps: None,
             partial,
             gone: false,
         }
@@ -984,25 +986,36 @@ impl Stream {
         if self.gone {
             return false;
         }
-        let Some(tx) = self.tx.as_ref() else {
+        let Some(tx) = self.tx.clone() else {
             self.gone = true;
             return false;
         };
-        let empty = self.spare.try_recv().unwrap_or_default();
-        let block = Block::States(std::mem::replace(&mut self.states, empty));
+        let block = Block::States(std::mem::take(&mut self.states));
+        // The states to fill next: a block the writer gave back, once this one is handed over.
+        let refill = |stream: &mut Stream| {
+            stream.states = stream.spare.try_recv().unwrap_or_default();
+        };
+        self.blocks += 1;
         let sent = if last {
-            tx.send((block, last)).is_ok()
+            let sent = tx.send((block, last)).is_ok();
+            refill(self);
+            sent
         } else {
             #[cfg(test)]
-            let tried = if self.always_help {
-                Err(TrySendError::Full((block, last)))
-            } else {
-                tx.try_send((block, last))
+            let tried = match self.helps {
+                Some(helps) if helps(self.blocks - 1) => Err(TrySendError::Full((block, last))),
+                Some(_) => tx
+                    .send((block, last))
+                    .map_err(|e| TrySendError::Disconnected(e.0)),
+                None => tx.try_send((block, last)),
             };
             #[cfg(not(test))]
             let tried = tx.try_send((block, last));
             match tried {
-                Ok(()) => true,
+                Ok(()) => {
+                    refill(self);
+                    true
+                }
                 Err(TrySendError::Disconnected(_)) => false,
                 Err(TrySendError::Full((Block::States(mut states), _))) => {
                     let stopped = self.helper.evaluate(&states, false);
@@ -1645,18 +1658,31 @@ mod tests {
         );
     }
 
+    /// The clearance slider-crank up to `end_time` s.
+    fn slider_crank(end_time: f64) -> (Model, State) {
+        let (mut m, state) = model("slider-crank-clearance.toml");
+        m.settings.end_time = end_time;
+        (m, state)
+    }
+
+    /// The run of `m` from `state` recorded in line and written at its end to `dir/a`: the
+    /// files' metadata, the run and its file.
+    fn in_line<'m>(m: &'m Model, state: &State, dir: &Path) -> (Meta<'m>, RunResult, PathBuf) {
+        let meta = Meta::of(m, Path::new("slider-crank-clearance.toml"), "text", "test");
+        let whole = simulate(m, state.clone(), &mut |_| {}).unwrap();
+        let a = crate::h5::write_run(&dir.join("a"), &meta, &whole).unwrap();
+        (meta, whole, a)
+    }
+
     /// The writer thread evaluates the recording from the states and onset histories it is
     /// handed, in a workspace of its own: on a clearance joint's impacts and flights (the
     /// slider-crank, over three blocks) the run written as it goes holds the values of the run
     /// recorded on the integrating thread, bit for bit, and the same statistics.
     #[test]
     fn a_clearance_run_written_as_it_goes_is_the_run_recorded_in_line() {
-        let (mut m, state) = model("slider-crank-clearance.toml");
-        m.settings.end_time = 0.05;
         let dir = tempfile::tempdir().unwrap();
-        let meta = Meta::of(&m, Path::new("slider-crank-clearance.toml"), "text", "test");
-        let whole = simulate(&m, state.clone(), &mut |_| {}).unwrap();
-        let a = crate::h5::write_run(&dir.path().join("a"), &meta, &whole).unwrap();
+        let (m, state) = slider_crank(0.05);
+        let (meta, whole, a) = in_line(&m, &state, dir.path());
         let (run, w) =
             simulate_to_file(&m, state, &mut |_| {}, &dir.path().join("b"), &meta).unwrap();
         let n = whole.recording.time.len();
@@ -1677,18 +1703,16 @@ mod tests {
         assert_same_datasets(&da, &db);
     }
 
-    /// Blocks the integrating side evaluates while the writer is behind (here every block but
-    /// the last) give the run recorded in line, bit for bit: the clearance slider-crank, its pin
-    /// flying and touching, over five blocks, the last evaluated by the writer's threads.
+    /// Blocks the integrating side evaluates while the writer is behind (here every other one),
+    /// between blocks the writer evaluates, give the run recorded in line, bit for bit: the
+    /// clearance slider-crank, its pin flying and touching, over five blocks (the integrating
+    /// side evaluates the second and the fourth, the writer's threads the last).
     #[test]
     fn blocks_evaluated_while_the_writer_is_behind_give_the_run_recorded_in_line() {
-        let (mut m, state) = model("slider-crank-clearance.toml");
-        m.settings.end_time = 0.1;
         let dir = tempfile::tempdir().unwrap();
-        let meta = Meta::of(&m, Path::new("slider-crank-clearance.toml"), "text", "test");
-        let whole = simulate(&m, state.clone(), &mut |_| {}).unwrap();
-        let a = crate::h5::write_run(&dir.path().join("a"), &meta, &whole).unwrap();
-        let mut assembled = state.clone();
+        let (m, state) = slider_crank(0.1);
+        let (meta, whole, a) = in_line(&m, &state, dir.path());
+        let mut assembled = state;
         m.assemble(&mut assembled).unwrap();
         let all = states(&m, &assembled);
         assert_eq!(all.len(), whole.recording.time.len());
@@ -1696,13 +1720,13 @@ mod tests {
         let rec = Recording::of(&m).unwrap();
         let writer = RunWriter::create(&dir.path().join("b"), &meta, &rec).unwrap();
         let mut sink = Stream::new(&m, writer, &rec);
-        sink.always_help = true;
+        sink.helps = Some(|b| b % 2 == 1);
         for (t, y, onset) in &all {
             assert!(sink.push(*t, y, onset));
         }
         assert!(sink.send(true));
         let full = all.len() / STREAM_ROWS;
-        assert_eq!(sink.helped, full);
+        assert_eq!((sink.blocks, sink.helped), (full + 1, full / 2));
         let (writer, kept, stopped) = sink.close().unwrap().unwrap();
         assert!(stopped.is_none());
         assert_eq!(kept.rows, all.len());
@@ -1752,7 +1776,10 @@ mod tests {
             let rec = Recording::of(&m).unwrap();
             let writer = RunWriter::create(&dir.path().join(bad.to_string()), &meta, &rec).unwrap();
             let mut sink = Stream::new(&m, writer, &rec);
-            sink.always_help = bad == 2 * STREAM_ROWS + 500;
+            let helped = bad == 2 * STREAM_ROWS + 500;
+            if helped {
+                sink.helps = Some(|b| b == 2);
+            }
             let mut pushed = 0;
             for (i, (t, y, onset)) in all.iter().enumerate() {
                 let mut y = y.clone();
@@ -1782,7 +1809,8 @@ mod tests {
             if bad < STREAM_ROWS {
                 assert!(pushed < all.len(), "{pushed}");
             }
-            if sink.always_help {
+            if helped {
+                assert_eq!(sink.helped, 1);
                 assert_eq!(pushed, (bad / STREAM_ROWS + 1) * STREAM_ROWS);
             }
             writer.discard();
