@@ -43,9 +43,10 @@ struct Census<'m> {
     evaluations: u64,
     /// Right-hand sides up to the last accepted step.
     counted: u64,
-    /// The last accepted step's class and end `(t1, y1)`: an evaluation there (the first stage
-    /// of the next step after an onset changed the history, or after an event) belongs to it.
-    last: Option<(usize, f64, Vec<f64>)>,
+    /// The last accepted step's class and end `(t1, y1)` (t1 NaN before the first): an
+    /// evaluation there (the first stage of the next step after an onset changed the history,
+    /// or after an event) belongs to it.
+    last: (usize, f64, Vec<f64>),
     /// Per class of [`CLASSES`]: steps, right-hand sides, simulated time (s).
     steps: [u64; 4],
     class_evaluations: [u64; 4],
@@ -75,13 +76,10 @@ impl Census<'_> {
         self.steps[class] += 1;
         self.class_evaluations[class] += self.evaluations - self.counted;
         self.counted = self.evaluations;
-        match &mut self.last {
-            Some((c, t, y)) => {
-                (*c, *t) = (class, t1);
-                y.copy_from_slice(y1);
-            }
-            None => self.last = Some((class, t1, y1.to_vec())),
-        }
+        self.last.0 = class;
+        self.last.1 = t1;
+        self.last.2.clear();
+        self.last.2.extend_from_slice(y1);
         let h = t1 - t0;
         self.time[class] += h;
         if class == 1 {
@@ -89,21 +87,15 @@ impl Census<'_> {
             // last stage, its contact geometry refreshed by `step_accepted`).
             let model = self.mech.model;
             model.contact_modes(&mut self.mech.ws, &mut self.modes);
-            let (h_s, lambda) = self
+            // The smallest h_s; among modes stable at any step, the fastest.
+            let (h_s, speed) = self
                 .modes
                 .iter()
                 .flatten()
-                .map(|&lambda| (stable_step(self.stability, lambda), lambda))
-                .fold((f64::INFINITY, (0.0, 0.0)), |a, b| {
-                    // The smallest h_s; among modes stable at any step, the fastest.
-                    let speed = |x: &(f64, (f64, f64))| x.1.0.hypot(x.1.1);
-                    if b.0 < a.0 || (b.0 == a.0 && speed(&b) > speed(&a)) {
-                        b
-                    } else {
-                        a
-                    }
-                });
-            self.fastest.push(lambda.0.hypot(lambda.1));
+                .map(|&l| (stable_step(self.stability, l), l.0.hypot(l.1)))
+                .min_by(|a, b| a.0.total_cmp(&b.0).then(b.1.total_cmp(&a.1)))
+                .unwrap_or((f64::INFINITY, 0.0));
+            self.fastest.push(speed);
             let ratio = h / h_s;
             self.bins[BINS.iter().position(|&b| ratio < b).unwrap_or(BINS.len())] += 1;
         }
@@ -118,11 +110,8 @@ impl OdeSystem for Census<'_> {
     }
     fn rhs(&mut self, t: f64, y: &[f64], dydt: &mut [f64]) {
         self.evaluations += 1;
-        if let Some((class, t1, y1)) = &self.last
-            && t == *t1
-            && y == &y1[..]
-        {
-            self.class_evaluations[*class] += 1;
+        if t == self.last.1 && y == &self.last.2[..] {
+            self.class_evaluations[self.last.0] += 1;
             self.counted += 1;
         }
         self.mech.rhs(t, y, dydt)
@@ -249,7 +238,7 @@ fn census() -> Result<(), String> {
         stability: method.integrator().stability,
         evaluations: 0,
         counted: 0,
-        last: None,
+        last: (0, f64::NAN, Vec::new()),
         steps: [0; 4],
         class_evaluations: [0; 4],
         time: [0.0; 4],
@@ -267,9 +256,7 @@ fn census() -> Result<(), String> {
     )
     .map_err(|e| e.to_string())?;
     // Evaluations after the last accepted step (rejected attempts at the end) go to its class.
-    if let Some((class, ..)) = census.last {
-        census.class_evaluations[class] += census.evaluations - census.counted;
-    }
+    census.class_evaluations[census.last.0] += census.evaluations - census.counted;
     let Census {
         steps,
         class_evaluations: evaluations,

@@ -121,8 +121,9 @@ impl Model {
     /// and constraint factorisation. `out[s]` is the eigenvalue `(re, im)` (1/s) of contact slot
     /// `s`'s faster mode with the constrained effective mass, None for a contact that does not
     /// penetrate or whose law gives no stiffness and no damping there. A contact without an
-    /// onset velocity yet uses its penetration rate in its place, as its force does. With an integrator's stability function it tells whether a step was bounded
-    /// by a contact's stability or by accuracy (`crates/solver/examples/step_census.rs`).
+    /// onset velocity yet uses its penetration rate in its place, as its force does. With an
+    /// integrator's stability function it tells whether a step was bounded by a contact's
+    /// stability or by accuracy (`crates/solver/examples/step_census.rs`).
     pub fn contact_modes(&self, ws: &mut Workspace, out: &mut Vec<Option<(f64, f64)>>) {
         out.clear();
         out.resize(self.n_contacts, None);
