@@ -892,17 +892,24 @@ struct Stream {
     /// The recording's declaration, without samples: a block for the helper when the writer
     /// has none to give back.
     declaration: Recording,
-    /// Blocks handed over, and those of them the integrating thread evaluated itself.
-    blocks: usize,
-    helped: usize,
-    /// Tests: whether the integrating thread evaluates block `i` (0, 1, ...; never the last), as
-    /// when the writer is behind with it, and otherwise waits for the writer; `None`: as a run.
+    /// Tests: which blocks the integrating thread evaluates, and how many it did.
     #[cfg(test)]
-    helps: Option<fn(usize) -> bool>,
+    probe: Probe,
     /// The partial file, for the error of a writer thread that panicked.
     partial: PathBuf,
     /// Set when the writer thread was found gone, or a sample stopped the run, before its end.
     gone: bool,
+}
+
+/// Tests: `helps(i)` says whether the integrating thread evaluates block `i` (0, 1, ...; never
+/// the last), as when the writer is behind with it, the other blocks waiting for the writer
+/// (`None`: as a run); the blocks handed over, and those the integrating thread evaluated.
+#[cfg(test)]
+#[derive(Default)]
+struct Probe {
+    helps: Option<fn(usize) -> bool>,
+    blocks: usize,
+    helped: usize,
 }
 
 impl Stream {
@@ -959,10 +966,8 @@ impl Stream {
             states: States::default(),
             helper: sampler(),
             declaration: rec.clone(),
-            blocks: 0,
-            helped: 0,
             #[cfg(test)]
-            helps: None,
+            probe: Probe::default(),
             partial,
             gone: false,
         }
@@ -995,15 +1000,20 @@ impl Stream {
         let refill = |stream: &mut Stream| {
             stream.states = stream.spare.try_recv().unwrap_or_default();
         };
-        self.blocks += 1;
+        #[cfg(test)]
+        {
+            self.probe.blocks += 1;
+        }
         let sent = if last {
             let sent = tx.send((block, last)).is_ok();
             refill(self);
             sent
         } else {
             #[cfg(test)]
-            let tried = match self.helps {
-                Some(helps) if helps(self.blocks - 1) => Err(TrySendError::Full((block, last))),
+            let tried = match self.probe.helps {
+                Some(helps) if helps(self.probe.blocks - 1) => {
+                    Err(TrySendError::Full((block, last)))
+                }
                 Some(_) => tx
                     .send((block, last))
                     .map_err(|e| TrySendError::Disconnected(e.0)),
@@ -1019,7 +1029,10 @@ impl Stream {
                 Err(TrySendError::Disconnected(_)) => false,
                 Err(TrySendError::Full((Block::States(mut states), _))) => {
                     let stopped = self.helper.evaluate(&states, false);
-                    self.helped += 1;
+                    #[cfg(test)]
+                    {
+                        self.probe.helped += 1;
+                    }
                     // The block's states are done with: they are filled again, and the
                     // helper's values go over, replaced by a block the writer gave back.
                     states.clear();
@@ -1720,13 +1733,13 @@ mod tests {
         let rec = Recording::of(&m).unwrap();
         let writer = RunWriter::create(&dir.path().join("b"), &meta, &rec).unwrap();
         let mut sink = Stream::new(&m, writer, &rec);
-        sink.helps = Some(|b| b % 2 == 1);
+        sink.probe.helps = Some(|b| b % 2 == 1);
         for (t, y, onset) in &all {
             assert!(sink.push(*t, y, onset));
         }
         assert!(sink.send(true));
         let full = all.len() / STREAM_ROWS;
-        assert_eq!((sink.blocks, sink.helped), (full + 1, full / 2));
+        assert_eq!((sink.probe.blocks, sink.probe.helped), (full + 1, full / 2));
         let (writer, kept, stopped) = sink.close().unwrap().unwrap();
         assert!(stopped.is_none());
         assert_eq!(kept.rows, all.len());
@@ -1778,7 +1791,7 @@ mod tests {
             let mut sink = Stream::new(&m, writer, &rec);
             let helped = bad == 2 * STREAM_ROWS + 500;
             if helped {
-                sink.helps = Some(|b| b == 2);
+                sink.probe.helps = Some(|b| b == 2);
             }
             let mut pushed = 0;
             for (i, (t, y, onset)) in all.iter().enumerate() {
@@ -1810,7 +1823,7 @@ mod tests {
                 assert!(pushed < all.len(), "{pushed}");
             }
             if helped {
-                assert_eq!(sink.helped, 1);
+                assert_eq!(sink.probe.helped, 1);
                 assert_eq!(pushed, (bad / STREAM_ROWS + 1) * STREAM_ROWS);
             }
             writer.discard();
