@@ -231,6 +231,14 @@ fn tangent_map_with_onset_events_matches_finite_differences() {
     tangent_map_through_onsets(", \"solver.onset_events\" = true");
 }
 
+/// The same with contact onsets and ends as integrator events (`solver.end_events`): an end
+/// changes nothing in the state either (the force is zero where the penetration is), and the
+/// onset velocity is cleared there as it is at the end of an ordinary step.
+#[test]
+fn tangent_map_with_onset_and_end_events_matches_finite_differences() {
+    tangent_map_through_onsets(", \"solver.onset_events\" = true, \"solver.end_events\" = true");
+}
+
 fn tangent_map_through_onsets(set: &str) {
     let target = slider_crank(set);
     let mut flow = target.flow();

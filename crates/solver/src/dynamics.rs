@@ -1119,16 +1119,21 @@ pub struct Mechanism<'m> {
     /// step (a step that overshoots into a contact may leave it again before its end, where
     /// the step-size guard looks).
     deepest: Option<Vec<ContactEval>>,
-    /// With `onset_events`: a workspace of the event functions' own (the gaps are evaluated
-    /// inside a step, between the stages, and must not disturb the step's evaluation) and the
-    /// contact rates it returns.
-    events: Option<EventScratch>,
+    /// With `onset_events` or `end_events`: the event functions' own workspace (the gaps are
+    /// evaluated inside a step, between the stages, and must not disturb the step's evaluation).
+    events: Option<ContactEvents>,
     /// A second workspace for [`Model::contact_jacobian`], made on first use.
     jacobian: Option<Box<Workspace>>,
 }
 
-/// The onset events' workspace and the contact rates it returns.
-type EventScratch = (Box<Workspace>, Vec<(f64, f64, bool)>);
+/// The contact events: which kinds are on, a workspace of their own and the contact rates it
+/// returns.
+struct ContactEvents {
+    onsets: bool,
+    ends: bool,
+    ws: Box<Workspace>,
+    rates: Vec<(f64, f64, bool)>,
+}
 
 impl<'m> Mechanism<'m> {
     pub fn new(model: &'m Model) -> Self {
@@ -1139,10 +1144,15 @@ impl<'m> Mechanism<'m> {
             warnings: Vec::new(),
             guard: StepGuard::default(),
             deepest: fixed.then(|| vec![untouched(); model.n_contacts]),
-            events: (model.settings.onset_events
+            events: ((model.settings.onset_events || model.settings.end_events)
                 && model.effects.clearance
                 && model.n_contacts > 0)
-                .then(|| (Box::new(Workspace::new(model)), Vec::new())),
+                .then(|| ContactEvents {
+                    onsets: model.settings.onset_events,
+                    ends: model.settings.end_events,
+                    ws: Box::new(Workspace::new(model)),
+                    rates: Vec::new(),
+                }),
             jacobian: None,
         }
     }
@@ -1192,25 +1202,31 @@ impl OdeSystem for Mechanism<'_> {
         self.model.update_onsets(t0, y0, t1, y1, &mut self.ws)
     }
     /// With `onset_events`, one event per contact slot: the gap `-delta` (m), which crosses zero
-    /// downwards where the contact begins.
+    /// downwards where the contact begins; with `end_events`, one more per slot after those:
+    /// the penetration `delta` (m), which crosses zero downwards where the contact ends.
     fn events(&self) -> usize {
-        if self.events.is_some() {
-            self.model.n_contacts
-        } else {
-            0
-        }
+        self.events.as_ref().map_or(0, |e| {
+            self.model.n_contacts * (usize::from(e.onsets) + usize::from(e.ends))
+        })
     }
     fn event_values(&mut self, _t: f64, y: &[f64], g: &mut [f64]) {
-        if let Some((ws, rates)) = self.events.as_mut() {
-            self.model.contact_rates(y, ws, rates);
-            for (g, r) in g.iter_mut().zip(rates.iter()) {
-                // A slot whose geometry is undefined (NaN) never fires.
-                *g = if r.0.is_nan() { 1.0 } else { -r.0 };
+        if let Some(e) = self.events.as_mut() {
+            self.model.contact_rates(y, &mut e.ws, &mut e.rates);
+            let n = e.rates.len();
+            let (onsets, ends) = g.split_at_mut(if e.onsets { n } else { 0 });
+            // A slot whose geometry is undefined (NaN) never fires.
+            let gap = |r: &(f64, f64, bool)| if r.0.is_nan() { 1.0 } else { -r.0 };
+            for (g, r) in onsets.iter_mut().zip(&e.rates) {
+                *g = gap(r);
+            }
+            for (g, r) in ends.iter_mut().zip(&e.rates) {
+                *g = -gap(r);
             }
         }
     }
-    /// An onset changes nothing in the state (the compliant force is zero at zero
-    /// penetration); the step that ended there sets the onset velocity in `step_accepted`.
+    /// An onset or an end changes nothing in the state (the compliant force is zero at zero
+    /// penetration); the step that ended there sets or clears the onset velocity in
+    /// `step_accepted`.
     fn event_restarts_step(&self, _i: usize) -> bool {
         true
     }

@@ -259,6 +259,8 @@ pub struct Settings {
     pub max_drift: f64,
     /// Contact onsets end integrator steps ([`crate::scene::SolverSpec::onset_events`]).
     pub onset_events: bool,
+    /// Contact ends end integrator steps ([`crate::scene::SolverSpec::end_events`]).
+    pub end_events: bool,
 }
 
 /// What to record, resolved to indices.

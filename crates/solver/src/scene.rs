@@ -487,6 +487,12 @@ pub struct SolverSpec {
     /// default (the results of earlier versions are reproduced bit for bit).
     #[serde(default)]
     pub onset_events: bool,
+    /// Contact ends as integrator events: a step in which a contact ends (its penetration falls
+    /// back to zero) ends there, located and restarted as an onset is; the force, smooth while
+    /// the contact is closed, loses its smoothness where it ends as where it begins. Off by
+    /// default (the results of earlier versions are reproduced bit for bit).
+    #[serde(default)]
+    pub end_events: bool,
 }
 
 fn default_step() -> f64 {
@@ -518,6 +524,7 @@ impl Default for SolverSpec {
             max_penetration: None,
             max_constraint_drift: None,
             onset_events: false,
+            end_events: false,
         }
     }
 }

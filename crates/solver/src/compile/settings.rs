@@ -79,6 +79,7 @@ pub(crate) fn settings(sv: &SolverSpec, drives: &[Drive], cx: &Ctx) -> Result<Se
         max_penetration,
         max_drift,
         onset_events: sv.onset_events,
+        end_events: sv.end_events,
     })
 }
 
