@@ -18,11 +18,11 @@
 //! The census also gives the spread of |lambda| of the modes that set h_s.
 //!
 //! ```text
-//! cargo run --release -p jointplay-solver --example step_census -- SCENE INTEGRATOR RTOL [--events] [--ends] [--until T]
+//! cargo run --release -p jointplay-solver --example step_census -- SCENE INTEGRATOR RTOL [--events] [--ends] [--friction] [--until T]
 //! ```
 //!
-//! `--events` sets `solver.onset_events`, `--ends` `solver.end_events`; `--until` ends the run
-//! at T s (default: the scene's span).
+//! `--events` sets `solver.onset_events`, `--ends` `solver.end_events`, `--friction`
+//! `solver.friction_events`; `--until` ends the run at T s (default: the scene's span).
 
 use jointplay_solver::dynamics::Mechanism;
 use jointplay_solver::model::Model;
@@ -194,7 +194,8 @@ fn main() -> ExitCode {
 
 fn census() -> Result<(), String> {
     let args: Vec<String> = std::env::args().skip(1).collect();
-    let usage = "usage: step_census SCENE INTEGRATOR RTOL [--events] [--ends] [--until T]";
+    let usage =
+        "usage: step_census SCENE INTEGRATOR RTOL [--events] [--ends] [--friction] [--until T]";
     let [scene, integrator, rtol, rest @ ..] = &args[..] else {
         return Err(usage.into());
     };
@@ -204,12 +205,13 @@ fn census() -> Result<(), String> {
     if !(rtol.is_finite() && rtol > 0.0) {
         return Err(format!("RTOL {rtol} must be positive"));
     }
-    let (mut events, mut ends, mut until) = (false, false, None);
+    let (mut events, mut ends, mut friction, mut until) = (false, false, false, None);
     let mut rest = rest.iter();
     while let Some(a) = rest.next() {
         match a.as_str() {
             "--events" => events = true,
             "--ends" => ends = true,
+            "--friction" => friction = true,
             "--until" => {
                 let t = rest.next().ok_or(usage)?;
                 until = Some(
@@ -229,6 +231,7 @@ fn census() -> Result<(), String> {
     model.settings.method = method;
     model.settings.onset_events = events;
     model.settings.end_events = ends;
+    model.settings.friction_events = friction;
     let t_end = until.unwrap_or(model.settings.end_time);
 
     let model = &model;
@@ -273,12 +276,7 @@ fn census() -> Result<(), String> {
         "{scene}: {} from {} s to {t_end} s{}: {} steps ({} rejected), {} right-hand sides",
         method.describe(),
         model.settings.start_time,
-        match (events, ends) {
-            (true, true) => ", onset and end events",
-            (true, false) => ", onset events",
-            (false, true) => ", end events",
-            (false, false) => "",
-        },
+        events_named(events, ends, friction),
         stats.accepted,
         stats.rejected,
         stats.rhs_evals
@@ -322,4 +320,21 @@ fn census() -> Result<(), String> {
         );
     }
     Ok(())
+}
+
+/// The events a census runs with, as its heading names them ("" for none).
+fn events_named(onsets: bool, ends: bool, friction: bool) -> String {
+    let named: Vec<&str> = [
+        (onsets, "onset"),
+        (ends, "end"),
+        (friction, "friction-kink"),
+    ]
+    .into_iter()
+    .filter_map(|(on, name)| on.then_some(name))
+    .collect();
+    if named.is_empty() {
+        String::new()
+    } else {
+        format!(", {} events", named.join(", "))
+    }
 }

@@ -349,6 +349,14 @@ impl Clearance {
         }
     }
 
+    /// The sliding speed |v_t| (m/s) of each contact (geometry already in `contacts`): the
+    /// speed the friction law reads.
+    pub fn sliding_speeds(&self, kh: &Kin, kj: &Kin, contacts: &[ContactEval], out: &mut [f64]) {
+        for (c, v) in contacts.iter().zip(out) {
+            *v = perp(&(vel(kj, &c.pj) - vel(kh, &c.ph)), &c.n).norm();
+        }
+    }
+
     /// Normal and friction forces of the contacts (geometry already in `out`), with the onset
     /// velocities `onset` (NaN: the contact began inside the current step, use delta_dot), and
     /// their resultant on both bodies.

@@ -373,6 +373,17 @@ impl FrictionLaw {
         matches!(self, FrictionLaw::None)
     }
 
+    /// The sliding speeds (m/s) at which the coefficient is continuous but its slope jumps, in
+    /// increasing order, and how many there are: Ambrosio's v0 and v1, the regularised Coulomb's
+    /// v_reg; none for Threlfall's law (smooth) and without friction.
+    pub fn kinks(&self) -> ([f64; 2], usize) {
+        match *self {
+            FrictionLaw::Coulomb { v_reg, .. } => ([v_reg, f64::NAN], 1),
+            FrictionLaw::Ambrosio { v0, v1, .. } => ([v0, v1], 2),
+            FrictionLaw::None | FrictionLaw::Threlfall { .. } => ([f64::NAN; 2], 0),
+        }
+    }
+
     /// d(coefficient)/d(speed) at sliding speed `v` (s/m): the friction force `c(v) F_N` acts as
     /// a viscous damper of coefficient `F_N` times this in the tangent plane.
     pub fn slope(&self, v: f64) -> f64 {

@@ -397,6 +397,27 @@ impl Model {
         }
     }
 
+    /// The sliding speed (m/s) of every contact slot into `out`, from the kinematics and contact
+    /// geometry in `ws` as [`Model::contact_rates`] leaves them.
+    pub fn sliding_speeds(&self, ws: &Workspace, out: &mut Vec<f64>) {
+        out.clear();
+        out.resize(self.n_contacts, f64::NAN);
+        if !self.effects.clearance {
+            return;
+        }
+        let nb = self.nb();
+        let idx = |b: usize| if b == GROUND { nb } else { b };
+        for c in &self.clearances {
+            let slots = c.first..c.first + c.geometry.n_contacts();
+            c.sliding_speeds(
+                &ws.kin[idx(c.housing)],
+                &ws.kin[idx(c.journal)],
+                &ws.contacts[slots.clone()],
+                &mut out[slots],
+            );
+        }
+    }
+
     /// The kinematics at `y` and every contact's geometry (penetration, rate, normal, points)
     /// into `ws.contacts`, without forces.
     fn contact_geometry(&self, y: &[f64], ws: &mut Workspace) {
@@ -1126,13 +1147,17 @@ pub struct Mechanism<'m> {
     jacobian: Option<Box<Workspace>>,
 }
 
-/// The contact events: which kinds are on, a workspace of their own and the contact rates it
-/// returns.
+/// The contact events: which kinds are on, a workspace of their own and the contact rates and
+/// sliding speeds it returns.
 struct ContactEvents {
     onsets: bool,
     ends: bool,
+    /// With `friction_events`: the contact slot and kink speed (m/s) of each pair of friction
+    /// events.
+    kinks: Vec<(usize, f64)>,
     ws: Box<Workspace>,
     rates: Vec<(f64, f64, bool)>,
+    speeds: Vec<f64>,
 }
 
 impl<'m> Mechanism<'m> {
@@ -1144,15 +1169,7 @@ impl<'m> Mechanism<'m> {
             warnings: Vec::new(),
             guard: StepGuard::default(),
             deepest: fixed.then(|| vec![untouched(); model.n_contacts]),
-            events: ((model.settings.onset_events || model.settings.end_events)
-                && model.effects.clearance
-                && model.n_contacts > 0)
-                .then(|| ContactEvents {
-                    onsets: model.settings.onset_events,
-                    ends: model.settings.end_events,
-                    ws: Box::new(Workspace::new(model)),
-                    rates: Vec::new(),
-                }),
+            events: contact_events(model),
             jacobian: None,
         }
     }
@@ -1174,6 +1191,31 @@ impl<'m> Mechanism<'m> {
         );
         Ok(())
     }
+}
+
+/// The contact events the model's settings call for; None when there are none.
+fn contact_events(model: &Model) -> Option<ContactEvents> {
+    let s = &model.settings;
+    if !model.effects.clearance || model.n_contacts == 0 {
+        return None;
+    }
+    let mut kinks = Vec::new();
+    if s.friction_events {
+        for c in &model.clearances {
+            let (speeds, n) = c.friction.kinks();
+            for slot in c.first..c.first + c.geometry.n_contacts() {
+                kinks.extend(speeds[..n].iter().map(|&v| (slot, v)));
+            }
+        }
+    }
+    (s.onset_events || s.end_events || !kinks.is_empty()).then(|| ContactEvents {
+        onsets: s.onset_events,
+        ends: s.end_events,
+        kinks,
+        ws: Box::new(Workspace::new(model)),
+        rates: Vec::new(),
+        speeds: Vec::new(),
+    })
 }
 
 /// A contact state deeper than none.
@@ -1203,17 +1245,23 @@ impl OdeSystem for Mechanism<'_> {
     }
     /// With `onset_events`, one event per contact slot: the gap `-delta` (m), which crosses zero
     /// downwards where the contact begins; with `end_events`, one more per slot after those:
-    /// the penetration `delta` (m), which crosses zero downwards where the contact ends.
+    /// the penetration `delta` (m), which crosses zero downwards where the contact ends; with
+    /// `friction_events`, two per kink of each slot's friction law after those: `v - v_k` and
+    /// `v_k - v` for the sliding speed v (m/s), which cross zero downwards where the speed falls
+    /// and rises through the kink v_k while the contact is closed (1 while it is open: the
+    /// friction is off there, and a crossing at the onset coincides with the onset).
     fn events(&self) -> usize {
         self.events.as_ref().map_or(0, |e| {
             self.model.n_contacts * (usize::from(e.onsets) + usize::from(e.ends))
+                + 2 * e.kinks.len()
         })
     }
     fn event_values(&mut self, _t: f64, y: &[f64], g: &mut [f64]) {
         if let Some(e) = self.events.as_mut() {
             self.model.contact_rates(y, &mut e.ws, &mut e.rates);
             let n = e.rates.len();
-            let (onsets, ends) = g.split_at_mut(if e.onsets { n } else { 0 });
+            let (onsets, rest) = g.split_at_mut(if e.onsets { n } else { 0 });
+            let (ends, kinks) = rest.split_at_mut(if e.ends { n } else { 0 });
             // A slot whose geometry is undefined (NaN) never fires.
             let gap = |r: &(f64, f64, bool)| if r.0.is_nan() { 1.0 } else { -r.0 };
             for (g, r) in onsets.iter_mut().zip(&e.rates) {
@@ -1221,6 +1269,18 @@ impl OdeSystem for Mechanism<'_> {
             }
             for (g, r) in ends.iter_mut().zip(&e.rates) {
                 *g = -gap(r);
+            }
+            if !e.kinks.is_empty() {
+                self.model.sliding_speeds(&e.ws, &mut e.speeds);
+                for (g, &(s, vk)) in kinks.chunks_exact_mut(2).zip(&e.kinks) {
+                    let (delta, v) = (e.rates[s].0, e.speeds[s]);
+                    if delta > 0.0 && v.is_finite() {
+                        g[0] = v - vk;
+                        g[1] = vk - v;
+                    } else {
+                        g.fill(1.0);
+                    }
+                }
             }
         }
     }

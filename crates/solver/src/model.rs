@@ -261,6 +261,8 @@ pub struct Settings {
     pub onset_events: bool,
     /// Contact ends end integrator steps ([`crate::scene::SolverSpec::end_events`]).
     pub end_events: bool,
+    /// Friction kinks end integrator steps ([`crate::scene::SolverSpec::friction_events`]).
+    pub friction_events: bool,
 }
 
 /// What to record, resolved to indices.

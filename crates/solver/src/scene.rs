@@ -493,6 +493,12 @@ pub struct SolverSpec {
     /// default (the results of earlier versions are reproduced bit for bit).
     #[serde(default)]
     pub end_events: bool,
+    /// Friction kinks as integrator events: a step in which a closed contact's sliding speed
+    /// crosses a speed where its friction law's coefficient has a kink (Ambrosio's v0 and v1,
+    /// the regularised Coulomb's v_reg) ends there, located and restarted as an onset is. Off by
+    /// default (the results of earlier versions are reproduced bit for bit).
+    #[serde(default)]
+    pub friction_events: bool,
 }
 
 fn default_step() -> f64 {
@@ -525,6 +531,7 @@ impl Default for SolverSpec {
             max_constraint_drift: None,
             onset_events: false,
             end_events: false,
+            friction_events: false,
         }
     }
 }

@@ -657,3 +657,92 @@ fn contact_modes_are_the_laws_damper_spring_on_the_effective_mass() {
         "mode {got_re:e} +- {got_im:e}i 1/s, expected {re:e} +- {im:e}i 1/s"
     );
 }
+
+/// Friction kinks as integrator events (`solver.friction_events`): Ambrosio's coefficient has
+/// kinks at the sliding speeds v0 = 1e-4 and v1 = 1e-2 m/s. The shaft of the test above, spun at
+/// 1.5 rad/s (0.0146 m/s at its surface), drops onto its bushing, slides, rolls and rocks, and
+/// its sliding speed crosses both kinks while the contact is closed (16 steps across one in
+/// 0.1 s, measured). With the setting each crossing ends a step, which lands on the kink
+/// speed; without it steps run across the kinks.
+#[test]
+fn friction_events_end_steps_at_the_friction_laws_kinks() {
+    let friction = r#"{ law = "ambrosio", coefficient = 0.1, v0 = 1e-4, v1 = 1e-2 }"#;
+    let kinks = [1e-4, 1e-2];
+    for events in [false, true] {
+        let text = shaft_scene(false, friction)
+            .text
+            .replace(
+                "points = { J = [0.0, 0.0, 0.0] }",
+                "points = { J = [0.0, 0.0, 0.0] }\nangular_velocity = [0.0, 0.0, 1.5]",
+            )
+            .replace(
+                "[solver]\n",
+                &format!("[solver]\nfriction_events = {events}\n"),
+            );
+        let (m, mut s) = compile(&parsed("shaft.toml", text));
+        assert_eq!(m.settings.friction_events, events);
+        let mut sys = jointplay_solver::dynamics::Mechanism::new(&m);
+        let mut ws = jointplay_solver::dynamics::Workspace::new(&m);
+        let (mut rates, mut speeds) = (Vec::new(), Vec::new());
+        // Steps whose ends, with the contact closed at both, lie on either side of a kink, and
+        // the largest distance from the kink (relative) of the nearer end of such a step.
+        let (mut across, mut worst) = (0, 0.0f64);
+        let mut on_step = |_: &mut jointplay_solver::dynamics::Mechanism,
+                           step: &jointplay_solver::ode::Step| {
+            let mut ends = [[(0.0, 0.0); 2]; 2];
+            for (e, y) in ends.iter_mut().zip([step.y0, step.y1]) {
+                m.contact_rates(y, &mut ws, &mut rates);
+                m.sliding_speeds(&ws, &mut speeds);
+                for (slot, e) in e.iter_mut().enumerate() {
+                    *e = (rates[slot].0, speeds[slot]);
+                }
+            }
+            for slot in 0..2 {
+                if ends.iter().any(|e| e[slot].0 <= 0.0) {
+                    continue;
+                }
+                for vk in kinks {
+                    let (a, b) = (ends[0][slot].1 - vk, ends[1][slot].1 - vk);
+                    if a * b <= 0.0 {
+                        across += 1;
+                        worst = worst.max(a.abs().min(b.abs()) / vk);
+                    }
+                }
+            }
+            jointplay_solver::ode::Flow::Continue
+        };
+        let method = Method::adaptive(&DOPRI5, 1e-8, 1e-11, f64::INFINITY).unwrap();
+        let stats = jointplay_solver::ode::integrate_steps(
+            &mut sys,
+            method,
+            0.0,
+            &mut s.y,
+            0.1,
+            &[],
+            |_, _, _| jointplay_solver::ode::Flow::Continue,
+            Some(&mut on_step),
+        )
+        .unwrap();
+        assert!(
+            across >= 10,
+            "{across} steps across a kink: the test must cross kinks"
+        );
+        // With the events a crossing step is taken again up to the kink located on its dense
+        // output and lands there to its local error (measured 1.1e-5 of the kink speed at rtol
+        // 1e-8): bound 1e-4. Without them the nearer end of a crossing step is up to 7.5e-2 of
+        // the kink speed away (measured): bound 1e-2.
+        if events {
+            assert!(stats.events >= 10, "{} events", stats.events);
+            assert!(
+                worst < 1e-4,
+                "a step ended {worst:e} of the kink speed from it"
+            );
+        } else {
+            assert_eq!(stats.events, 0);
+            assert!(
+                worst > 1e-2,
+                "steps ended within {worst:e} of the kink speed"
+            );
+        }
+    }
+}

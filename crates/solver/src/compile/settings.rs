@@ -80,6 +80,7 @@ pub(crate) fn settings(sv: &SolverSpec, drives: &[Drive], cx: &Ctx) -> Result<Se
         max_drift,
         onset_events: sv.onset_events,
         end_events: sv.end_events,
+        friction_events: sv.friction_events,
     })
 }
 
