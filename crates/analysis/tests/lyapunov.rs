@@ -208,9 +208,9 @@ fn stroboscopic_map_exponents_are_the_flow_exponents_times_the_period() {
 }
 
 /// The tangent map through contact equals the derivative of the flow map: on the L-N
-/// slider-crank, windows of 1 ms in which a contact begins or ends (found by a plain run) are
-/// crossed by each basis vector of the constraint manifold's tangent space, carried with the
-/// onset-velocity saltation, and compared with central differences of perturbed runs (+-1e-7
+/// slider-crank, windows of 1 ms in which a contact begins (two) or ends (one), found by a plain
+/// run, are crossed by each basis vector of the constraint manifold's tangent space, carried with
+/// the onset-velocity saltation, and compared with central differences of perturbed runs (+-1e-7
 /// along the vector, each with its own contact history). Through the stiff contact the
 /// difference quotient itself is uncertain by about 1e-2 (it changes by that much between
 /// increments 1e-6 and 1e-7), so the tangent must agree within three times that spread plus
@@ -246,8 +246,10 @@ fn tangent_map_through_onsets(set: &str) {
     let mut state = flow.initial_state(None).unwrap();
     flow.prepare(&state).unwrap();
     let tau = 1e-3;
-    let mut windows = Vec::new();
-    while windows.len() < 2 && state.t < 0.2 {
+    // Two windows in which a contact begins, and one in which a contact that was closed at the
+    // window's start has ended by its end.
+    let (mut windows, mut ended) = (Vec::new(), None);
+    while (windows.len() < 2 || ended.is_none()) && state.t < 0.2 {
         let before = state.clone();
         let (_, r) = advance(
             &mut flow,
@@ -264,8 +266,17 @@ fn tangent_map_through_onsets(set: &str) {
             .iter()
             .zip(&state.onset)
             .any(|(a, b)| a.is_nan() && !b.is_nan());
-        if began && before.t > 0.01 {
-            windows.push(before);
+        let ends = before
+            .onset
+            .iter()
+            .zip(&state.onset)
+            .any(|(a, b)| !a.is_nan() && b.is_nan());
+        if before.t > 0.01 {
+            if began && windows.len() < 2 {
+                windows.push(before);
+            } else if ends && ended.is_none() {
+                ended = Some(before);
+            }
         }
     }
     assert_eq!(
@@ -273,6 +284,7 @@ fn tangent_map_through_onsets(set: &str) {
         2,
         "the slider-crank makes contact within 0.2 s"
     );
+    windows.push(ended.expect("a contact of the slider-crank ends within 0.2 s"));
     for start in &windows {
         let basis = flow.manifold_basis(start.t, &start.y).unwrap().unwrap();
         assert_eq!(basis.ncols(), 4, "twice the 2 free degrees of freedom");

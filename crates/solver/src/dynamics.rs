@@ -1140,8 +1140,9 @@ pub struct Mechanism<'m> {
     /// step (a step that overshoots into a contact may leave it again before its end, where
     /// the step-size guard looks).
     deepest: Option<Vec<ContactEval>>,
-    /// With `onset_events` or `end_events`: the event functions' own workspace (the gaps are
-    /// evaluated inside a step, between the stages, and must not disturb the step's evaluation).
+    /// With `onset_events`, `end_events` or `friction_events`: the event functions' own workspace
+    /// (the gaps and sliding speeds are evaluated inside a step, between the stages, and must
+    /// not disturb the step's evaluation).
     events: Option<ContactEvents>,
     /// A second workspace for [`Model::contact_jacobian`], made on first use.
     jacobian: Option<Box<Workspace>>,
@@ -1248,8 +1249,10 @@ impl OdeSystem for Mechanism<'_> {
     /// the penetration `delta` (m), which crosses zero downwards where the contact ends; with
     /// `friction_events`, two per kink of each slot's friction law after those: `v - v_k` and
     /// `v_k - v` for the sliding speed v (m/s), which cross zero downwards where the speed falls
-    /// and rises through the kink v_k while the contact is closed (1 while it is open: the
-    /// friction is off there, and a crossing at the onset coincides with the onset).
+    /// and rises through the kink v_k while the contact is penetrating (1 while it is open: the
+    /// friction is off there). One of the two jumps below zero where the contact begins, so
+    /// `friction_events` also ends a step at the onsets of the contacts whose law has kinks,
+    /// with `onset_events` off too.
     fn events(&self) -> usize {
         self.events.as_ref().map_or(0, |e| {
             self.model.n_contacts * (usize::from(e.onsets) + usize::from(e.ends))
@@ -1262,7 +1265,8 @@ impl OdeSystem for Mechanism<'_> {
             let n = e.rates.len();
             let (onsets, rest) = g.split_at_mut(if e.onsets { n } else { 0 });
             let (ends, kinks) = rest.split_at_mut(if e.ends { n } else { 0 });
-            // A slot whose geometry is undefined (NaN) never fires.
+            // A slot whose geometry is undefined (NaN) counts as open: its onset never fires, and
+            // its end fires if it was closed.
             let gap = |r: &(f64, f64, bool)| if r.0.is_nan() { 1.0 } else { -r.0 };
             for (g, r) in onsets.iter_mut().zip(&e.rates) {
                 *g = gap(r);
@@ -1284,9 +1288,9 @@ impl OdeSystem for Mechanism<'_> {
             }
         }
     }
-    /// An onset or an end changes nothing in the state (the compliant force is zero at zero
-    /// penetration); the step that ended there sets or clears the onset velocity in
-    /// `step_accepted`.
+    /// An onset, an end or a friction kink changes nothing in the state (the compliant force is
+    /// zero at zero penetration, the friction coefficient continuous at a kink); the step that
+    /// ended at an onset or an end sets or clears the onset velocity in `step_accepted`.
     fn event_restarts_step(&self, _i: usize) -> bool {
         true
     }

@@ -485,7 +485,8 @@ pub struct Stats {
     pub rhs_evals: u64,
     /// Jacobians df/dy formed (Rosenbrock23: one per step start, by n + 1 forward differences).
     pub jacobians: u64,
-    /// Events that ended a step (impacts, contact onsets with `onset_events`).
+    /// Events that ended a step (impacts; contact onsets, ends and friction kinks with
+    /// `onset_events`, `end_events` and `friction_events`).
     pub events: u64,
     /// Wall-clock time spent in [`integrate`].
     pub wall: Duration,

@@ -493,10 +493,12 @@ pub struct SolverSpec {
     /// default (the results of earlier versions are reproduced bit for bit).
     #[serde(default)]
     pub end_events: bool,
-    /// Friction kinks as integrator events: a step in which a closed contact's sliding speed
+    /// Friction kinks as integrator events: a step in which a penetrating contact's sliding speed
     /// crosses a speed where its friction law's coefficient has a kink (Ambrosio's v0 and v1,
-    /// the regularised Coulomb's v_reg) ends there, located and restarted as an onset is. Off by
-    /// default (the results of earlier versions are reproduced bit for bit).
+    /// the regularised Coulomb's v_reg) ends there, located and restarted as an onset is; so
+    /// does a step in which such a contact begins, with `onset_events` off too. Independent of
+    /// the other two settings. Off by default (the results of earlier versions are reproduced
+    /// bit for bit).
     #[serde(default)]
     pub friction_events: bool,
 }
