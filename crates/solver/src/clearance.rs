@@ -353,7 +353,7 @@ impl Clearance {
     /// speed the friction law reads.
     pub fn sliding_speeds(&self, kh: &Kin, kj: &Kin, contacts: &[ContactEval], out: &mut [f64]) {
         for (c, v) in contacts.iter().zip(out) {
-            *v = perp(&(vel(kj, &c.pj) - vel(kh, &c.ph)), &c.n).norm();
+            *v = sliding_velocity(kh, kj, c).norm();
         }
     }
 
@@ -376,8 +376,7 @@ impl Clearance {
             c.fn_ = fn_;
             let mut f = -c.n * fn_;
             if !self.friction.is_none() {
-                let vrel = vel(kj, &c.pj) - vel(kh, &c.ph);
-                let vt = perp(&vrel, &c.n);
+                let vt = sliding_velocity(kh, kj, c);
                 let v = vt.norm();
                 if v > 0.0 {
                     c.ft = -vt * (self.friction.coefficient(v) * fn_ / v);
@@ -391,6 +390,13 @@ impl Clearance {
         }
         r
     }
+}
+
+/// The journal's velocity relative to the housing at a contact, in the contact's tangent plane
+/// (m/s): what the friction law reads, and what the friction events compare with its kinks.
+#[inline]
+fn sliding_velocity(kh: &Kin, kj: &Kin, c: &ContactEval) -> Vector3<f64> {
+    perp(&(vel(kj, &c.pj) - vel(kh, &c.ph)), &c.n)
 }
 
 /// A radial (sphere-in-socket or circle-in-circle) contact from the eccentricity `e`.
