@@ -114,6 +114,12 @@ impl OdeSystem for MechFlow<'_> {
     fn event_values(&mut self, t: f64, y: &[f64], g: &mut [f64]) {
         self.mech.event_values(t, y, g)
     }
+    fn event_values_at_rhs(&mut self, t: f64, y: &[f64], g: &mut [f64]) {
+        self.mech.event_values_at_rhs(t, y, g)
+    }
+    fn event_value(&mut self, i: usize, t: f64, y: &[f64], g: &mut [f64]) -> f64 {
+        self.mech.event_value(i, t, y, g)
+    }
     fn apply_event(&mut self, i: usize, t: f64, y: &mut [f64]) -> std::result::Result<(), String> {
         self.mech.apply_event(i, t, y)
     }
@@ -392,6 +398,12 @@ impl OdeSystem for AnyFlow<'_> {
     }
     fn event_values(&mut self, t: f64, y: &[f64], g: &mut [f64]) {
         either!(self, f => f.event_values(t, y, g))
+    }
+    fn event_values_at_rhs(&mut self, t: f64, y: &[f64], g: &mut [f64]) {
+        either!(self, f => f.event_values_at_rhs(t, y, g))
+    }
+    fn event_value(&mut self, i: usize, t: f64, y: &[f64], g: &mut [f64]) -> f64 {
+        either!(self, f => f.event_value(i, t, y, g))
     }
     fn apply_event(&mut self, i: usize, t: f64, y: &mut [f64]) -> std::result::Result<(), String> {
         either!(self, f => f.apply_event(i, t, y))

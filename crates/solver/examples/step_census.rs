@@ -147,6 +147,12 @@ impl OdeSystem for Census<'_> {
     fn event_values(&mut self, t: f64, y: &[f64], g: &mut [f64]) {
         self.mech.event_values(t, y, g)
     }
+    fn event_values_at_rhs(&mut self, t: f64, y: &[f64], g: &mut [f64]) {
+        self.mech.event_values_at_rhs(t, y, g)
+    }
+    fn event_value(&mut self, i: usize, t: f64, y: &[f64], g: &mut [f64]) -> f64 {
+        self.mech.event_value(i, t, y, g)
+    }
     fn event_restarts_step(&self, i: usize) -> bool {
         self.mech.event_restarts_step(i)
     }

@@ -97,17 +97,22 @@ impl Model {
 
     /// Fills the body kinematics of the workspace from the state vector.
     pub fn kinematics(&self, y: &[f64], ws: &mut Workspace) {
-        let nb = self.nb();
-        let np = 7 * nb;
-        for k in 0..nb {
-            let p = &y[7 * k..7 * k + 7];
-            let v = &y[np + 6 * k..np + 6 * k + 6];
-            ws.kin[k] = Kin {
-                r: v3(&p[0..3]),
-                rot: rotation(&p[3..7]),
-                v: v3(&v[0..3]),
-                w: v3(&v[3..6]),
-            };
+        for k in 0..self.nb() {
+            ws.kin[k] = self.body_kinematics(y, k);
+        }
+    }
+
+    /// The kinematics of body `k` (not the ground) from the state vector.
+    #[inline]
+    fn body_kinematics(&self, y: &[f64], k: usize) -> Kin {
+        let np = 7 * self.nb();
+        let p = &y[7 * k..7 * k + 7];
+        let v = &y[np + 6 * k..np + 6 * k + 6];
+        Kin {
+            r: v3(&p[0..3]),
+            rot: rotation(&p[3..7]),
+            v: v3(&v[0..3]),
+            w: v3(&v[3..6]),
         }
     }
 
@@ -380,12 +385,20 @@ impl Model {
     /// (`jointplay_analysis::lyapunov`) differentiate the onset bookkeeping of
     /// [`Model::update_onsets`] with it.
     pub fn contact_rates(&self, y: &[f64], ws: &mut Workspace, out: &mut Vec<(f64, f64, bool)>) {
+        if self.effects.clearance {
+            self.contact_geometry(y, ws);
+        }
+        self.contact_rates_in(ws, out);
+    }
+
+    /// [`Model::contact_rates`] read from a workspace whose contact geometry is current (as
+    /// [`Model::rhs`] leaves it): the same values, without evaluating the geometry again.
+    pub fn contact_rates_in(&self, ws: &Workspace, out: &mut Vec<(f64, f64, bool)>) {
         out.clear();
         out.resize(self.n_contacts, (f64::NAN, f64::NAN, false));
         if !self.effects.clearance {
             return;
         }
-        self.contact_geometry(y, ws);
         for c in &self.clearances {
             for s in c.first..c.first + c.geometry.n_contacts() {
                 out[s] = (
@@ -395,6 +408,42 @@ impl Model {
                 );
             }
         }
+    }
+
+    /// The penetration (m) and sliding speed (m/s) of contact slot `slot` at `y`: what
+    /// [`Model::contact_rates`] and [`Model::sliding_speeds`] give for it, bit for bit, from the
+    /// kinematics of its joint's two bodies and that joint's geometry alone (into `ws`). The
+    /// sliding speed only when `speed` is set (NaN otherwise).
+    pub fn slot_penetration(
+        &self,
+        y: &[f64],
+        ws: &mut Workspace,
+        slot: usize,
+        speed: bool,
+    ) -> (f64, f64) {
+        let nb = self.nb();
+        let joint = self
+            .clearances
+            .iter()
+            .find(|c| (c.first..c.first + c.geometry.n_contacts()).contains(&slot));
+        let Some(c) = joint.filter(|_| self.effects.clearance) else {
+            return (f64::NAN, f64::NAN);
+        };
+        let kin = |b: usize, ws: &Workspace| {
+            if b == GROUND {
+                ws.kin[nb]
+            } else {
+                self.body_kinematics(y, b)
+            }
+        };
+        let (kh, kj) = (kin(c.housing, ws), kin(c.journal, ws));
+        let slots = c.first..c.first + c.geometry.n_contacts();
+        c.geometry(&kh, &kj, &mut ws.contacts[slots]);
+        let mut v = [f64::NAN];
+        if speed {
+            c.sliding_speeds(&kh, &kj, &ws.contacts[slot..slot + 1], &mut v);
+        }
+        (ws.contacts[slot].delta, v[0])
     }
 
     /// The sliding speed (m/s) of every contact slot into `out`, from the kinematics and contact
@@ -1194,6 +1243,43 @@ impl<'m> Mechanism<'m> {
     }
 }
 
+/// The event function of a slot's onset at penetration `delta` (m): the gap. A slot whose
+/// geometry is undefined (NaN) counts as open: its onset never fires, and its end (the negated
+/// gap) fires if it was closed.
+fn gap(delta: f64) -> f64 {
+    if delta.is_nan() { 1.0 } else { -delta }
+}
+
+/// The two event functions of a friction kink at speed `vk` (m/s) of a slot at penetration
+/// `delta` (m) and sliding speed `v` (m/s): `v - v_k` and `v_k - v` while the contact
+/// penetrates, 1 while it is open (the friction is off there).
+fn kink_value(delta: f64, v: f64, vk: f64) -> [f64; 2] {
+    if delta > 0.0 && v.is_finite() {
+        [v - vk, vk - v]
+    } else {
+        [1.0; 2]
+    }
+}
+
+impl ContactEvents {
+    /// The event functions (onsets, ends, then two per kink) from the rates and sliding speeds
+    /// last stored.
+    fn values(&self, g: &mut [f64]) {
+        let n = self.rates.len();
+        let (onsets, rest) = g.split_at_mut(if self.onsets { n } else { 0 });
+        let (ends, kinks) = rest.split_at_mut(if self.ends { n } else { 0 });
+        for (g, r) in onsets.iter_mut().zip(&self.rates) {
+            *g = gap(r.0);
+        }
+        for (g, r) in ends.iter_mut().zip(&self.rates) {
+            *g = -gap(r.0);
+        }
+        for (g, &(s, vk)) in kinks.chunks_exact_mut(2).zip(&self.kinks) {
+            g.copy_from_slice(&kink_value(self.rates[s].0, self.speeds[s], vk));
+        }
+    }
+}
+
 /// The contact events the model's settings call for; None when there are none.
 fn contact_events(model: &Model) -> Option<ContactEvents> {
     let s = &model.settings;
@@ -1262,30 +1348,42 @@ impl OdeSystem for Mechanism<'_> {
     fn event_values(&mut self, _t: f64, y: &[f64], g: &mut [f64]) {
         if let Some(e) = self.events.as_mut() {
             self.model.contact_rates(y, &mut e.ws, &mut e.rates);
-            let n = e.rates.len();
-            let (onsets, rest) = g.split_at_mut(if e.onsets { n } else { 0 });
-            let (ends, kinks) = rest.split_at_mut(if e.ends { n } else { 0 });
-            // A slot whose geometry is undefined (NaN) counts as open: its onset never fires, and
-            // its end fires if it was closed.
-            let gap = |r: &(f64, f64, bool)| if r.0.is_nan() { 1.0 } else { -r.0 };
-            for (g, r) in onsets.iter_mut().zip(&e.rates) {
-                *g = gap(r);
-            }
-            for (g, r) in ends.iter_mut().zip(&e.rates) {
-                *g = -gap(r);
-            }
             if !e.kinks.is_empty() {
                 self.model.sliding_speeds(&e.ws, &mut e.speeds);
-                for (g, &(s, vk)) in kinks.chunks_exact_mut(2).zip(&e.kinks) {
-                    let (delta, v) = (e.rates[s].0, e.speeds[s]);
-                    if delta > 0.0 && v.is_finite() {
-                        g[0] = v - vk;
-                        g[1] = vk - v;
-                    } else {
-                        g.fill(1.0);
-                    }
-                }
             }
+            e.values(g);
+        }
+    }
+    /// The contact geometry and kinematics [`Model::rhs`] left in the mechanism's workspace are
+    /// those at `(t, y)`: the rates and sliding speeds are read from them.
+    fn event_values_at_rhs(&mut self, _t: f64, _y: &[f64], g: &mut [f64]) {
+        if let Some(e) = self.events.as_mut() {
+            self.model.contact_rates_in(&self.ws, &mut e.rates);
+            if !e.kinks.is_empty() {
+                self.model.sliding_speeds(&self.ws, &mut e.speeds);
+            }
+            e.values(g);
+        }
+    }
+    /// Only the contact of event `i`: its joint's two bodies and geometry
+    /// ([`Model::slot_penetration`]).
+    fn event_value(&mut self, i: usize, _t: f64, y: &[f64], _g: &mut [f64]) -> f64 {
+        let Some(e) = self.events.as_mut() else {
+            return f64::NAN;
+        };
+        let n = self.model.n_contacts;
+        let n_onsets = if e.onsets { n } else { 0 };
+        let n_ends = if e.ends { n } else { 0 };
+        if i < n_onsets + n_ends {
+            let slot = i % n;
+            let (delta, _) = self.model.slot_penetration(y, &mut e.ws, slot, false);
+            let gap = gap(delta);
+            if i < n_onsets { gap } else { -gap }
+        } else {
+            let k = i - n_onsets - n_ends;
+            let (slot, vk) = e.kinks[k / 2];
+            let (delta, v) = self.model.slot_penetration(y, &mut e.ws, slot, true);
+            kink_value(delta, v, vk)[k % 2]
         }
     }
     /// An onset, an end or a friction kink changes nothing in the state (the compliant force is

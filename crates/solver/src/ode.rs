@@ -158,6 +158,23 @@ pub trait OdeSystem {
     /// [`OdeSystem::apply_event`] and restarts from the reset state (a fresh first stage).
     fn event_values(&mut self, _t: f64, _y: &[f64], _g: &mut [f64]) {}
 
+    /// [`OdeSystem::event_values`] at the state of the last [`OdeSystem::rhs`]: the integrator
+    /// calls it at the end of every step, whose last right-hand side is `f(t + h, y_new)` (every
+    /// [`Stepper::step`] ends with it). A system that keeps what its right-hand side computed may
+    /// read the values from that instead of evaluating them afresh; they must be those of
+    /// `event_values`, bit for bit. The default evaluates them.
+    fn event_values_at_rhs(&mut self, t: f64, y: &[f64], g: &mut [f64]) {
+        self.event_values(t, y, g)
+    }
+
+    /// Event function `i` alone at `(t, y)`, as [`OdeSystem::event_values`] gives it (bit for
+    /// bit): the bisection that locates a crossing needs no other. `g` (of length
+    /// [`OdeSystem::events`]) is scratch. The default evaluates them all.
+    fn event_value(&mut self, i: usize, t: f64, y: &[f64], g: &mut [f64]) -> f64 {
+        self.event_values(t, y, g);
+        g[i]
+    }
+
     /// Applies event `i` at `(t, y)`: resets `y` in place. An error (a sentence) stops the run at
     /// `t` (for example an impact too slow to resolve: chattering).
     fn apply_event(
@@ -931,9 +948,17 @@ fn first_crossing<S: OdeSystem>(
         let (mut lo, mut hi) = (0.0, 1.0);
         for _ in 0..60 {
             let mid = 0.5 * (lo + hi);
+            // Adjacent numbers: no later halving moves `hi` (the midpoint is one of the ends,
+            // whose sides are known).
+            if mid == lo || mid == hi {
+                break;
+            }
             stepper.eval(y, w, h, mid, ys);
-            sys.event_values(t + mid * h, ys, gi);
-            if gi[i] > 0.0 { lo = mid } else { hi = mid }
+            if sys.event_value(i, t + mid * h, ys, gi) > 0.0 {
+                lo = mid
+            } else {
+                hi = mid
+            }
         }
         if first.is_none_or(|(_, th)| hi < th) {
             first = Some((i, hi));
@@ -1085,7 +1110,8 @@ fn step_loop<S: OdeSystem>(
             let mut event = None;
             let mut dense_ready = false;
             if n_events > 0 {
-                sys.event_values(t_new, &w.y_new, &mut g1);
+                // The step's last right-hand side was f(t_new, y_new).
+                sys.event_values_at_rhs(t_new, &w.y_new, &mut g1);
                 if g0.iter().zip(&g1).any(|(a, b)| *a > 0.0 && *b <= 0.0) {
                     stepper.dense(sys, t, y, h_try, &mut w, stats);
                     dense_ready = true;
@@ -1249,6 +1275,67 @@ mod tests {
 
     fn rk4(step: f64) -> Method {
         Method::fixed(&rk4::RK4, step).unwrap()
+    }
+
+    /// [`Harmonic`] with one event function that never fires, recording the state of its last
+    /// right-hand side.
+    #[derive(Default)]
+    struct LastRhs {
+        last: (f64, Vec<f64>),
+        checked: usize,
+    }
+    impl OdeSystem for LastRhs {
+        fn dim(&self) -> usize {
+            2
+        }
+        fn rhs(&mut self, t: f64, y: &[f64], d: &mut [f64]) {
+            self.last = (t, y.to_vec());
+            Harmonic.rhs(t, y, d)
+        }
+        fn events(&self) -> usize {
+            1
+        }
+        fn event_values(&mut self, _t: f64, y: &[f64], g: &mut [f64]) {
+            g[0] = 10.0 + y[0];
+        }
+        fn event_values_at_rhs(&mut self, t: f64, y: &[f64], g: &mut [f64]) {
+            assert_eq!(
+                (t.to_bits(), y),
+                (self.last.0.to_bits(), &self.last.1[..]),
+                "the step's last right-hand side was not at its end"
+            );
+            self.checked += 1;
+            self.event_values(t, y, g)
+        }
+    }
+
+    /// The integrator reads the event functions at a step's end from the system's last
+    /// right-hand side ([`OdeSystem::event_values_at_rhs`]): every stepper, adaptive or at a fixed
+    /// step, must end its step with f(t + h, y_new).
+    #[test]
+    fn every_step_ends_with_the_right_hand_side_at_its_end() {
+        for integrator in INTEGRATORS {
+            let methods = [
+                integrator
+                    .adaptive
+                    .and_then(|_| Method::adaptive(integrator, 1e-6, 1e-9, f64::INFINITY)),
+                integrator
+                    .fixed
+                    .and_then(|_| Method::fixed(integrator, 0.05)),
+            ];
+            for method in methods.into_iter().flatten() {
+                let mut sys = LastRhs::default();
+                let mut y = [1.0, 0.0];
+                let stats = integrate(&mut sys, method, 0.0, &mut y, 2.0, &[], |_, _, _| {
+                    Flow::Continue
+                })
+                .unwrap();
+                assert_eq!(
+                    sys.checked as u64, stats.accepted,
+                    "{method:?}: every accepted step reads its end's event functions"
+                );
+            }
+        }
     }
     fn dopri5_fixed(step: f64) -> Method {
         Method::fixed(&dopri5::DOPRI5, step).unwrap()
