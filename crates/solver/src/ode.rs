@@ -928,8 +928,9 @@ impl SampleTimes for &[f64] {
 
 /// The first event of the step from `(t, y)` over `h` whose function crosses from positive to
 /// zero or below (`g0` at the start, `g1` at the end), located by bisection to round-off on the
-/// step's dense output (`w` holds it): the event and the fraction of the step at the first
-/// point found at or past the crossing.
+/// step's dense output (`w` holds it), each crossing function read alone
+/// ([`OdeSystem::event_value`]): the event and the fraction of the step at the first point found
+/// at or past the crossing.
 #[allow(clippy::too_many_arguments)]
 fn first_crossing<S: OdeSystem>(
     sys: &mut S,
