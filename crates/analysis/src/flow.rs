@@ -120,6 +120,9 @@ impl OdeSystem for MechFlow<'_> {
     fn event_value(&mut self, i: usize, t: f64, y: &[f64], g: &mut [f64]) -> f64 {
         self.mech.event_value(i, t, y, g)
     }
+    fn event_components(&self, i: usize, parts: &mut Vec<std::ops::Range<usize>>) {
+        self.mech.event_components(i, parts)
+    }
     fn apply_event(&mut self, i: usize, t: f64, y: &mut [f64]) -> std::result::Result<(), String> {
         self.mech.apply_event(i, t, y)
     }
@@ -404,6 +407,9 @@ impl OdeSystem for AnyFlow<'_> {
     }
     fn event_value(&mut self, i: usize, t: f64, y: &[f64], g: &mut [f64]) -> f64 {
         either!(self, f => f.event_value(i, t, y, g))
+    }
+    fn event_components(&self, i: usize, parts: &mut Vec<std::ops::Range<usize>>) {
+        either!(self, f => f.event_components(i, parts))
     }
     fn apply_event(&mut self, i: usize, t: f64, y: &mut [f64]) -> std::result::Result<(), String> {
         either!(self, f => f.apply_event(i, t, y))

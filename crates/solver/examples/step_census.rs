@@ -153,6 +153,9 @@ impl OdeSystem for Census<'_> {
     fn event_value(&mut self, i: usize, t: f64, y: &[f64], g: &mut [f64]) -> f64 {
         self.mech.event_value(i, t, y, g)
     }
+    fn event_components(&self, i: usize, parts: &mut Vec<std::ops::Range<usize>>) {
+        self.mech.event_components(i, parts)
+    }
     fn event_restarts_step(&self, i: usize) -> bool {
         self.mech.event_restarts_step(i)
     }

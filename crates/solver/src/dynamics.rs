@@ -29,6 +29,8 @@
 //! with `q' = 1/2 (0, w) (x) q`, free of the singularities of Euler angles; the rotation matrix is
 //! built from q/|q|, so the slow drift of |q| under integration never distorts the body.
 
+use std::ops::Range;
+
 use nalgebra::{DMatrix, Matrix3, Quaternion, UnitQuaternion, Vector3};
 
 use crate::clearance::ContactEval;
@@ -1205,9 +1207,20 @@ struct ContactEvents {
     /// With `friction_events`: the contact slot and kink speed (m/s) of each pair of friction
     /// events.
     kinks: Vec<(usize, f64)>,
+    /// Per contact slot: the components of the state its functions read (the positions and
+    /// velocities of its joint's bodies).
+    parts: Vec<Vec<Range<usize>>>,
     ws: Box<Workspace>,
     rates: Vec<(f64, f64, bool)>,
     speeds: Vec<f64>,
+}
+
+/// What event function of [`ContactEvents`] is: a slot's onset or end, or side 0 or 1 of a
+/// friction kink (its index in `kinks`).
+enum ContactEvent {
+    Onset(usize),
+    End(usize),
+    Kink(usize, usize),
 }
 
 impl<'m> Mechanism<'m> {
@@ -1262,6 +1275,20 @@ fn kink_value(delta: f64, v: f64, vk: f64) -> [f64; 2] {
 }
 
 impl ContactEvents {
+    /// Event function `i` of the layout onsets, ends, then two per kink, for `n` slots.
+    fn event(&self, i: usize, n: usize) -> ContactEvent {
+        let n_onsets = if self.onsets { n } else { 0 };
+        let n_ends = if self.ends { n } else { 0 };
+        if i < n_onsets {
+            ContactEvent::Onset(i)
+        } else if i < n_onsets + n_ends {
+            ContactEvent::End(i - n_onsets)
+        } else {
+            let k = i - n_onsets - n_ends;
+            ContactEvent::Kink(k / 2, k % 2)
+        }
+    }
+
     /// The event functions (onsets, ends, then two per kink) from the rates and sliding speeds
     /// last stored.
     fn values(&self, g: &mut [f64]) {
@@ -1295,10 +1322,22 @@ fn contact_events(model: &Model) -> Option<ContactEvents> {
             }
         }
     }
+    let np = model.n_pos();
+    let mut parts = vec![Vec::new(); model.n_contacts];
+    for c in &model.clearances {
+        let bodies = [c.housing, c.journal].into_iter().filter(|&b| b != GROUND);
+        let joint: Vec<Range<usize>> = bodies
+            .flat_map(|b| [7 * b..7 * b + 7, np + 6 * b..np + 6 * b + 6])
+            .collect();
+        for slot in c.first..c.first + c.geometry.n_contacts() {
+            parts[slot] = joint.clone();
+        }
+    }
     (s.onset_events || s.end_events || !kinks.is_empty()).then(|| ContactEvents {
         onsets: s.onset_events,
         ends: s.end_events,
         kinks,
+        parts,
         ws: Box::new(Workspace::new(model)),
         rates: Vec::new(),
         speeds: Vec::new(),
@@ -1371,19 +1410,29 @@ impl OdeSystem for Mechanism<'_> {
         let Some(e) = self.events.as_mut() else {
             return f64::NAN;
         };
-        let n = self.model.n_contacts;
-        let n_onsets = if e.onsets { n } else { 0 };
-        let n_ends = if e.ends { n } else { 0 };
-        if i < n_onsets + n_ends {
-            let slot = i % n;
-            let (delta, _) = self.model.slot_penetration(y, &mut e.ws, slot, false);
-            let gap = gap(delta);
-            if i < n_onsets { gap } else { -gap }
-        } else {
-            let k = i - n_onsets - n_ends;
-            let (slot, vk) = e.kinks[k / 2];
-            let (delta, v) = self.model.slot_penetration(y, &mut e.ws, slot, true);
-            kink_value(delta, v, vk)[k % 2]
+        let model = self.model;
+        match e.event(i, model.n_contacts) {
+            ContactEvent::Onset(slot) => gap(model.slot_penetration(y, &mut e.ws, slot, false).0),
+            ContactEvent::End(slot) => -gap(model.slot_penetration(y, &mut e.ws, slot, false).0),
+            ContactEvent::Kink(k, side) => {
+                let (slot, vk) = e.kinks[k];
+                let (delta, v) = model.slot_penetration(y, &mut e.ws, slot, true);
+                kink_value(delta, v, vk)[side]
+            }
+        }
+    }
+    /// The positions and velocities of the bodies of event `i`'s joint.
+    fn event_components(&self, i: usize, parts: &mut Vec<Range<usize>>) {
+        parts.clear();
+        match self.events.as_ref() {
+            Some(e) => {
+                let slot = match e.event(i, self.model.n_contacts) {
+                    ContactEvent::Onset(slot) | ContactEvent::End(slot) => slot,
+                    ContactEvent::Kink(k, _) => e.kinks[k].0,
+                };
+                parts.extend_from_slice(&e.parts[slot]);
+            }
+            None => parts.push(0..self.dim()),
         }
     }
     /// An onset, an end or a friction kink changes nothing in the state (the compliant force is

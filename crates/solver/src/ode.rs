@@ -42,6 +42,7 @@
 //!    (`rosenbrock23_error_estimate_is_of_order_three`) and the dense output
 //!    (`dop853_dense_output_has_order_seven`).
 
+use std::ops::Range;
 use std::sync::OnceLock;
 use std::time::{Duration, Instant};
 
@@ -173,6 +174,14 @@ pub trait OdeSystem {
     fn event_value(&mut self, i: usize, t: f64, y: &[f64], g: &mut [f64]) -> f64 {
         self.event_values(t, y, g);
         g[i]
+    }
+
+    /// The components of the state that event function `i` reads, into `parts` (replacing what
+    /// it held): the bisection interpolates only these, and [`OdeSystem::event_value`] must
+    /// give the same value whatever the others hold. The default is the whole state.
+    fn event_components(&self, _i: usize, parts: &mut Vec<Range<usize>>) {
+        parts.clear();
+        parts.push(0..self.dim());
     }
 
     /// Applies event `i` at `(t, y)`: resets `y` in place. An error (a sentence) stops the run at
@@ -540,17 +549,16 @@ fn polynomial(coeffs: &[f64], re: f64, im: f64) -> (f64, f64) {
     (pr, pi)
 }
 
-/// The cubic Hermite interpolant on [t, t + h] through (y0, f0) and (y1, f1) at t + theta h,
-/// into `out`: the dense output of the schemes whose own order it matches (RK4, BS3).
-fn hermite(y0: &[f64], y1: &[f64], f0: &[f64], f1: &[f64], h: f64, theta: f64, out: &mut [f64]) {
-    for i in 0..out.len() {
-        let dy = y1[i] - y0[i];
-        out[i] = (1.0 - theta) * y0[i]
-            + theta * y1[i]
-            + theta
-                * (theta - 1.0)
-                * ((1.0 - 2.0 * theta) * dy + (theta - 1.0) * h * f0[i] + theta * h * f1[i]);
-    }
+/// Component `i` of the cubic Hermite interpolant on [t, t + h] through (y0, f0) and (y1, f1) at
+/// t + theta h: the dense output of the schemes whose own order it matches (RK4, BS3).
+#[inline]
+fn hermite(y0: &[f64], y1: &[f64], f0: &[f64], f1: &[f64], h: f64, theta: f64, i: usize) -> f64 {
+    let dy = y1[i] - y0[i];
+    (1.0 - theta) * y0[i]
+        + theta * y1[i]
+        + theta
+            * (theta - 1.0)
+            * ((1.0 - 2.0 * theta) * dy + (theta - 1.0) * h * f0[i] + theta * h * f1[i])
 }
 
 /// Scratch memory of one integrator, allocated once per run.
@@ -703,8 +711,34 @@ trait Stepper: Sync {
     ) {
     }
 
+    /// Component `i` of the state at t + theta h on the continuous extension of the step from
+    /// y0: the scheme's one formula, which [`Stepper::eval`] and [`Stepper::eval_parts`] apply.
+    fn eval_component(&self, y0: &[f64], w: &Work, h: f64, theta: f64, i: usize) -> f64;
+
     /// The state at t + theta h on the continuous extension of the step from y0.
-    fn eval(&self, y0: &[f64], w: &Work, h: f64, theta: f64, out: &mut [f64]);
+    fn eval(&self, y0: &[f64], w: &Work, h: f64, theta: f64, out: &mut [f64]) {
+        for (i, o) in out.iter_mut().enumerate() {
+            *o = self.eval_component(y0, w, h, theta, i);
+        }
+    }
+
+    /// [`Stepper::eval`] on the components in `parts` only, with the same values bit for bit
+    /// (the same formula per component); the other components of `out` are left as they are.
+    fn eval_parts(
+        &self,
+        y0: &[f64],
+        w: &Work,
+        h: f64,
+        theta: f64,
+        out: &mut [f64],
+        parts: &[Range<usize>],
+    ) {
+        for part in parts {
+            for i in part.clone() {
+                out[i] = self.eval_component(y0, w, h, theta, i);
+            }
+        }
+    }
 }
 
 /// `out = y + c k`, over slices cut to the length of `out` first: the loop then runs without
@@ -929,8 +963,9 @@ impl SampleTimes for &[f64] {
 /// The first event of the step from `(t, y)` over `h` whose function crosses from positive to
 /// zero or below (`g0` at the start, `g1` at the end), located by bisection to round-off on the
 /// step's dense output (`w` holds it), each crossing function read alone
-/// ([`OdeSystem::event_value`]): the event and the fraction of the step at the first point found
-/// at or past the crossing.
+/// ([`OdeSystem::event_value`]) from the components it reads, interpolated alone
+/// ([`OdeSystem::event_components`], `parts` their scratch; `ys` is left with the others stale):
+/// the event and the fraction of the step at the first point found at or past the crossing.
 #[allow(clippy::too_many_arguments)]
 fn first_crossing<S: OdeSystem>(
     sys: &mut S,
@@ -939,13 +974,14 @@ fn first_crossing<S: OdeSystem>(
     w: &Work,
     (g0, g1): (&[f64], &[f64]),
     ys: &mut [f64],
-    gi: &mut [f64],
+    (gi, parts): (&mut [f64], &mut Vec<Range<usize>>),
 ) -> Option<(usize, f64)> {
     let mut first: Option<(usize, f64)> = None;
     for i in 0..g0.len() {
         if !(g0[i] > 0.0 && g1[i] <= 0.0) {
             continue;
         }
+        sys.event_components(i, parts);
         let (mut lo, mut hi) = (0.0, 1.0);
         for _ in 0..60 {
             let mid = 0.5 * (lo + hi);
@@ -954,7 +990,7 @@ fn first_crossing<S: OdeSystem>(
             if mid == lo || mid == hi {
                 break;
             }
-            stepper.eval(y, w, h, mid, ys);
+            stepper.eval_parts(y, w, h, mid, ys, parts);
             if sys.event_value(i, t + mid * h, ys, gi) > 0.0 {
                 lo = mid
             } else {
@@ -1047,6 +1083,7 @@ fn step_loop<S: OdeSystem>(
     let n_events = sys.events();
     let (mut g0, mut g1) = (vec![0.0; n_events], vec![0.0; n_events]);
     let mut gi = vec![0.0; n_events];
+    let mut parts = Vec::new();
     let mut y_event = vec![0.0; if n_events > 0 { n } else { 0 }];
     if n_events > 0 {
         sys.event_values(t0, y, &mut g0);
@@ -1123,7 +1160,7 @@ fn step_loop<S: OdeSystem>(
                         &w,
                         (&g0, &g1),
                         &mut ys,
-                        &mut gi,
+                        (&mut gi, &mut parts),
                     );
                     if let Some((i, theta)) = first
                         && theta < 1.0
@@ -1307,6 +1344,57 @@ mod tests {
             );
             self.checked += 1;
             self.event_values(t, y, g)
+        }
+    }
+
+    /// The bisection interpolates only the components an event function reads
+    /// ([`Stepper::eval_parts`]): every scheme must give them bit for bit as its whole dense
+    /// output does, and leave the others alone.
+    #[test]
+    fn dense_output_in_parts_is_the_whole_dense_outputs() {
+        for integrator in INTEGRATORS {
+            let methods = [
+                integrator
+                    .adaptive
+                    .and_then(|_| Method::adaptive(integrator, 1e-6, 1e-9, f64::INFINITY)),
+                integrator
+                    .fixed
+                    .and_then(|_| Method::fixed(integrator, 0.05)),
+            ];
+            for method in methods.into_iter().flatten() {
+                let mut checked = 0;
+                let mut on_step = |_: &mut Harmonic, step: &Step| {
+                    for theta in [0.1, 0.37, 0.5, 0.93] {
+                        let mut whole = [0.0; 2];
+                        step.stepper
+                            .eval(step.y0, step.w, step.h, theta, &mut whole);
+                        let mut part = [f64::NAN; 2];
+                        let parts = [Range { start: 1, end: 2 }];
+                        step.stepper
+                            .eval_parts(step.y0, step.w, step.h, theta, &mut part, &parts);
+                        assert_eq!(part[1].to_bits(), whole[1].to_bits(), "{method:?}");
+                        assert!(
+                            part[0].is_nan(),
+                            "{method:?}: a component outside the parts"
+                        );
+                        checked += 1;
+                    }
+                    Flow::Continue
+                };
+                let mut y = [1.0, 0.0];
+                integrate_steps(
+                    &mut Harmonic,
+                    method,
+                    0.0,
+                    &mut y,
+                    1.0,
+                    &[],
+                    |_, _, _| Flow::Continue,
+                    Some(&mut on_step),
+                )
+                .unwrap();
+                assert!(checked > 0, "{method:?}: no step checked");
+            }
         }
     }
 

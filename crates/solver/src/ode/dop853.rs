@@ -171,18 +171,17 @@ impl Stepper for Dop853 {
 
     /// y(t + theta h) = y0 + x (F0 + (1-x) (F1 + x (F2 + (1-x) (F3 + x (F4 + (1-x) (F5 +
     /// x F6)))))) with x = theta (SciPy's `Dop853DenseOutput`).
-    fn eval(&self, y0: &[f64], w: &Work, _h: f64, theta: f64, out: &mut [f64]) {
+    #[inline]
+    fn eval_component(&self, y0: &[f64], w: &Work, _h: f64, theta: f64, i: usize) -> f64 {
         let (x, x1) = (theta, 1.0 - theta);
         let f = &w.cont;
-        for i in 0..out.len() {
-            let mut v = f[6][i] * x;
-            v = (v + f[5][i]) * x1;
-            v = (v + f[4][i]) * x;
-            v = (v + f[3][i]) * x1;
-            v = (v + f[2][i]) * x;
-            v = (v + f[1][i]) * x1;
-            v = (v + f[0][i]) * x;
-            out[i] = y0[i] + v;
-        }
+        let mut v = f[6][i] * x;
+        v = (v + f[5][i]) * x1;
+        v = (v + f[4][i]) * x;
+        v = (v + f[3][i]) * x1;
+        v = (v + f[2][i]) * x;
+        v = (v + f[1][i]) * x1;
+        v = (v + f[0][i]) * x;
+        y0[i] + v
     }
 }

@@ -196,13 +196,12 @@ impl Stepper for Dopri5 {
         }
     }
 
-    fn eval(&self, _y0: &[f64], w: &Work, _h: f64, theta: f64, out: &mut [f64]) {
+    #[inline]
+    fn eval_component(&self, _y0: &[f64], w: &Work, _h: f64, theta: f64, i: usize) -> f64 {
         let th1 = 1.0 - theta;
         let [c0, c1, c2, c3, c4] = &w.cont[..] else {
             unreachable!("DOPRI5 has five dense-output vectors")
         };
-        for i in 0..out.len() {
-            out[i] = c0[i] + theta * (c1[i] + th1 * (c2[i] + theta * (c3[i] + th1 * c4[i])));
-        }
+        c0[i] + theta * (c1[i] + th1 * (c2[i] + theta * (c3[i] + th1 * c4[i])))
     }
 }

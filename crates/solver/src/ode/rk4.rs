@@ -67,7 +67,8 @@ impl Stepper for Rk4 {
     }
 
     /// Cubic Hermite interpolation on [t, t+h] from y0, f0 (k[0]) and y1, f1 (k[4]).
-    fn eval(&self, y0: &[f64], w: &Work, h: f64, theta: f64, out: &mut [f64]) {
-        hermite(y0, &w.y_new, &w.k[0], &w.k[4], h, theta, out);
+    #[inline]
+    fn eval_component(&self, y0: &[f64], w: &Work, h: f64, theta: f64, i: usize) -> f64 {
+        hermite(y0, &w.y_new, &w.k[0], &w.k[4], h, theta, i)
     }
 }

@@ -472,7 +472,8 @@ impl Stepper for Ros34pw2 {
     }
 
     /// Cubic Hermite interpolation on [t, t+h] from y0, f0 (k[0]) and y1, f1 (k[6]).
-    fn eval(&self, y0: &[f64], w: &Work, h: f64, theta: f64, out: &mut [f64]) {
-        hermite(y0, &w.y_new, &w.k[0], &w.k[F1], h, theta, out);
+    #[inline]
+    fn eval_component(&self, y0: &[f64], w: &Work, h: f64, theta: f64, i: usize) -> f64 {
+        hermite(y0, &w.y_new, &w.k[0], &w.k[F1], h, theta, i)
     }
 }

@@ -125,12 +125,11 @@ impl Stepper for Rosenbrock23 {
 
     /// The continuous extension of ode23s: y(t + s h) = y0 + h (s (1 - s) k1 + s (s - 2 d) k2) /
     /// (1 - 2 d), of order 2.
-    fn eval(&self, y0: &[f64], w: &Work, h: f64, s: f64, out: &mut [f64]) {
+    #[inline]
+    fn eval_component(&self, y0: &[f64], w: &Work, h: f64, s: f64, i: usize) -> f64 {
         let c1 = s * (1.0 - s) / (1.0 - 2.0 * D);
         let c2 = s * (s - 2.0 * D) / (1.0 - 2.0 * D);
         let (k1, k2) = (&w.k[1], &w.k[3]);
-        for i in 0..out.len() {
-            out[i] = y0[i] + h * (c1 * k1[i] + c2 * k2[i]);
-        }
+        y0[i] + h * (c1 * k1[i] + c2 * k2[i])
     }
 }
