@@ -108,6 +108,9 @@ impl OdeSystem for Census<'_> {
     fn dim(&self) -> usize {
         self.mech.dim()
     }
+    fn error_dim(&self) -> usize {
+        self.mech.error_dim()
+    }
     fn rhs(&mut self, t: f64, y: &[f64], dydt: &mut [f64]) {
         self.evaluations += 1;
         if t == self.last.1 && y == &self.last.2[..] {

@@ -414,9 +414,10 @@ impl Model {
 
     /// The penetration (m) and sliding speed (m/s) of contact slot `slot` at `y`: what
     /// [`Model::contact_rates`] and [`Model::sliding_speeds`] give for it, bit for bit, from the
-    /// kinematics of its joint's two bodies and that joint's geometry alone (into `ws`). The
+    /// kinematics of its joint's two bodies and that joint's geometry alone (into
+    /// `ws.contacts`; `ws.kin` is left as it was, so `ws` no longer holds one state). The
     /// sliding speed only when `speed` is set (NaN otherwise).
-    pub fn slot_penetration(
+    pub(crate) fn slot_penetration(
         &self,
         y: &[f64],
         ws: &mut Workspace,
@@ -1405,7 +1406,7 @@ impl OdeSystem for Mechanism<'_> {
         }
     }
     /// Only the contact of event `i`: its joint's two bodies and geometry
-    /// ([`Model::slot_penetration`]).
+    /// (`Model::slot_penetration`).
     fn event_value(&mut self, i: usize, _t: f64, y: &[f64], _g: &mut [f64]) -> f64 {
         let Some(e) = self.events.as_mut() else {
             return f64::NAN;

@@ -27,8 +27,9 @@
 //!
 //! 1. A file `ode/<name>.rs` (copy `dopri5.rs` for an explicit pair, `rosenbrock23.rs` for a
 //!    linearly implicit method) with the scheme's citation, a stepper implementing `Stepper`
-//!    (`step` leaves the new state in `Work::y_new`, f at it in stage `fsal` and, when adaptive,
-//!    the error estimate in `Work::tmp`; `eval` is the dense output) and its descriptor, a
+//!    (`step` leaves the new state in `Work::y_new`, f at it in stage `fsal`, evaluated last,
+//!    and, when adaptive, the error estimate in `Work::tmp`; `eval_component` is the dense
+//!    output's formula for one component) and its descriptor, a
 //!    `pub static` [`Integrator`]: the name scenes use, order, stage count, FSAL stage,
 //!    stability function, whether it runs adaptive ([`Adaptive`]: control order, default
 //!    tolerances of work-precision studies) and/or at a fixed step ([`Fixed`]: family name,
@@ -159,11 +160,12 @@ pub trait OdeSystem {
     /// [`OdeSystem::apply_event`] and restarts from the reset state (a fresh first stage).
     fn event_values(&mut self, _t: f64, _y: &[f64], _g: &mut [f64]) {}
 
-    /// [`OdeSystem::event_values`] at the state of the last [`OdeSystem::rhs`]: the integrator
-    /// calls it at the end of every step, whose last right-hand side is `f(t + h, y_new)` (every
-    /// [`Stepper::step`] ends with it). A system that keeps what its right-hand side computed may
-    /// read the values from that instead of evaluating them afresh; they must be those of
-    /// `event_values`, bit for bit. The default evaluates them.
+    /// [`OdeSystem::event_values`] at the state `y` of the last [`OdeSystem::rhs`]: the
+    /// integrator calls it at the end of every accepted step, whose last right-hand side is
+    /// `f(t + h, y_new)` (every [`Stepper::step`] ends with it; `t` is the step's end time,
+    /// which `t + h` may miss by a rounding). A system that keeps what its right-hand side
+    /// computed may read the values from that instead of evaluating them afresh; they must be
+    /// those of `event_values`, bit for bit. The default evaluates them.
     fn event_values_at_rhs(&mut self, t: f64, y: &[f64], g: &mut [f64]) {
         self.event_values(t, y, g)
     }
@@ -985,8 +987,8 @@ fn first_crossing<S: OdeSystem>(
         let (mut lo, mut hi) = (0.0, 1.0);
         for _ in 0..60 {
             let mid = 0.5 * (lo + hi);
-            // Adjacent numbers: no later halving moves `hi` (the midpoint is one of the ends,
-            // whose sides are known).
+            // The midpoint rounds to one of the bracket's ends: no later halving moves `hi`
+            // (an end tested before tests the same again, and `hi` = 1 stays the result).
             if mid == lo || mid == hi {
                 break;
             }
@@ -1337,9 +1339,10 @@ mod tests {
             g[0] = 10.0 + y[0];
         }
         fn event_values_at_rhs(&mut self, t: f64, y: &[f64], g: &mut [f64]) {
-            assert_eq!(
-                (t.to_bits(), y),
-                (self.last.0.to_bits(), &self.last.1[..]),
+            // The state bit for bit; the time is the step's end, which t + h may miss by a
+            // rounding.
+            assert!(
+                y == &self.last.1[..] && (t - self.last.0).abs() <= 1e-15 * t.abs().max(1.0),
                 "the step's last right-hand side was not at its end"
             );
             self.checked += 1;
