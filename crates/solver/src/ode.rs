@@ -1350,54 +1350,60 @@ mod tests {
         }
     }
 
+    /// Every integrator, adaptive at rtol 1e-6 (atol 1e-9) and at a fixed step of 0.05 s where it
+    /// runs so.
+    fn every_method() -> Vec<Method> {
+        INTEGRATORS
+            .iter()
+            .flat_map(|&i| {
+                [
+                    i.adaptive
+                        .and_then(|_| Method::adaptive(i, 1e-6, 1e-9, f64::INFINITY)),
+                    i.fixed.and_then(|_| Method::fixed(i, 0.05)),
+                ]
+            })
+            .flatten()
+            .collect()
+    }
+
     /// The bisection interpolates only the components an event function reads
     /// ([`Stepper::eval_parts`]): every scheme must give them bit for bit as its whole dense
     /// output does, and leave the others alone.
     #[test]
     fn dense_output_in_parts_is_the_whole_dense_outputs() {
-        for integrator in INTEGRATORS {
-            let methods = [
-                integrator
-                    .adaptive
-                    .and_then(|_| Method::adaptive(integrator, 1e-6, 1e-9, f64::INFINITY)),
-                integrator
-                    .fixed
-                    .and_then(|_| Method::fixed(integrator, 0.05)),
-            ];
-            for method in methods.into_iter().flatten() {
-                let mut checked = 0;
-                let mut on_step = |_: &mut Harmonic, step: &Step| {
-                    for theta in [0.1, 0.37, 0.5, 0.93] {
-                        let mut whole = [0.0; 2];
-                        step.stepper
-                            .eval(step.y0, step.w, step.h, theta, &mut whole);
-                        let mut part = [f64::NAN; 2];
-                        let parts = [Range { start: 1, end: 2 }];
-                        step.stepper
-                            .eval_parts(step.y0, step.w, step.h, theta, &mut part, &parts);
-                        assert_eq!(part[1].to_bits(), whole[1].to_bits(), "{method:?}");
-                        assert!(
-                            part[0].is_nan(),
-                            "{method:?}: a component outside the parts"
-                        );
-                        checked += 1;
-                    }
-                    Flow::Continue
-                };
-                let mut y = [1.0, 0.0];
-                integrate_steps(
-                    &mut Harmonic,
-                    method,
-                    0.0,
-                    &mut y,
-                    1.0,
-                    &[],
-                    |_, _, _| Flow::Continue,
-                    Some(&mut on_step),
-                )
-                .unwrap();
-                assert!(checked > 0, "{method:?}: no step checked");
-            }
+        for method in every_method() {
+            let mut checked = 0;
+            let mut on_step = |_: &mut Harmonic, step: &Step| {
+                for theta in [0.1, 0.37, 0.5, 0.93] {
+                    let mut whole = [0.0; 2];
+                    step.stepper
+                        .eval(step.y0, step.w, step.h, theta, &mut whole);
+                    let mut part = [f64::NAN; 2];
+                    let parts = [Range { start: 1, end: 2 }];
+                    step.stepper
+                        .eval_parts(step.y0, step.w, step.h, theta, &mut part, &parts);
+                    assert_eq!(part[1].to_bits(), whole[1].to_bits(), "{method:?}");
+                    assert!(
+                        part[0].is_nan(),
+                        "{method:?}: a component outside the parts"
+                    );
+                    checked += 1;
+                }
+                Flow::Continue
+            };
+            let mut y = [1.0, 0.0];
+            integrate_steps(
+                &mut Harmonic,
+                method,
+                0.0,
+                &mut y,
+                1.0,
+                &[],
+                |_, _, _| Flow::Continue,
+                Some(&mut on_step),
+            )
+            .unwrap();
+            assert!(checked > 0, "{method:?}: no step checked");
         }
     }
 
@@ -1406,27 +1412,17 @@ mod tests {
     /// step, must end its step with f(t + h, y_new).
     #[test]
     fn every_step_ends_with_the_right_hand_side_at_its_end() {
-        for integrator in INTEGRATORS {
-            let methods = [
-                integrator
-                    .adaptive
-                    .and_then(|_| Method::adaptive(integrator, 1e-6, 1e-9, f64::INFINITY)),
-                integrator
-                    .fixed
-                    .and_then(|_| Method::fixed(integrator, 0.05)),
-            ];
-            for method in methods.into_iter().flatten() {
-                let mut sys = LastRhs::default();
-                let mut y = [1.0, 0.0];
-                let stats = integrate(&mut sys, method, 0.0, &mut y, 2.0, &[], |_, _, _| {
-                    Flow::Continue
-                })
-                .unwrap();
-                assert_eq!(
-                    sys.checked as u64, stats.accepted,
-                    "{method:?}: every accepted step reads its end's event functions"
-                );
-            }
+        for method in every_method() {
+            let mut sys = LastRhs::default();
+            let mut y = [1.0, 0.0];
+            let stats = integrate(&mut sys, method, 0.0, &mut y, 2.0, &[], |_, _, _| {
+                Flow::Continue
+            })
+            .unwrap();
+            assert_eq!(
+                sys.checked as u64, stats.accepted,
+                "{method:?}: every accepted step reads its end's event functions"
+            );
         }
     }
     fn dopri5_fixed(step: f64) -> Method {
