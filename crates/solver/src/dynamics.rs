@@ -1290,20 +1290,35 @@ impl ContactEvents {
         }
     }
 
-    /// The event functions (onsets, ends, then two per kink) from the rates and sliding speeds
-    /// last stored.
+    /// The event functions from the rates and sliding speeds last stored.
     fn values(&self, g: &mut [f64]) {
         let n = self.rates.len();
-        let (onsets, rest) = g.split_at_mut(if self.onsets { n } else { 0 });
-        let (ends, kinks) = rest.split_at_mut(if self.ends { n } else { 0 });
-        for (g, r) in onsets.iter_mut().zip(&self.rates) {
-            *g = gap(r.0);
+        for (i, g) in g.iter_mut().enumerate() {
+            *g = self.event(i, n).value(&self.kinks, |slot, speed| {
+                let v = if speed { self.speeds[slot] } else { f64::NAN };
+                (self.rates[slot].0, v)
+            });
         }
-        for (g, r) in ends.iter_mut().zip(&self.rates) {
-            *g = -gap(r.0);
+    }
+}
+
+impl ContactEvent {
+    /// The contact slot the event belongs to (`kinks` as in [`ContactEvents`]).
+    fn slot(&self, kinks: &[(usize, f64)]) -> usize {
+        match *self {
+            ContactEvent::Onset(slot) | ContactEvent::End(slot) => slot,
+            ContactEvent::Kink(k, _) => kinks[k].0,
         }
-        for (g, &(s, vk)) in kinks.chunks_exact_mut(2).zip(&self.kinks) {
-            g.copy_from_slice(&kink_value(self.rates[s].0, self.speeds[s], vk));
+    }
+
+    /// The event function's value from its slot's penetration (m) and, for a kink, sliding
+    /// speed (m/s), which `at(slot, speed)` returns (the speed only when `speed` is set).
+    fn value(&self, kinks: &[(usize, f64)], at: impl FnOnce(usize, bool) -> (f64, f64)) -> f64 {
+        let (delta, v) = at(self.slot(kinks), matches!(self, ContactEvent::Kink(..)));
+        match *self {
+            ContactEvent::Onset(_) => gap(delta),
+            ContactEvent::End(_) => -gap(delta),
+            ContactEvent::Kink(k, side) => kink_value(delta, v, kinks[k].1)[side],
         }
     }
 }
@@ -1412,25 +1427,17 @@ impl OdeSystem for Mechanism<'_> {
             return f64::NAN;
         };
         let model = self.model;
-        match e.event(i, model.n_contacts) {
-            ContactEvent::Onset(slot) => gap(model.slot_penetration(y, &mut e.ws, slot, false).0),
-            ContactEvent::End(slot) => -gap(model.slot_penetration(y, &mut e.ws, slot, false).0),
-            ContactEvent::Kink(k, side) => {
-                let (slot, vk) = e.kinks[k];
-                let (delta, v) = model.slot_penetration(y, &mut e.ws, slot, true);
-                kink_value(delta, v, vk)[side]
-            }
-        }
+        let event = e.event(i, model.n_contacts);
+        event.value(&e.kinks, |slot, speed| {
+            model.slot_penetration(y, &mut e.ws, slot, speed)
+        })
     }
     /// The positions and velocities of the bodies of event `i`'s joint.
     fn event_components(&self, i: usize, parts: &mut Vec<Range<usize>>) {
         parts.clear();
         match self.events.as_ref() {
             Some(e) => {
-                let slot = match e.event(i, self.model.n_contacts) {
-                    ContactEvent::Onset(slot) | ContactEvent::End(slot) => slot,
-                    ContactEvent::Kink(k, _) => e.kinks[k].0,
-                };
+                let slot = e.event(i, self.model.n_contacts).slot(&e.kinks);
                 parts.extend_from_slice(&e.parts[slot]);
             }
             None => parts.push(0..self.dim()),
