@@ -15,7 +15,13 @@
 //! left out). Steps near h_s (h/h_s of 0.5 or more) are held by stability: a method with a
 //! larger stability region per right-hand side would take fewer. Steps far below it are held by
 //! accuracy. A linearly implicit method is stable on these modes at any step (h_s infinite).
-//! The census also gives the spread of |lambda| of the modes that set h_s.
+//! The census also gives the spread of |lambda| of the modes that set h_s, and the method's
+//! stability floor over the closed time: the sum of h/h_s over the closed steps, the number of
+//! steps the closed time would take if every step were as long as h_s (the integral of dt/h_s
+//! over it), times the fewest right-hand sides a step took. An explicit method whose contacts
+//! stay closed for as long cannot cover that time with fewer, whatever it does where contacts
+//! begin and end: a step longer than h_s amplifies the mode, so a run exceeds h_s only briefly
+//! (the bin `>= 1`), and the floor is an estimate, not a strict bound.
 //!
 //! ```text
 //! cargo run --release -p jointplay-solver --example step_census -- SCENE INTEGRATOR RTOL [--events] [--ends] [--friction] [--until T]
@@ -55,6 +61,11 @@ struct Census<'m> {
     bins: [u64; BINS.len() + 1],
     /// Per closed step, |lambda| (1/s) of the mode that sets h_s.
     fastest: Vec<f64>,
+    /// The sum of h/h_s over the closed steps: the steps the closed time would take at h_s.
+    steps_at_h_s: f64,
+    /// The fewest right-hand sides an accepted step took (the method's cost of a step that is
+    /// not rejected and not cut at an event).
+    fewest: u64,
 }
 
 impl Census<'_> {
@@ -74,7 +85,11 @@ impl Census<'_> {
             (true, false) => 3,
         };
         self.steps[class] += 1;
-        self.class_evaluations[class] += self.evaluations - self.counted;
+        let taken = self.evaluations - self.counted;
+        if taken > 0 {
+            self.fewest = self.fewest.min(taken);
+        }
+        self.class_evaluations[class] += taken;
         self.counted = self.evaluations;
         self.last.0 = class;
         self.last.1 = t1;
@@ -97,6 +112,7 @@ impl Census<'_> {
                 .unwrap_or((f64::INFINITY, 0.0));
             self.fastest.push(speed);
             let ratio = h / h_s;
+            self.steps_at_h_s += ratio;
             self.bins[BINS.iter().position(|&b| ratio < b).unwrap_or(BINS.len())] += 1;
         }
     }
@@ -261,6 +277,8 @@ fn census() -> Result<(), String> {
         time: [0.0; 4],
         bins: [0; BINS.len() + 1],
         fastest: Vec::new(),
+        steps_at_h_s: 0.0,
+        fewest: u64::MAX,
     };
     let stats = ode::integrate(
         &mut census,
@@ -281,6 +299,8 @@ fn census() -> Result<(), String> {
         bins,
         evaluations: all_evaluations,
         mut fastest,
+        steps_at_h_s,
+        fewest,
         ..
     } = census;
 
@@ -321,6 +341,14 @@ fn census() -> Result<(), String> {
         lower = BINS.get(k).copied().unwrap_or(lower);
     }
     println!();
+    if steps_at_h_s > 0.0 && fewest < u64::MAX {
+        // The closed time covered in steps of h_s each: this method's fewest right-hand sides
+        // for it, if the contacts close for as long as in this run, held only by stability.
+        println!(
+            "stability floor of the closed time: {steps_at_h_s:.0} steps of h_s, {:.0} right-hand sides at {fewest} a step",
+            steps_at_h_s * fewest as f64
+        );
+    }
     fastest.sort_by(f64::total_cmp);
     if !fastest.is_empty() {
         let at = |q: f64| fastest[((fastest.len() - 1) as f64 * q).round() as usize];
