@@ -20,7 +20,7 @@
 //! and dropped from memory, so a run's memory does not grow with its length. The integration then
 //! only reads the states at the sample times (with the contacts' onset history, which the
 //! contact laws with hysteresis damping read); the file's writer thread evaluates the recorded
-//! quantities from them, beside the integration, to the same values bit for bit (a block the
+//! quantities from them, beside the integration, to the same values bit for bit (a part the
 //! writer is behind with the integrating thread evaluates itself: [`Stream`]). Of the streamed
 //! samples it keeps only those the run figures draw ([`crate::figures::run::drawn`]), and of
 //! those every `stride`-th: at most [`FIGURE_SAMPLES`] to `2 * FIGURE_SAMPLES` samples, the
@@ -45,7 +45,7 @@ use std::path::{Path, PathBuf};
 use std::sync::mpsc;
 
 use crate::Result;
-use crate::h5::{Meta, RunWriter, STREAM_ROWS};
+use crate::h5::{Meta, OpenedRun, RunWriter, STREAM_ROWS};
 use crate::observe::Observable;
 use crate::progress::Stop;
 
@@ -756,17 +756,18 @@ struct Sampler {
     order: Vec<usize>,
     /// The block being evaluated and written; its memory is reused from block to block.
     block: Recording,
+    /// The recording's declaration, without samples.
+    empty: Recording,
 }
 
 impl Sampler {
-    /// Evaluates the samples of `s` into [`Sampler::block`]: by the threads of rayon's pool,
-    /// each with a workspace of its own, when `parallel` (the run's last block, which nothing
-    /// else runs beside), in turn otherwise. The samples are independent of one another (each
-    /// carries its onset history), so the values are the same either way, bit for bit. A sample
-    /// that fails ends the block before it and gives where and why the run stops.
+    /// Evaluates the samples of `s` and appends them to [`Sampler::block`]: by the threads of
+    /// rayon's pool, each with a workspace of its own, when `parallel` (the run's last samples,
+    /// which nothing else runs beside), in turn otherwise. The samples are independent of one
+    /// another (each carries its onset history), so the values are the same either way, bit for
+    /// bit. A sample that fails ends the block before it and gives where and why the run stops.
     fn evaluate(&mut self, s: &States, parallel: bool) -> Option<Stopped> {
         use rayon::prelude::*;
-        self.block.truncate(0);
         let n = s.time.len();
         let parts = if parallel {
             rayon::current_num_threads().min(n)
@@ -784,11 +785,9 @@ impl Sampler {
             );
         }
         let len = n.div_ceil(parts);
-        let (model, order) = (&self.model, &self.order);
+        let (model, order, empty) = (&self.model, &self.order, &self.empty);
         // The first part goes into the block itself (whose memory holds a whole block), the
-        // others into recordings of their own (the block is empty: so are its clones), appended
-        // in order.
-        let empty = self.block.clone();
+        // others into recordings of their own, appended in order.
         let mut parts: Vec<Recording> = (0..parts)
             .map(|p| match p {
                 0 => std::mem::take(&mut self.block),
@@ -843,10 +842,11 @@ fn sample_states(
 }
 
 /// How the writer thread ended: the writer, what the run keeps besides its file, and either the
-/// first error writing it or where the recorded values stopped the run ([`Sampler::evaluate`]).
-type Ended = (RunWriter, Kept, Result<Option<Stopped>>);
+/// first error writing it or where the recorded values stopped the run ([`Sampler::evaluate`]);
+/// an error creating the file's datasets (the partial file then removed) otherwise.
+type Ended = Result<(RunWriter, Kept, Result<Option<Stopped>>)>;
 
-/// A block of samples handed to the writer thread: the states at its sample times, which the
+/// Samples handed to the writer thread ([`PART_ROWS`] of them, or the run's last ones): the states at its sample times, which the
 /// writer evaluates, or the recorded values the integrating thread evaluated itself while the
 /// writer was behind, with where a sample stopped the run if one did.
 enum Block {
@@ -854,45 +854,58 @@ enum Block {
     Recorded(Recording, Option<Stopped>),
 }
 
+/// Samples in a part handed to a streamed run's writer thread: a fraction of a block
+/// ([`STREAM_ROWS`]), so that little is left to evaluate when the integration ends.
+const PART_ROWS: usize = STREAM_ROWS / 8;
+
+/// Parts that may wait for the writer thread (a block's worth) before the integration evaluates
+/// the next itself.
+const WAITING: usize = STREAM_ROWS / PART_ROWS;
+
 /// Where a streamed run's samples go: the states at the sample times to a thread of their own,
 /// which evaluates the recorded quantities from them, writes them to the file and keeps every
 /// `stride`-th sample of the channels the figures draw ([`Kept`]).
 ///
 /// The integration only reads the states on its dense output (and the contacts' onset history)
-/// and hands each block of [`STREAM_ROWS`] of them over a channel that holds at most one waiting
-/// block; the writer thread evaluates the recording at them (the accelerations and multipliers
-/// that forces and reactions need, then every observable: before, a sixth of the run's time on
-/// the integrating thread of the mixed 4-UPS/RPU with its 1 ms output), then shuffles,
-/// deflates ([`crate::chunk`]) and appends them, beside the integration on the other core. The
-/// last block, which the integration no longer runs beside, is evaluated and compressed by every
-/// thread of rayon's pool. When the writer falls behind (a block already waits in the channel
-/// when the next is full, as with an integrator that needs few right-hand sides per sample), the
-/// integration evaluates that block itself instead of waiting, and hands over its recorded
-/// values, which the writer then only compresses and appends: the work then splits between the
-/// two cores by itself. Every sample is evaluated alike wherever it is (its state and onset
+/// and hands each part of [`PART_ROWS`] of them over a channel that holds at most [`WAITING`]
+/// waiting parts (a block of [`STREAM_ROWS`], one chunk of the file); the writer thread
+/// evaluates the recording at them (the accelerations and multipliers that forces and
+/// reactions need, then every observable: before, a sixth of the run's time on the integrating
+/// thread of the mixed 4-UPS/RPU with its 1 ms output) as they come, and once a block's worth
+/// is evaluated it shuffles, deflates ([`crate::chunk`]) and appends them, beside the
+/// integration on the other core. The last part, which the integration no longer runs beside,
+/// is evaluated, and the last block compressed, by every thread of rayon's pool: handed over in
+/// parts, the samples evaluated after the integration are at most a part, not a block (on a
+/// 10 s run of the mixed 4-UPS/RPU with 1 ms output, 256 samples instead of 1 809: the time
+/// from the integration's end to the file's close fell from 76 to about 45 ms). When the
+/// writer falls behind (a block's worth of parts already waits in the channel when the next is
+/// full, as with an integrator that needs few right-hand sides per sample), the integration
+/// evaluates that part itself instead of waiting, and hands over its recorded values, which the
+/// writer then only gathers, compresses and appends: the work then splits between the two
+/// cores by itself. Every sample is evaluated alike wherever it is (its state and onset
 /// history, in a workspace of the thread's own), so the file is the same bit for bit. The
-/// writer hands each block of states or values back, emptied, and the integration fills it
-/// again, so that no block's memory is allocated (and its pages faulted in) anew. A sample
+/// writer hands each part of states or values back, emptied, and the integration fills it
+/// again, so that no part's memory is allocated (and its pages faulted in) anew. A sample
 /// whose recorded value is not finite stops the run there: the samples before it are written
-/// and the writer thread ends; the integration stops at once when it evaluated the block
-/// itself, and otherwise when it next hands a block over, at most two blocks after the one that
-/// failed (one may wait in the channel).
+/// and the writer thread ends; the integration stops at once when it evaluated the part
+/// itself, and otherwise when it next hands a part over, at most [`WAITING`] + 1 parts after
+/// the one that failed (those may wait in the channel).
 struct Stream {
-    /// The blocks for the writer thread; `None` once closed.
+    /// The parts for the writer thread; `None` once closed.
     tx: Option<mpsc::SyncSender<(Block, bool)>>,
     thread: Option<std::thread::JoinHandle<Ended>>,
     /// Blocks of states the writer has evaluated, handed back emptied to be filled again.
     spare: mpsc::Receiver<States>,
     /// Blocks of recorded values the writer has written, handed back to be filled again.
     spare_recorded: mpsc::Receiver<Recording>,
-    /// The block filling.
+    /// The part filling.
     states: States,
-    /// The integrating thread's own evaluation of the blocks the writer was behind with.
+    /// The integrating thread's own evaluation of the parts the writer was behind with.
     helper: Sampler,
-    /// The recording's declaration, without samples: a block for the helper when the writer
+    /// The recording's declaration, without samples: a part for the helper when the writer
     /// has none to give back.
     declaration: Recording,
-    /// Tests: which blocks the integrating thread evaluates, and how many it did.
+    /// Tests: which parts the integrating thread evaluates, and how many it did.
     #[cfg(test)]
     probe: Probe,
     /// The partial file, for the error of a writer thread that panicked.
@@ -901,9 +914,9 @@ struct Stream {
     gone: bool,
 }
 
-/// Tests: `helps(i)` says whether the integrating thread evaluates block `i` (0, 1, ...; never
-/// the last), as when the writer is behind with it, the other blocks waiting for the writer
-/// (`None`: as a run); the blocks handed over, and those the integrating thread evaluated.
+/// Tests: `helps(i)` says whether the integrating thread evaluates part `i` (0, 1, ...; never
+/// the last), as when the writer is behind with it, the other parts waiting for the writer
+/// (`None`: as a run); the parts handed over, and those the integrating thread evaluated.
 #[cfg(test)]
 #[derive(Default)]
 struct Probe {
@@ -913,37 +926,46 @@ struct Probe {
 }
 
 impl Stream {
-    /// `rec`: the run's recording, without samples yet ([`Recording::of`]).
-    fn new(model: &Model, writer: RunWriter, rec: &Recording) -> Stream {
+    /// `rec`: the run's recording, without samples yet ([`Recording::of`]); `file`: the run's
+    /// file, whose datasets the writer thread creates first ([`OpenedRun::declare`]).
+    fn new(model: &Model, file: OpenedRun, rec: &Recording) -> Stream {
         let sampler = || Sampler {
             model: model.clone(),
             ws: Workspace::new(model),
             order: rec.order(),
             block: rec.clone(),
+            empty: rec.clone(),
         };
         let mut own = sampler();
         let mut kept = Kept::new(rec);
-        let partial = writer.partial().to_path_buf();
-        let (tx, rx) = mpsc::sync_channel::<(Block, bool)>(1);
-        // Room for every block there can be, so that handing one back never waits.
-        let (back, spare) = mpsc::sync_channel::<States>(3);
-        let (back_recorded, spare_recorded) = mpsc::sync_channel::<Recording>(3);
+        let partial = file.partial().to_path_buf();
+        let (tx, rx) = mpsc::sync_channel::<(Block, bool)>(WAITING);
+        // Room for every part there can be, so that handing one back never waits.
+        let (back, spare) = mpsc::sync_channel::<States>(WAITING + 2);
+        let (back_recorded, spare_recorded) = mpsc::sync_channel::<Recording>(WAITING + 2);
         let thread = std::thread::spawn(move || {
-            let mut writer = writer;
+            let mut writer = file.declare(&own.empty)?;
+            // The evaluated samples gather in `own.block` until they fill a chunk.
+            let write = |writer: &mut RunWriter, own: &mut Sampler, kept: &mut Kept, last| {
+                kept.add(&own.block);
+                let written = writer.append(&own.block, last);
+                own.block.truncate(0);
+                written
+            };
             for (block, last) in rx {
-                let (recorded, stopped) = match &block {
-                    Block::States(states) => {
-                        let stopped = own.evaluate(states, last);
-                        (&own.block, stopped)
+                let stopped = match &block {
+                    Block::States(states) => own.evaluate(states, last),
+                    Block::Recorded(recorded, stopped) => {
+                        own.block.extend(recorded);
+                        stopped.clone()
                     }
-                    Block::Recorded(recorded, stopped) => (recorded, stopped.clone()),
                 };
-                kept.add(recorded);
-                if let Err(e) = writer.append(recorded, last) {
-                    return (writer, kept, Err(e));
+                let full = own.block.time.len() >= STREAM_ROWS || last || stopped.is_some();
+                if full && let Err(e) = write(&mut writer, &mut own, &mut kept, last) {
+                    return Ok((writer, kept, Err(e)));
                 }
                 if stopped.is_some() {
-                    return (writer, kept, Ok(stopped));
+                    return Ok((writer, kept, Ok(stopped)));
                 }
                 // Nobody to take them back once the run is over.
                 match block {
@@ -956,7 +978,12 @@ impl Stream {
                     }
                 }
             }
-            (writer, kept, Ok(None))
+            // The integration ended without its last part (its writer gone, or an error):
+            // what was evaluated is written.
+            if let Err(e) = write(&mut writer, &mut own, &mut kept, false) {
+                return Ok((writer, kept, Err(e)));
+            }
+            Ok((writer, kept, Ok(None)))
         });
         Stream {
             tx: Some(tx),
@@ -974,18 +1001,18 @@ impl Stream {
     }
 
     /// Adds the sample at `t`, state `y`, with the contacts' onset history `onset`, and hands
-    /// the block over when it is full. False when the writer thread is gone (at an error, or
+    /// the part over when it is full. False when the writer thread is gone (at an error, or
     /// where the recorded values stopped the run: [`Stream::close`] says which).
     fn push(&mut self, t: f64, y: &[f64], onset: &[f64]) -> bool {
         self.states.time.push(t);
         self.states.y.extend_from_slice(y);
         self.states.onset.extend_from_slice(onset);
-        self.states.time.len() < STREAM_ROWS || self.send(false)
+        self.states.time.len() < PART_ROWS || self.send(false)
     }
 
-    /// Hands the block over (`last`: the run's last samples); false when the writer thread is
-    /// gone or a sample of the block stopped the run. A block that is not the last, and finds
-    /// the writer behind (another block waiting), is evaluated here first.
+    /// Hands the part over (`last`: the run's last samples); false when the writer thread is
+    /// gone or a sample of the part stopped the run. A part that is not the last, and finds the
+    /// writer behind ([`WAITING`] parts waiting), is evaluated here first.
     fn send(&mut self, last: bool) -> bool {
         use mpsc::TrySendError;
         if self.gone {
@@ -996,7 +1023,7 @@ impl Stream {
             return false;
         };
         let block = Block::States(std::mem::take(&mut self.states));
-        // The states to fill next: a block the writer gave back, once this one is handed over.
+        // The states to fill next: a part the writer gave back, once this one is handed over.
         let refill = |stream: &mut Stream| {
             stream.states = stream.spare.try_recv().unwrap_or_default();
         };
@@ -1028,13 +1055,14 @@ impl Stream {
                 }
                 Err(TrySendError::Disconnected(_)) => false,
                 Err(TrySendError::Full((Block::States(mut states), _))) => {
+                    self.helper.block.truncate(0);
                     let stopped = self.helper.evaluate(&states, false);
                     #[cfg(test)]
                     {
                         self.probe.helped += 1;
                     }
-                    // The block's states are done with: they are filled again, and the
-                    // helper's values go over, replaced by a block the writer gave back.
+                    // The part's states are done with: they are filled again, and the
+                    // helper's values go over, replaced by a part the writer gave back.
                     states.clear();
                     self.states = states;
                     let recorded = std::mem::replace(
@@ -1046,14 +1074,14 @@ impl Stream {
                     let stops = stopped.is_some();
                     tx.send((Block::Recorded(recorded, stopped), last)).is_ok() && !stops
                 }
-                Err(TrySendError::Full(_)) => unreachable!("a block of states was sent"),
+                Err(TrySendError::Full(_)) => unreachable!("a part of states was sent"),
             }
         };
         self.gone = !sent;
         sent
     }
 
-    /// Waits for the writer thread to write every block handed to it and returns the writer,
+    /// Waits for the writer thread to write every part handed to it and returns the writer,
     /// what the run keeps and where the recorded values stopped the run, if they did; on the
     /// thread's error the partial file is removed and the error returned. `None` when already
     /// closed.
@@ -1061,11 +1089,12 @@ impl Stream {
         self.tx = None;
         let thread = self.thread.take()?;
         Some(match thread.join() {
-            Ok((writer, kept, Ok(stopped))) => Ok((writer, kept, stopped)),
-            Ok((writer, _, Err(e))) => {
+            Ok(Ok((writer, kept, Ok(stopped)))) => Ok((writer, kept, stopped)),
+            Ok(Ok((writer, _, Err(e)))) => {
                 writer.discard();
                 Err(e)
             }
+            Ok(Err(e)) => Err(e),
             Err(_) => {
                 // The thread's writer was dropped as it unwound, closing the file.
                 let _ = std::fs::remove_file(&self.partial);
@@ -1131,8 +1160,8 @@ fn stream(
     meta: &Meta,
 ) -> Result<(RunResult, Written)> {
     let rec = Recording::of(model)?;
-    let writer = RunWriter::create(dir, meta, &rec)?;
-    let mut sink = Stream::new(model, writer, &rec);
+    let file = RunWriter::open(dir, meta)?;
+    let mut sink = Stream::new(model, file, &rec);
     let res = record(
         model,
         state,
@@ -1716,10 +1745,10 @@ mod tests {
         assert_same_datasets(&da, &db);
     }
 
-    /// Blocks the integrating side evaluates while the writer is behind (here every other one),
-    /// between blocks the writer evaluates, give the run recorded in line, bit for bit: the
+    /// Parts the integrating side evaluates while the writer is behind (here every other one),
+    /// between parts the writer evaluates, give the run recorded in line, bit for bit: the
     /// clearance slider-crank, its pin flying and touching, over five blocks (the integrating
-    /// side evaluates the second and the fourth, the writer's threads the last).
+    /// side evaluates every second part, the writer's threads the last).
     #[test]
     fn blocks_evaluated_while_the_writer_is_behind_give_the_run_recorded_in_line() {
         let dir = tempfile::tempdir().unwrap();
@@ -1731,14 +1760,14 @@ mod tests {
         assert_eq!(all.len(), whole.recording.time.len());
         assert!(all.len() > 4 * STREAM_ROWS, "{}", all.len());
         let rec = Recording::of(&m).unwrap();
-        let writer = RunWriter::create(&dir.path().join("b"), &meta, &rec).unwrap();
-        let mut sink = Stream::new(&m, writer, &rec);
+        let file = RunWriter::open(&dir.path().join("b"), &meta).unwrap();
+        let mut sink = Stream::new(&m, file, &rec);
         sink.probe.helps = Some(|b| b % 2 == 1);
         for (t, y, onset) in &all {
             assert!(sink.push(*t, y, onset));
         }
         assert!(sink.send(true));
-        let full = all.len() / STREAM_ROWS;
+        let full = all.len() / PART_ROWS;
         assert_eq!((sink.probe.blocks, sink.probe.helped), (full + 1, full / 2));
         let (writer, kept, stopped) = sink.close().unwrap().unwrap();
         assert!(stopped.is_none());
@@ -1782,16 +1811,16 @@ mod tests {
         assert!(all.len() > 3 * STREAM_ROWS + 500, "{}", all.len());
         let dir = tempfile::tempdir().unwrap();
         let meta = Meta::of(&m, Path::new("pendulum.toml"), "text", "test");
-        // In the first block (which the writer evaluates), in the third (evaluated by the
-        // integrating side, as when the writer is behind: the run stops at once) and in the
-        // last one (a hundred samples before the end).
+        // In the first block (which the writer evaluates), in a part of the third (evaluated by
+        // the integrating side, as when the writer is behind: the run stops at once) and in the
+        // last part (a hundred samples before the end).
         for bad in [1000, 2 * STREAM_ROWS + 500, all.len() - 100] {
             let rec = Recording::of(&m).unwrap();
-            let writer = RunWriter::create(&dir.path().join(bad.to_string()), &meta, &rec).unwrap();
-            let mut sink = Stream::new(&m, writer, &rec);
+            let file = RunWriter::open(&dir.path().join(bad.to_string()), &meta).unwrap();
+            let mut sink = Stream::new(&m, file, &rec);
             let helped = bad == 2 * STREAM_ROWS + 500;
             if helped {
-                sink.probe.helps = Some(|b| b == 2);
+                sink.probe.helps = Some(|b| b == (2 * STREAM_ROWS + 500) / PART_ROWS);
             }
             let mut pushed = 0;
             for (i, (t, y, onset)) in all.iter().enumerate() {
@@ -1816,15 +1845,18 @@ mod tests {
             );
             assert_eq!(writer.rows(), bad);
             assert_eq!(kept.rows, bad);
-            // The integration learns of it when it hands over a block, at most two blocks after
-            // the one that failed (one waits in the channel meanwhile).
-            assert!(pushed <= (bad / STREAM_ROWS + 3) * STREAM_ROWS, "{pushed}");
+            // The integration learns of it when it hands over a part, at most WAITING + 1 parts
+            // after the one that failed (those wait in the channel meanwhile).
+            assert!(
+                pushed <= (bad / PART_ROWS + WAITING + 2) * PART_ROWS,
+                "{pushed}"
+            );
             if bad < STREAM_ROWS {
                 assert!(pushed < all.len(), "{pushed}");
             }
             if helped {
                 assert_eq!(sink.probe.helped, 1);
-                assert_eq!(pushed, (bad / STREAM_ROWS + 1) * STREAM_ROWS);
+                assert_eq!(pushed, (bad / PART_ROWS + 1) * PART_ROWS);
             }
             writer.discard();
         }
