@@ -19,6 +19,15 @@
 //! that the one state stands for the run's), and `rhs_at_the_runs_stages` one at every tenth
 //! state the run's integrator evaluates it at (its stages, not only the sample times). The ratio of a whole run's rate to the
 //! right-hand side's is the share of the run's time spent in its integrator's evaluations.
+//!
+//! On a machine whose speed drifts within minutes (a shared one), the benches' rates, measured
+//! one after the other, can be far apart in time. With `RUN_RATE_PAIRED=N` the bench instead
+//! takes N rounds, each a whole 10 s run (onset events off) between two timings of the
+//! right-hand side at the run's stage states and at its sample states, and reports every
+//! round's ratio of the run's rate to the mean of the two right-hand-side rates around it, then
+//! their median and range; `RUN_RATE_PAIRED_50=M` adds M rounds with the 50-period run:
+//!
+//! `RUN_RATE_PAIRED=15 RUN_RATE_PAIRED_50=3 cargo bench -p jointplay-analysis --bench run_rate`
 
 use std::path::PathBuf;
 
@@ -30,7 +39,90 @@ use jointplay_solver::ode::{Flow, OdeSystem, integrate};
 use jointplay_solver::scene::{SceneFile, SceneSpec};
 
 fn main() {
-    divan::main();
+    let rounds = |name: &str| {
+        std::env::var(name)
+            .ok()
+            .and_then(|v| v.parse::<usize>().ok())
+    };
+    match rounds("RUN_RATE_PAIRED") {
+        Some(n) => paired(n, rounds("RUN_RATE_PAIRED_50").unwrap_or(0)),
+        None => divan::main(),
+    }
+}
+
+/// Rounds of a whole run between two timings of the right-hand side (see the module
+/// documentation): `short` rounds with the 10 s run, `long` with the 50 periods.
+fn paired(short: usize, long: usize) {
+    use std::time::Instant;
+    let (model, mut state, _) = scene(false);
+    model.assemble(&mut state).unwrap();
+    let (mut sys, stages) = stage_states(&model, &state);
+    let samples = sample_states(&model, &state);
+    let mut dy = vec![0.0; state.y.len()];
+    // Evaluations per second over `states` (at least 0.1 s of them).
+    let mut rate = |states: &StatesAt| {
+        let (start, mut count) = (Instant::now(), 0usize);
+        while count == 0 || start.elapsed().as_secs_f64() < 0.1 {
+            for (t, y, onset) in states {
+                sys.ws.onset.copy_from_slice(onset);
+                sys.rhs(*t, std::hint::black_box(y), &mut dy);
+                std::hint::black_box(&dy);
+            }
+            count += states.len();
+        }
+        count as f64 / start.elapsed().as_secs_f64()
+    };
+    let dir = tempfile::tempdir().unwrap();
+    let runs = [
+        ("whole_run, 10 s", scene(false), short),
+        (
+            "whole_run_50_periods",
+            scene_sampled(false, None, "periods = 50.0"),
+            long,
+        ),
+    ];
+    println!(
+        "| run | round | run (evaluations/s) | of rhs_at_the_runs_stages | of rhs_along_the_run |"
+    );
+    println!("|---|---|---|---|---|");
+    for (name, (model, state, file), rounds) in &runs {
+        let mut ratios: Vec<(f64, f64)> = Vec::new();
+        for round in 0..*rounds {
+            let (stage0, sample0) = (rate(&stages), rate(&samples));
+            let start = Instant::now();
+            let evals = run(model, state, file, dir.path());
+            let whole = evals as f64 / start.elapsed().as_secs_f64();
+            let (stage1, sample1) = (rate(&stages), rate(&samples));
+            let r = (
+                whole / (0.5 * (stage0 + stage1)),
+                whole / (0.5 * (sample0 + sample1)),
+            );
+            println!(
+                "| {name} | {round} | {whole:.0} | {:.1} % | {:.1} % |",
+                100.0 * r.0,
+                100.0 * r.1
+            );
+            ratios.push(r);
+        }
+        if ratios.is_empty() {
+            continue;
+        }
+        let summary = |mut v: Vec<f64>| {
+            v.sort_by(f64::total_cmp);
+            format!(
+                "{:.1} % ({:.1} to {:.1} %)",
+                100.0 * v[v.len() / 2],
+                100.0 * v[0],
+                100.0 * v[v.len() - 1]
+            )
+        };
+        println!(
+            "| {name} | median (range) of {} | | {} | {} |",
+            ratios.len(),
+            summary(ratios.iter().map(|r| r.0).collect()),
+            summary(ratios.iter().map(|r| r.1).collect())
+        );
+    }
 }
 
 const EVENTS: [bool; 2] = [false, true];
@@ -117,10 +209,13 @@ fn whole_run_50_periods(bencher: divan::Bencher) {
 struct Keeping<'m> {
     sys: Mechanism<'m>,
     calls: usize,
-    kept: Vec<(f64, Vec<f64>, Vec<f64>)>,
+    kept: StatesAt,
 }
 
 const EVERY: usize = 10;
+
+/// States of a run, each with its time and the contacts' onset history.
+type StatesAt = Vec<(f64, Vec<f64>, Vec<f64>)>;
 
 impl OdeSystem for Keeping<'_> {
     fn dim(&self) -> usize {
@@ -157,22 +252,7 @@ impl OdeSystem for Keeping<'_> {
 fn rhs_at_the_runs_stages(bencher: divan::Bencher) {
     let (model, mut state, _) = scene(false);
     model.assemble(&mut state).unwrap();
-    let mut keeping = Keeping {
-        sys: Mechanism::new(&model),
-        calls: 0,
-        kept: Vec::new(),
-    };
-    integrate(
-        &mut keeping,
-        model.settings.method,
-        0.0,
-        &mut state.y,
-        10.0,
-        &[],
-        |_, _, _| Flow::Continue,
-    )
-    .unwrap();
-    let Keeping { mut sys, kept, .. } = keeping;
+    let (mut sys, kept) = stage_states(&model, &state);
     let mut dy = vec![0.0; state.y.len()];
     bencher
         .counter(divan::counter::ItemsCount::new(kept.len() as u64))
@@ -183,6 +263,51 @@ fn rhs_at_the_runs_stages(bencher: divan::Bencher) {
                 divan::black_box(&dy);
             }
         });
+}
+
+/// Every [`EVERY`]-th state the 10 s run from `state` (assembled) evaluates its right-hand side
+/// at, with its time and onset history, and the system the run ends with.
+fn stage_states<'m>(model: &'m Model, state: &State) -> (Mechanism<'m>, StatesAt) {
+    let mut keeping = Keeping {
+        sys: Mechanism::new(model),
+        calls: 0,
+        kept: Vec::new(),
+    };
+    let mut y = state.y.clone();
+    integrate(
+        &mut keeping,
+        model.settings.method,
+        0.0,
+        &mut y,
+        10.0,
+        &[],
+        |_, _, _| Flow::Continue,
+    )
+    .unwrap();
+    (keeping.sys, keeping.kept)
+}
+
+/// The states of the 10 s run from `state` (assembled) every 10 ms, with their times and onset
+/// histories.
+fn sample_states(model: &Model, state: &State) -> StatesAt {
+    let mut sys = Mechanism::new(model);
+    let times: Vec<f64> = (1..=1000).map(|i| i as f64 * 0.01).collect();
+    let mut states = Vec::new();
+    let mut y = state.y.clone();
+    integrate(
+        &mut sys,
+        model.settings.method,
+        0.0,
+        &mut y,
+        10.0,
+        &times,
+        |sys, t, y| {
+            states.push((t, y.to_vec(), sys.ws.onset.clone()));
+            Flow::Continue
+        },
+    )
+    .unwrap();
+    states
 }
 
 #[divan::bench(sample_count = 200)]
@@ -211,35 +336,21 @@ fn rhs(bencher: divan::Bencher) {
 }
 
 /// One right-hand side at each of 1 000 states along the run's first 10 s (every 10 ms), in
-/// turn, with the one system the run ends with: the evaluations of a run meet states that change
-/// from one to the next, with closed and open contacts in their own proportions, where the `rhs`
-/// bench repeats one state.
+/// turn, each with its onset history: the evaluations of a run meet states that change from one
+/// to the next, with closed and open contacts in their own proportions, where the `rhs` bench
+/// repeats one state.
 #[divan::bench(sample_count = 20)]
 fn rhs_along_the_run(bencher: divan::Bencher) {
     let (model, mut state, _) = scene(false);
     model.assemble(&mut state).unwrap();
     let mut sys = Mechanism::new(&model);
-    let times: Vec<f64> = (1..=1000).map(|i| i as f64 * 0.01).collect();
-    let mut states: Vec<(f64, Vec<f64>)> = Vec::new();
-    let y0 = state.y.clone();
-    integrate(
-        &mut sys,
-        model.settings.method,
-        0.0,
-        &mut state.y,
-        10.0,
-        &times,
-        |_, t, y| {
-            states.push((t, y.to_vec()));
-            Flow::Continue
-        },
-    )
-    .unwrap();
-    let mut dy = vec![0.0; y0.len()];
+    let states = sample_states(&model, &state);
+    let mut dy = vec![0.0; state.y.len()];
     bencher
         .counter(divan::counter::ItemsCount::new(states.len() as u64))
         .bench_local(|| {
-            for (t, y) in &states {
+            for (t, y, onset) in &states {
+                sys.ws.onset.copy_from_slice(onset);
                 sys.rhs(*t, divan::black_box(y), &mut dy);
                 divan::black_box(&dy);
             }
