@@ -63,11 +63,7 @@ fn paired(short: usize, long: usize) {
     let mut rate = |states: &StatesAt| {
         let (start, mut count) = (Instant::now(), 0usize);
         while count == 0 || start.elapsed().as_secs_f64() < 0.1 {
-            for (t, y, onset) in states {
-                sys.ws.onset.copy_from_slice(onset);
-                sys.rhs(*t, std::hint::black_box(y), &mut dy);
-                std::hint::black_box(&dy);
-            }
+            evaluate_at(&mut sys, states, &mut dy);
             count += states.len();
         }
         count as f64 / start.elapsed().as_secs_f64()
@@ -257,12 +253,17 @@ fn rhs_at_the_runs_stages(bencher: divan::Bencher) {
     bencher
         .counter(divan::counter::ItemsCount::new(kept.len() as u64))
         .bench_local(|| {
-            for (t, y, onset) in &kept {
-                sys.ws.onset.copy_from_slice(onset);
-                sys.rhs(*t, divan::black_box(y), &mut dy);
-                divan::black_box(&dy);
-            }
+            evaluate_at(&mut sys, &kept, &mut dy);
         });
+}
+
+/// One right-hand side at each of `states` in turn, each with its onset history, into `dy`.
+fn evaluate_at(sys: &mut Mechanism, states: &StatesAt, dy: &mut [f64]) {
+    for (t, y, onset) in states {
+        sys.ws.onset.copy_from_slice(onset);
+        sys.rhs(*t, std::hint::black_box(y), dy);
+        std::hint::black_box(&*dy);
+    }
 }
 
 /// Every [`EVERY`]-th state the 10 s run from `state` (assembled) evaluates its right-hand side
@@ -349,10 +350,6 @@ fn rhs_along_the_run(bencher: divan::Bencher) {
     bencher
         .counter(divan::counter::ItemsCount::new(states.len() as u64))
         .bench_local(|| {
-            for (t, y, onset) in &states {
-                sys.ws.onset.copy_from_slice(onset);
-                sys.rhs(*t, divan::black_box(y), &mut dy);
-                divan::black_box(&dy);
-            }
+            evaluate_at(&mut sys, &states, &mut dy);
         });
 }
