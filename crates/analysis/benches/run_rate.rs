@@ -27,7 +27,7 @@
 //! round's ratio of the run's rate to the mean of the two right-hand-side rates around it, then
 //! their median and range; `RUN_RATE_PAIRED_50=M` adds M rounds with the 50-period run:
 //!
-//! `RUN_RATE_PAIRED=15 RUN_RATE_PAIRED_50=3 cargo bench -p jointplay-analysis --bench run_rate`
+//! `RUN_RATE_PAIRED=12 RUN_RATE_PAIRED_50=3 cargo bench -p jointplay-analysis --bench run_rate`
 
 use std::path::PathBuf;
 
@@ -105,9 +105,10 @@ fn paired(short: usize, long: usize) {
         }
         let summary = |mut v: Vec<f64>| {
             v.sort_by(f64::total_cmp);
+            let median = 0.5 * (v[(v.len() - 1) / 2] + v[v.len() / 2]);
             format!(
                 "{:.1} % ({:.1} to {:.1} %)",
-                100.0 * v[v.len() / 2],
+                100.0 * median,
                 100.0 * v[0],
                 100.0 * v[v.len() - 1]
             )
@@ -187,7 +188,7 @@ fn whole_run_unrecorded(bencher: divan::Bencher) {
 }
 
 /// [`whole_run`] (onset events off) over the 50 drive periods of section 3 (100 s), where the
-/// file's fixed costs (creating its datasets, the last block after the integration, closing it)
+/// file's fixed costs (creating its datasets, the samples left after the integration, closing it)
 /// weigh ten times less than over 10 s.
 #[divan::bench(sample_count = 3)]
 fn whole_run_50_periods(bencher: divan::Bencher) {

@@ -754,7 +754,8 @@ struct Sampler {
     model: Model,
     ws: Workspace,
     order: Vec<usize>,
-    /// The block being evaluated and written; its memory is reused from block to block.
+    /// The samples evaluated and not yet written (up to a block); its memory is reused from
+    /// block to block.
     block: Recording,
     /// The recording's declaration, without samples.
     empty: Recording,
@@ -846,9 +847,10 @@ fn sample_states(
 /// an error creating the file's datasets (the partial file then removed) otherwise.
 type Ended = Result<(RunWriter, Kept, Result<Option<Stopped>>)>;
 
-/// Samples handed to the writer thread ([`PART_ROWS`] of them, or the run's last ones): the states at its sample times, which the
-/// writer evaluates, or the recorded values the integrating thread evaluated itself while the
-/// writer was behind, with where a sample stopped the run if one did.
+/// Samples handed to the writer thread ([`PART_ROWS`] of them, or the run's last ones): the
+/// states at their sample times, which the writer evaluates, or the recorded values the
+/// integrating thread evaluated itself while the writer was behind, with where a sample stopped
+/// the run if one did.
 enum Block {
     States(States),
     Recorded(Recording, Option<Stopped>),
@@ -875,9 +877,11 @@ const WAITING: usize = STREAM_ROWS / PART_ROWS;
 /// is evaluated it shuffles, deflates ([`crate::chunk`]) and appends them, beside the
 /// integration on the other core. The last part, which the integration no longer runs beside,
 /// is evaluated, and the last block compressed, by every thread of rayon's pool: handed over in
-/// parts, the samples evaluated after the integration are at most a part, not a block (on a
-/// 10 s run of the mixed 4-UPS/RPU with 1 ms output, 256 samples instead of 1 809: the time
-/// from the integration's end to the file's close fell from 76 to about 45 ms). When the
+/// parts, the samples left to evaluate after the integration are, when the writer keeps up,
+/// fewer than a part, not up to a block (on a 10 s run of the mixed 4-UPS/RPU with 1 ms output,
+/// 17 of its 10 001 samples instead of 1 809: the time from the integration's end to the file's
+/// close fell from 78 to 48 ms; a writer that is behind has up to a block's worth of parts
+/// waiting, which it evaluates in turn, as before). When the
 /// writer falls behind (a block's worth of parts already waits in the channel when the next is
 /// full, as with an integrator that needs few right-hand sides per sample), the integration
 /// evaluates that part itself instead of waiting, and hands over its recorded values, which the
@@ -894,9 +898,9 @@ struct Stream {
     /// The parts for the writer thread; `None` once closed.
     tx: Option<mpsc::SyncSender<(Block, bool)>>,
     thread: Option<std::thread::JoinHandle<Ended>>,
-    /// Blocks of states the writer has evaluated, handed back emptied to be filled again.
+    /// Parts of states the writer has evaluated, handed back emptied to be filled again.
     spare: mpsc::Receiver<States>,
-    /// Blocks of recorded values the writer has written, handed back to be filled again.
+    /// Parts of recorded values the writer has gathered, handed back to be filled again.
     spare_recorded: mpsc::Receiver<Recording>,
     /// The part filling.
     states: States,
@@ -1750,7 +1754,7 @@ mod tests {
     /// clearance slider-crank, its pin flying and touching, over five blocks (the integrating
     /// side evaluates every second part, the writer's threads the last).
     #[test]
-    fn blocks_evaluated_while_the_writer_is_behind_give_the_run_recorded_in_line() {
+    fn parts_evaluated_while_the_writer_is_behind_give_the_run_recorded_in_line() {
         let dir = tempfile::tempdir().unwrap();
         let (m, state) = slider_crank(0.1);
         let (meta, whole, a) = in_line(&m, &state, dir.path());
@@ -1799,10 +1803,10 @@ mod tests {
     }
 
     /// A sample whose recorded value is not finite (a state with a velocity so large that the
-    /// accelerations overflow) stops the run where it is, in a block evaluated beside the
+    /// accelerations overflow) stops the run where it is, in a part evaluated beside the
     /// integration, in one the integrating side evaluated while the writer was behind and in
-    /// the last block, evaluated by every thread: the samples before it are written, none after,
-    /// and the stop names the quantity and the time.
+    /// the last part, evaluated by every thread after the other samples of its block: the
+    /// samples before it are written, none after, and the stop names the quantity and the time.
     #[test]
     fn a_non_finite_recorded_value_stops_a_run_written_as_it_goes_at_its_sample() {
         let (mut m, state) = model("pendulum.toml");
@@ -1813,8 +1817,11 @@ mod tests {
         let meta = Meta::of(&m, Path::new("pendulum.toml"), "text", "test");
         // In the first block (which the writer evaluates), in a part of the third (evaluated by
         // the integrating side, as when the writer is behind: the run stops at once) and in the
-        // last part (a hundred samples before the end).
-        for bad in [1000, 2 * STREAM_ROWS + 500, all.len() - 100] {
+        // last part (thirty samples before the end), after the other samples of its block.
+        let last_part = all.len() - 30;
+        let last_start = (all.len() - 1) / PART_ROWS * PART_ROWS;
+        assert!(last_part >= last_start && !last_start.is_multiple_of(STREAM_ROWS));
+        for bad in [1000, 2 * STREAM_ROWS + 500, last_part] {
             let rec = Recording::of(&m).unwrap();
             let file = RunWriter::open(&dir.path().join(bad.to_string()), &meta).unwrap();
             let mut sink = Stream::new(&m, file, &rec);
