@@ -757,7 +757,8 @@ struct Sampler {
     /// The samples evaluated and not yet written (up to a block); its memory is reused from
     /// block to block.
     block: Recording,
-    /// The recording's declaration, without samples.
+    /// The recording's declaration, without samples (the helper's: a part of recorded values
+    /// when the writer has none to give back).
     empty: Recording,
 }
 
@@ -851,7 +852,7 @@ type Ended = Result<(RunWriter, Kept, Result<Option<Stopped>>)>;
 /// states at their sample times, which the writer evaluates, or the recorded values the
 /// integrating thread evaluated itself while the writer was behind, with where a sample stopped
 /// the run if one did.
-enum Block {
+enum Part {
     States(States),
     Recorded(Recording, Option<Stopped>),
 }
@@ -896,7 +897,7 @@ const WAITING: usize = STREAM_ROWS / PART_ROWS;
 /// the one that failed (those may wait in the channel).
 struct Stream {
     /// The parts for the writer thread; `None` once closed.
-    tx: Option<mpsc::SyncSender<(Block, bool)>>,
+    tx: Option<mpsc::SyncSender<(Part, bool)>>,
     thread: Option<std::thread::JoinHandle<Ended>>,
     /// Parts of states the writer has evaluated, handed back emptied to be filled again.
     spare: mpsc::Receiver<States>,
@@ -906,9 +907,6 @@ struct Stream {
     states: States,
     /// The integrating thread's own evaluation of the parts the writer was behind with.
     helper: Sampler,
-    /// The recording's declaration, without samples: a part for the helper when the writer
-    /// has none to give back.
-    declaration: Recording,
     /// Tests: which parts the integrating thread evaluates, and how many it did.
     #[cfg(test)]
     probe: Probe,
@@ -925,7 +923,7 @@ struct Stream {
 #[derive(Default)]
 struct Probe {
     helps: Option<fn(usize) -> bool>,
-    blocks: usize,
+    parts: usize,
     helped: usize,
 }
 
@@ -943,7 +941,7 @@ impl Stream {
         let mut own = sampler();
         let mut kept = Kept::new(rec);
         let partial = file.partial().to_path_buf();
-        let (tx, rx) = mpsc::sync_channel::<(Block, bool)>(WAITING);
+        let (tx, rx) = mpsc::sync_channel::<(Part, bool)>(WAITING);
         // Room for every part there can be, so that handing one back never waits.
         let (back, spare) = mpsc::sync_channel::<States>(WAITING + 2);
         let (back_recorded, spare_recorded) = mpsc::sync_channel::<Recording>(WAITING + 2);
@@ -956,10 +954,10 @@ impl Stream {
                 own.block.truncate(0);
                 written
             };
-            for (block, last) in rx {
-                let stopped = match &block {
-                    Block::States(states) => own.evaluate(states, last),
-                    Block::Recorded(recorded, stopped) => {
+            for (part, last) in rx {
+                let stopped = match &part {
+                    Part::States(states) => own.evaluate(states, last),
+                    Part::Recorded(recorded, stopped) => {
                         own.block.extend(recorded);
                         stopped.clone()
                     }
@@ -972,12 +970,12 @@ impl Stream {
                     return Ok((writer, kept, Ok(stopped)));
                 }
                 // Nobody to take them back once the run is over.
-                match block {
-                    Block::States(mut states) => {
+                match part {
+                    Part::States(mut states) => {
                         states.clear();
                         let _ = back.try_send(states);
                     }
-                    Block::Recorded(recorded, _) => {
+                    Part::Recorded(recorded, _) => {
                         let _ = back_recorded.try_send(recorded);
                     }
                 }
@@ -996,7 +994,6 @@ impl Stream {
             spare_recorded,
             states: States::default(),
             helper: sampler(),
-            declaration: rec.clone(),
             #[cfg(test)]
             probe: Probe::default(),
             partial,
@@ -1026,39 +1023,37 @@ impl Stream {
             self.gone = true;
             return false;
         };
-        let block = Block::States(std::mem::take(&mut self.states));
+        let part = Part::States(std::mem::take(&mut self.states));
         // The states to fill next: a part the writer gave back, once this one is handed over.
         let refill = |stream: &mut Stream| {
             stream.states = stream.spare.try_recv().unwrap_or_default();
         };
         #[cfg(test)]
         {
-            self.probe.blocks += 1;
+            self.probe.parts += 1;
         }
         let sent = if last {
-            let sent = tx.send((block, last)).is_ok();
+            let sent = tx.send((part, last)).is_ok();
             refill(self);
             sent
         } else {
             #[cfg(test)]
             let tried = match self.probe.helps {
-                Some(helps) if helps(self.probe.blocks - 1) => {
-                    Err(TrySendError::Full((block, last)))
-                }
+                Some(helps) if helps(self.probe.parts - 1) => Err(TrySendError::Full((part, last))),
                 Some(_) => tx
-                    .send((block, last))
+                    .send((part, last))
                     .map_err(|e| TrySendError::Disconnected(e.0)),
-                None => tx.try_send((block, last)),
+                None => tx.try_send((part, last)),
             };
             #[cfg(not(test))]
-            let tried = tx.try_send((block, last));
+            let tried = tx.try_send((part, last));
             match tried {
                 Ok(()) => {
                     refill(self);
                     true
                 }
                 Err(TrySendError::Disconnected(_)) => false,
-                Err(TrySendError::Full((Block::States(mut states), _))) => {
+                Err(TrySendError::Full((Part::States(mut states), _))) => {
                     self.helper.block.truncate(0);
                     let stopped = self.helper.evaluate(&states, false);
                     #[cfg(test)]
@@ -1073,10 +1068,10 @@ impl Stream {
                         &mut self.helper.block,
                         self.spare_recorded
                             .try_recv()
-                            .unwrap_or_else(|_| self.declaration.clone()),
+                            .unwrap_or_else(|_| self.helper.empty.clone()),
                     );
                     let stops = stopped.is_some();
-                    tx.send((Block::Recorded(recorded, stopped), last)).is_ok() && !stops
+                    tx.send((Part::Recorded(recorded, stopped), last)).is_ok() && !stops
                 }
                 Err(TrySendError::Full(_)) => unreachable!("a part of states was sent"),
             }
@@ -1772,7 +1767,7 @@ mod tests {
         }
         assert!(sink.send(true));
         let full = all.len() / PART_ROWS;
-        assert_eq!((sink.probe.blocks, sink.probe.helped), (full + 1, full / 2));
+        assert_eq!((sink.probe.parts, sink.probe.helped), (full + 1, full / 2));
         let (writer, kept, stopped) = sink.close().unwrap().unwrap();
         assert!(stopped.is_none());
         assert_eq!(kept.rows, all.len());
