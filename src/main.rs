@@ -205,6 +205,19 @@ enum Command {
 
 fn main() {
     let cli = Cli::parse();
+    // SIGINT (Ctrl-C) and SIGTERM (a Slurm time limit, `scancel`, `kill`) stop the computation
+    // cleanly: finished values are kept, the current one is abandoned, the file is left to
+    // resume. A second signal ends the process at once (what is finished is on disk anyway).
+    let _ = ctrlc::set_handler(|| {
+        if jointplay_analysis::progress::process_stop_requested() {
+            eprintln!("jointplay: second stop signal: exiting now");
+            std::process::exit(130);
+        }
+        eprintln!(
+            "jointplay: stop signal received: keeping what is finished and stopping (send it again to exit at once)"
+        );
+        jointplay_analysis::progress::request_process_stop();
+    });
     jointplay_analysis::h5::set_format(cli.hdf5_format);
     if let Err(e) = threads_from_slurm() {
         eprintln!("error: {e:#}");
@@ -281,6 +294,13 @@ fn main() {
     if let Err(e) = res {
         eprintln!("error: {e:#}");
         std::process::exit(1);
+    }
+    if jointplay_analysis::progress::process_stop_requested() {
+        eprintln!(
+            "stopped      on a signal (SIGINT or SIGTERM): what was finished is kept; run the same \
+             command with --resume to go on (a single run: with --from its file)"
+        );
+        std::process::exit(130);
     }
 }
 
@@ -558,6 +578,15 @@ fn run_analysis(
             .map_err(|m| anyhow::anyhow!("{}: {m}", path.display()))?;
         from_env = opts.shard.is_some();
     }
+    // One writer of the study's file from the sweep or run to the end of its continuation (a
+    // shard's file is locked by the shard's run).
+    std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;
+    let _lock = match opts.shard {
+        None => Some(jointplay_analysis::storage::lock::Lock::acquire(
+            &out.join(format!("{}.h5", st.spec.study.name)),
+        )?),
+        Some(_) => None,
+    };
     let bar = progress_bar(
         1000,
         "{spinner} [{elapsed_precise}] {bar:40} {msg} (eta {eta})",
@@ -636,7 +665,10 @@ fn run_analysis(
     // Periodic orbits: followed once the analysis file is written, into the same file (not by a
     // shard, which holds only part of a sweep).
     let mut continuation_error = None;
-    if st.spec.continuation.is_some() && opts.shard.is_none() {
+    if st.spec.continuation.is_some()
+        && opts.shard.is_none()
+        && !jointplay_analysis::progress::process_stop_requested()
+    {
         let begin = jointplay_analysis::continuation::Begin::Fresh(start_state);
         let limit = opts.max_jobs.filter(|_| continuation_only);
         continuation_error = follow_orbits(&st, &o.file, begin, quiet, limit)?;
@@ -717,7 +749,7 @@ fn follow_orbits(
             println!("point        {}", r.line);
         }
         points += 1;
-        true
+        !jointplay_analysis::progress::process_stop_requested()
     });
     bar.finish_and_clear();
     let res = res.context("writing the continuation into the analysis file")?;
@@ -756,8 +788,15 @@ fn resume_continuation(
         );
     }
     let Some(prior) = jointplay_analysis::continuation::read_unfinished(&file, st)? else {
+        if jointplay_analysis::continuation::is_finished(&file)? {
+            println!(
+                "finished     the continuation in {} is finished: nothing to resume",
+                file.display()
+            );
+            return Ok(());
+        }
         anyhow::bail!(
-            "{}: nothing to resume: the continuation in {} is finished (or there is none)",
+            "{}: nothing to resume: {} has no continuation (run without --resume)",
             path.display(),
             file.display()
         );

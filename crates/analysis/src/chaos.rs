@@ -24,10 +24,7 @@
 
 use serde::Deserialize;
 
-use crate::h5::{
-    create_nan, f64_attr, str_attr, u8_attr_set, u64_attr, write_element, write_row as h5_row,
-    write_table, write1,
-};
+use crate::h5::{create_nan, f64_attr, str_attr, u8_attr_set, u64_attr, write_table, write1};
 use crate::lyapunov::{LyapunovSpec, Spectrum};
 use crate::zero_one::ZeroOne;
 
@@ -288,24 +285,6 @@ pub(crate) fn create_rows(g: &hdf5::Group, n: usize, spec: &ChaosSpec) -> hdf5::
             "1",
             "0-1 test K per value (NaN: constant series)",
         )?;
-    }
-    Ok(())
-}
-
-/// Writes value `j`'s measures into `/sweep/chaos`.
-pub(crate) fn write_row(g: &hdf5::Group, j: usize, c: &Chaos) -> hdf5::Result<()> {
-    let g = g.group("chaos")?;
-    write_element(&g, "class", j, c.class as u8)?;
-    if let Some(s) = &c.spectrum {
-        h5_row(&g, "exponents", j, &s.exponents)?;
-        h5_row(&g, "stderr", j, &s.stderr)?;
-        h5_row(&g, "map_exponents", j, &s.map_exponents())?;
-        if let Some((v, e, _)) = &s.two_trajectory {
-            h5_row(&g, "two_trajectory", j, &[*v, *e])?;
-        }
-    }
-    if let Some(z) = &c.zero_one {
-        write_element(&g, "k", j, z.k.unwrap_or(f64::NAN))?;
     }
     Ok(())
 }

@@ -1141,9 +1141,10 @@ pub fn run_study(
     Ok(c)
 }
 
-/// Runs the study's `[continuation]` ([`run_study`]) into its analysis file `file`: the file is
-/// rewritten after every point, marked unfinished, so that a stop or a kill keeps what was
-/// computed, and once more at the end with the result. `on_point` sees every [`Report`]; the
+/// Runs the study's `[continuation]` ([`run_study`]) into its analysis file `file`: its state
+/// is written after every point, marked unfinished, into the file of [`snapshot_path`]
+/// ([`write_snapshot`]), so that a stop or a kill keeps what was computed, and into `file` once
+/// at the end ([`write()`]), stopped or finished. `on_point` sees every [`Report`]; the
 /// continuation stops early when it returns `false` or after `limit` points. The outer error is
 /// one of writing the file; the inner one is a continuation that could not start, which is
 /// written into the file too.
@@ -1154,11 +1155,16 @@ pub fn run_into(
     limit: Option<usize>,
     on_point: &mut dyn FnMut(&Report) -> bool,
 ) -> Result<std::result::Result<Continuation, crate::Error>> {
+    let _lock = crate::storage::lock::Lock::acquire(file)?;
+    if matches!(begin, Begin::Fresh(_)) {
+        // The state of an earlier continuation into this file is not this one's.
+        crate::storage::durable::remove(&snapshot_path(file))?;
+    }
     let mut points = 0usize;
     let mut write_error = None;
     let res = run_study(st, begin, &mut |r| {
         let go = on_point(r);
-        if let Err(e) = write(file, st, Ok(&r.snapshot)) {
+        if let Err(e) = write_snapshot(file, st, &r.snapshot) {
             write_error = Some(e);
             return false;
         }
@@ -1351,19 +1357,75 @@ fn read_start(
     Ok(state)
 }
 
+/// The file a continuation's state goes to after every point, beside the analysis file `path`
+/// (`out/s.h5` -> `out/s.continuation.h5`): a small HDF5 file with the root attribute `study` and
+/// `/continuation`, replaced atomically after every point and removed once the state is in the
+/// analysis file.
+pub fn snapshot_path(path: &std::path::Path) -> std::path::PathBuf {
+    path.with_extension("continuation.h5")
+}
+
 /// Writes `/continuation` into the analysis file `path` (replacing one written before); layout in
 /// the README, "HDF5 layout". `failure` is the error of a continuation that could not start.
+///
+/// The file is never rewritten in place: a copy with the new `/continuation` is written
+/// ([`crate::storage::durable::Unnamed`]) and moved over it ([`crate::storage::durable::replace`]); the state file of
+/// [`snapshot_path`] is then removed.
 pub fn write(
+    path: &std::path::Path,
+    st: &crate::nonlinear::Loaded,
+    c: std::result::Result<&Continuation, &crate::Error>,
+) -> Result<()> {
+    use crate::storage::durable;
+    let name = durable::with_suffix(path, ".partial");
+    let e = crate::h5::h5err(&name);
+    let file = crate::h5::open_in_memory(path).map_err(&e)?;
+    if file.group("continuation").is_ok() {
+        file.unlink("continuation").map_err(&e)?;
+    }
+    write_group(&file, &name, st, c)?;
+    let bytes = crate::h5::image(&file).map_err(&e)?;
+    file.close().map_err(&e)?;
+    durable::write_new(path, &bytes)?;
+    durable::remove(&snapshot_path(path))
+}
+
+/// Writes the state of a continuation that goes on into the file of [`snapshot_path`] of the
+/// analysis file `path`: a new file, read back as [`read_unfinished`] reads it, then moved into
+/// place, so that a kill at any moment leaves the previous point's state or this one's, whole.
+pub fn write_snapshot(
+    path: &std::path::Path,
+    st: &crate::nonlinear::Loaded,
+    c: &Continuation,
+) -> Result<()> {
+    use crate::storage::durable;
+    let snap = snapshot_path(path);
+    let name = durable::with_suffix(&snap, ".partial");
+    let e = crate::h5::h5err(&name);
+    let file = crate::h5::create_in_memory(&name).map_err(&e)?;
+    crate::h5::str_attr(&file, "study", &st.text).map_err(&e)?;
+    crate::h5::str_attr(&file, "program_version", env!("CARGO_PKG_VERSION")).map_err(&e)?;
+    write_group(&file, &name, st, Ok(c))?;
+    if c.unfinished.is_some() && read_group(&file, &name, st)?.is_none() {
+        return Err(crate::Error::Write {
+            file: name.clone(),
+            message: "the continuation's state does not read back as written".into(),
+        });
+    }
+    let bytes = crate::h5::image(&file).map_err(&e)?;
+    file.close().map_err(&e)?;
+    durable::write_new(&snap, &bytes)
+}
+
+/// Writes `/continuation` into `file` (named `path` in errors).
+fn write_group(
+    file: &hdf5::File,
     path: &std::path::Path,
     st: &crate::nonlinear::Loaded,
     c: std::result::Result<&Continuation, &crate::Error>,
 ) -> Result<()> {
     use crate::h5::{f64_attr, h5err, str_attr, u8_attr_set, u64_attr, write1};
     let e = h5err(path);
-    let file = hdf5::File::open_rw(path).map_err(&e)?;
-    if file.group("continuation").is_ok() {
-        file.unlink("continuation").map_err(&e)?;
-    }
     let spec = st.spec.continuation.as_ref().expect("asked for");
     let obs = observable_names(st);
     (|| -> hdf5::Result<()> {
@@ -1446,8 +1508,7 @@ pub fn write(
             &spec.unit,
         )
     })()
-    .map_err(&e)?;
-    file.close().map_err(&e)
+    .map_err(&e)
 }
 
 fn observable_names(st: &crate::nonlinear::Loaded) -> Vec<&str> {
@@ -1462,20 +1523,55 @@ fn observable_names(st: &crate::nonlinear::Loaded) -> Vec<&str> {
 /// (`finished = 0`, written by [`write()`] from a [`Report`]'s snapshot or an interrupted run): the
 /// branches, the special points and where it stands. None when the file has no continuation or
 /// a finished one.
+///
+/// The state written after the last point ([`write_snapshot`]) is read when there is one, else
+/// the analysis file's `/continuation`.
 pub fn read_unfinished(
     path: &std::path::Path,
     st: &crate::nonlinear::Loaded,
 ) -> Result<Option<Continuation>> {
-    use crate::h5::{h5err, read_attr, read_rows, read_strings};
-    let e = h5err(path);
-    let file = hdf5::File::open(path).map_err(&e)?;
+    let snap = snapshot_path(path);
+    if snap.exists() {
+        return read_from(&snap, st);
+    }
+    read_from(path, st)
+}
+
+fn read_from(
+    path: &std::path::Path,
+    st: &crate::nonlinear::Loaded,
+) -> Result<Option<Continuation>> {
+    let file = hdf5::File::open(path).map_err(crate::h5::h5err(path))?;
+    read_group(&file, path, st)
+}
+
+/// Whether the analysis file `path` holds a finished continuation (and no state of one that
+/// goes on beside it, [`snapshot_path`]).
+pub fn is_finished(path: &std::path::Path) -> Result<bool> {
+    if snapshot_path(path).exists() {
+        return Ok(false);
+    }
+    let file = hdf5::File::open(path).map_err(crate::h5::h5err(path))?;
+    Ok(match file.group("continuation") {
+        Ok(g) => crate::h5::read_attr::<u8>(&g, "finished").unwrap_or(1) == 1,
+        Err(_) => false,
+    })
+}
+
+/// The unfinished continuation of `file` (named `path` in errors), as [`read_unfinished`].
+fn read_group(
+    file: &hdf5::File,
+    path: &std::path::Path,
+    st: &crate::nonlinear::Loaded,
+) -> Result<Option<Continuation>> {
+    use crate::h5::{read_attr, read_rows, read_strings};
     let Ok(g) = file.group("continuation") else {
         return Ok(None);
     };
     if read_attr::<u8>(&g, "finished").unwrap_or(1) == 1 {
         return Ok(None);
     }
-    let text = crate::h5::read_str(&file, "study").unwrap_or_default();
+    let text = crate::h5::read_str(file, "study").unwrap_or_default();
     if text != st.text {
         return Err(crate::Error::Io {
             file: path.to_path_buf(),

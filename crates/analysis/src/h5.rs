@@ -290,27 +290,6 @@ pub(crate) fn create_nan_chunked(
     describe(&ds, Some(unit), desc)
 }
 
-/// Writes row `row` of the two-dimensional dataset `name`; `data` must fill the row.
-pub(crate) fn write_row(g: &hdf5::Group, name: &str, row: usize, data: &[f64]) -> hdf5::Result<()> {
-    let ds = g.dataset(name)?;
-    let cols = ds.shape()[1];
-    if data.len() != cols {
-        return Err(format!("{name}: {} values for {cols} columns", data.len()).into());
-    }
-    ds.write_slice(&Array1::from(data.to_vec()), s![row, ..])
-}
-
-/// Writes element `index` of the one-dimensional dataset `name`.
-pub(crate) fn write_element<T: hdf5::H5Type + Clone>(
-    g: &hdf5::Group,
-    name: &str,
-    index: usize,
-    v: T,
-) -> hdf5::Result<()> {
-    g.dataset(name)?
-        .write_slice(&Array1::from(vec![v]), s![index..index + 1])
-}
-
 /// Reads a string attribute.
 pub(crate) fn read_str(loc: &hdf5::Location, name: &str) -> hdf5::Result<String> {
     Ok(loc.attr(name)?.read_scalar::<VarLenUnicode>()?.to_string())
@@ -362,28 +341,15 @@ pub(crate) fn write_table<T: hdf5::H5Type + Clone>(
     describe(&ds, Some(unit), desc)
 }
 
-/// Moves the finished file `from` to its name `to`, replacing a file of that name.
-///
-/// The file under `to` is removed first rather than renamed over: ext4 (with its default
-/// `auto_da_alloc`) writes a file renamed over another out to disk before the rename returns,
-/// which took 0.4 s for the 215 MB file of a 50-period run of the mixed 4-UPS/RPU (`strace -T`),
-/// where removing the earlier file and renaming take milliseconds and the kernel writes the new
-/// file out later, as any other. The replacement is not atomic: between the two no file has the
-/// name (a process killed there leaves the finished `from`), and nothing forces the new file to
-/// disk before a power failure; a file under the name is never one that was still being written.
-pub(crate) fn move_into_place(from: &Path, to: &Path) -> std::io::Result<()> {
-    match std::fs::remove_file(to) {
-        Err(e) if e.kind() != std::io::ErrorKind::NotFound => Err(e),
-        _ => std::fs::rename(from, to),
-    }
-}
-
 /// A file written under the temporary name `<name>.h5.partial` and moved to `<name>.h5` only once
 /// it is complete and closed.
 pub(crate) struct PartialFile {
     pub file: hdf5::File,
-    partial: PathBuf,
+    /// The file while it is written, `<name>.h5.partial` ([`crate::storage::durable::Unnamed::named`]).
+    tmp: crate::storage::durable::Unnamed,
     path: PathBuf,
+    /// One writer per output (crate::storage::lock), held until the file is in place.
+    _lock: crate::storage::lock::Lock,
 }
 
 /// The oldest HDF5 library the files written must open in (`jointplay --hdf5-format`).
@@ -444,6 +410,55 @@ pub(crate) fn create_file(path: &Path) -> hdf5::Result<hdf5::File> {
         .create(path)
 }
 
+/// A file of the [`format`] set held in memory (HDF5's core driver, nothing written to disk),
+/// named `label` (its name in HDF5's messages); its bytes come out with [`image`]. The small and
+/// middle-sized files that must be whole or absent are built so and written by
+/// [`crate::storage::durable::write_new`].
+pub(crate) fn create_in_memory(label: &Path) -> hdf5::Result<hdf5::File> {
+    hdf5::File::with_options()
+        .with_fapl(|p| {
+            match format() {
+                Format::V110 => p.libver_v110(),
+                Format::V18 => p.libver_earliest(),
+            };
+            p.core_options(1 << 20, false)
+        })
+        .create(unique(label))
+}
+
+/// The file `path` read into memory to be changed there ([`create_in_memory`]).
+pub(crate) fn open_in_memory(path: &Path) -> hdf5::Result<hdf5::File> {
+    hdf5::File::with_options()
+        .with_fapl(|p| p.core_options(1 << 20, false))
+        .open_rw(path)
+}
+
+/// `label` made unique among the files this process has open in memory.
+fn unique(label: &Path) -> PathBuf {
+    static N: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    let n = N.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+    crate::storage::durable::with_suffix(label, &format!(".in-memory-{n}"))
+}
+
+/// The bytes of the file `file` as they would be on disk (flushed first).
+pub(crate) fn image(file: &hdf5::File) -> hdf5::Result<Vec<u8>> {
+    use hdf5_sys::h5f::H5Fget_file_image;
+    file.flush()?;
+    let id = file.id();
+    // SAFETY: a null buffer asks for the size only; the second call writes at most `len` bytes
+    // into a buffer of that length.
+    let len = unsafe { H5Fget_file_image(id, std::ptr::null_mut(), 0) };
+    if len < 0 {
+        return Err("cannot take the file's image".into());
+    }
+    let mut buf = vec![0u8; len as usize];
+    let got = unsafe { H5Fget_file_image(id, buf.as_mut_ptr().cast(), buf.len()) };
+    if got != len {
+        return Err("cannot take the file's image".into());
+    }
+    Ok(buf)
+}
+
 impl PartialFile {
     /// Creates `dir/<name>.h5.partial` ([`create_file`]) with the program's root attributes.
     pub fn create(dir: &Path, name: &str, program_version: &str) -> Result<PartialFile> {
@@ -452,12 +467,14 @@ impl PartialFile {
             message: format!("cannot create output directory: {e}"),
         })?;
         let path = dir.join(format!("{name}.h5"));
-        let partial = dir.join(format!("{name}.h5.partial"));
-        let file = create_file(&partial).map_err(h5err(&partial))?;
+        let lock = crate::storage::lock::Lock::acquire(&path)?;
+        let tmp = crate::storage::durable::Unnamed::named(&path);
+        let file = create_file(tmp.path()).map_err(h5err(tmp.name()))?;
         let out = PartialFile {
             file,
-            partial,
+            tmp,
             path,
+            _lock: lock,
         };
         let attrs = || -> hdf5::Result<()> {
             str_attr(&out.file, "program", "jointplay")?;
@@ -472,31 +489,27 @@ impl PartialFile {
 
     /// The temporary name, for errors.
     pub fn partial(&self) -> &Path {
-        &self.partial
+        self.tmp.name()
     }
 
-    /// Closes the file and moves it into place; on an error the partial file is removed.
+    /// Closes the file and gives it its name, durably; on an error it is discarded.
     pub fn finish(self) -> Result<PathBuf> {
         let PartialFile {
             file,
-            partial,
+            tmp,
             path,
+            _lock,
         } = self;
         if let Err(err) = file.close() {
-            let _ = std::fs::remove_file(&partial);
-            return Err(h5err(&partial)(err));
+            return Err(h5err(tmp.name())(err));
         }
-        move_into_place(&partial, &path).map_err(|e| Error::Io {
-            file: path.clone(),
-            message: format!("cannot move the finished file into place: {e}"),
-        })?;
+        tmp.persist(&path)?;
         Ok(path)
     }
 
-    /// Closes and removes the partial file.
+    /// Closes and discards the file.
     pub fn discard(self) {
         let _ = self.file.close();
-        let _ = std::fs::remove_file(&self.partial);
     }
 
     /// [`PartialFile::discard`] after `err`, which it returns naming the file.

@@ -31,7 +31,7 @@ use crate::{Error, Result};
 const STEPPER: &str = "integrator memory: [grid origin (s), grid step (s), grid points reached, \
                        next adaptive step (s), last error norm]";
 
-fn stepper_row(m: &StepperMemory) -> [f64; 5] {
+pub(crate) fn stepper_row(m: &StepperMemory) -> [f64; 5] {
     [
         m.grid_origin,
         m.grid_step,
@@ -41,7 +41,7 @@ fn stepper_row(m: &StepperMemory) -> [f64; 5] {
     ]
 }
 
-fn stepper_from(v: &[f64]) -> hdf5::Result<StepperMemory> {
+pub(crate) fn stepper_from(v: &[f64]) -> hdf5::Result<StepperMemory> {
     let [grid_origin, grid_step, steps, next_step, last_error] = <[f64; 5]>::try_from(v)
         .map_err(|_| hdf5::Error::from(format!("final_stepper: {} values for 5", v.len())))?;
     if !(steps >= 0.0 && steps.fract() == 0.0 && steps < 2f64.powi(53)) {

@@ -54,6 +54,7 @@ pub mod schedule;
 pub mod sections;
 pub mod shards;
 pub mod slurm;
+pub mod storage;
 pub mod study;
 pub mod summary;
 pub mod systems;

@@ -26,11 +26,9 @@ use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 use std::sync::mpsc;
 use std::time::Instant;
 
-use hdf5::types::VarLenUnicode;
 use jointplay_solver::model::Model;
 use jointplay_solver::scene::{SceneFile, SceneSpec};
 use jointplay_solver::state::HybridState;
-use ndarray::{Array1, s};
 use rayon::prelude::*;
 use serde::Deserialize;
 use toml::{Table, Value};
@@ -38,8 +36,7 @@ use toml::{Table, Value};
 use crate::flow::{Flow, Target};
 use crate::h5::{
     PartialFile, append, create_extendable, create_nan, create_nan_chunked, describe, f64_attr,
-    f64_attr_set, h5err, mark_bits, read_attr, read_str, str_attr, u8_attr_set, u64_attr,
-    write_column, write_element, write_row, write1,
+    h5err, mark_bits, read_attr, read_str, str_attr, u8_attr_set, u64_attr, write_column, write1,
 };
 use crate::hybrid;
 use crate::observe::Observable;
@@ -48,6 +45,8 @@ use crate::sections::{
     Direction, HISTORY_BLOCK, HistorySink, Hyperplane, Plan, Trace, trace_partial,
 };
 use crate::shards::Shard;
+use crate::storage::rows::Outcome as Kept;
+use crate::storage::sweep as storage;
 use crate::study::{edit, edited_scene, invalid};
 use crate::systems::SystemSpec;
 use crate::{Error, Result};
@@ -1252,75 +1251,28 @@ pub fn execute_until(
         }
         None => (0..st.jobs.len()).collect(),
     };
-    std::fs::create_dir_all(dir).map_err(|e| Error::Io {
-        file: dir.to_path_buf(),
-        message: format!("cannot create output directory: {e}"),
-    })?;
+    crate::storage::durable::create_dir(dir)?;
     let path = match opts.shard {
         Some(sh) => dir.join(sh.file_name(name)),
         None => dir.join(format!("{name}.h5")),
     };
-    let e = h5err(&path);
+    // Taken before anything under the file's name is touched (crate::storage::lock).
+    let _lock = crate::storage::lock::Lock::acquire(&path)?;
     let n = rows.len();
-    let (file, mut done) = if opts.resume && path.exists() {
-        let file = hdf5::File::open_rw(&path).map_err(&e)?;
-        let old: String = file
-            .attr("study")
-            .and_then(|a| a.read_scalar::<VarLenUnicode>())
-            .map(|v| v.to_string())
-            .map_err(&e)?;
-        if old != st.text {
-            return Err(Error::Io {
-                file: path.clone(),
-                message: format!(
-                    "written by a different version of {}: remove it or run without --resume",
-                    st.path.display()
-                ),
-            });
-        }
-        if file.dataset("sweep/final_time").is_err() {
-            return Err(Error::Io {
-                file: path.clone(),
-                message: "written by an earlier jointplay that did not save each job's hybrid \
-                          state (sweep/final_time, final_onset, ...): remove it or run without \
-                          --resume"
-                    .into(),
-            });
-        }
-        if Shard::of_file(&file).map_err(&e)? != opts.shard {
-            return Err(Error::Io {
-                file: path.clone(),
-                message: "holds other values of the sweep than this run computes (its shard \
-                          attributes do not match): remove it or run without --resume"
-                    .into(),
-            });
-        }
-        let done = file
-            .dataset("sweep/done")
-            .and_then(|d| d.read_raw::<u8>())
-            .map_err(&e)?;
-        if done.len() != n {
-            return Err(Error::Io {
-                file: path.clone(),
-                message: format!(
-                    "has {} values where this run has {n}: remove it or run without --resume",
-                    done.len()
-                ),
-            });
-        }
-        (file, done)
-    } else {
-        let _ = std::fs::remove_file(&path);
-        let jobs: Vec<(f64, i8)> = rows.iter().map(|&j| st.jobs[j]).collect();
-        let shard = opts.shard.map(|sh| (sh, rows.as_slice()));
-        let file = create_sweep_file(&path, &st.layout(sw)?, version, &jobs, shard)?;
-        (file, vec![0u8; n])
-    };
-    let pending: Vec<usize> = (0..n).filter(|&r| done[r] == 0).collect();
-    progress(Progress::Start {
-        total: n,
-        pending: pending.len(),
-    });
+    let layout = st.layout(sw)?;
+    let mut warnings = Vec::new();
+    let mut store = storage::open(
+        &path,
+        &st.text,
+        opts.shard,
+        &layout,
+        n,
+        opts.resume,
+        &mut |w| warnings.push(w),
+    )?;
+    let journal = store.journal.path().to_path_buf();
+    let pending = store.values.iter().filter(|v| v.is_none()).count();
+    progress(Progress::Start { total: n, pending });
     let mut failed: Vec<(usize, String)> = Vec::new();
     let mut rhs = 0u64;
     let limit = opts.max_jobs.unwrap_or(usize::MAX);
@@ -1329,93 +1281,90 @@ pub fn execute_until(
     // Nanoseconds the jobs took, summed over the threads.
     let busy = AtomicU64::new(0);
     let mut threads = 1;
-    // Writes the result of the job in row `r`.
-    let mut write = |r: usize, res: Result<JobResult>, done: &mut Vec<u8>| -> Result<()> {
-        let j = rows[r];
-        match res {
-            // An interrupted value is left to run again (done = 0).
-            Err(Error::Interrupted { .. }) => return Ok(()),
-            Ok(res) => {
-                rhs += res.trace.stats.rhs_evals;
-                write_job(&file, st, r, &res).map_err(&e)?;
-                done[r] = 1;
-                progress(Progress::Done { job: j, ok: true });
+    // Keeps the results of jobs in rows `batch`: appended to the journal, forced to disk once for
+    // all of them, and only then counted. An interrupted value is left to run again; values
+    // past `max_jobs` are dropped.
+    let mut keep =
+        |batch: Vec<(usize, Result<JobResult>)>, store: &mut storage::Store| -> Result<()> {
+            let mut counted = Vec::new();
+            for (r, res) in batch {
+                if finished + counted.len() >= limit {
+                    break;
+                }
+                let j = rows[r];
+                let outcome = match res {
+                    Err(Error::Interrupted { .. }) => continue,
+                    Ok(res) => {
+                        rhs += res.trace.stats.rhs_evals;
+                        counted.push((j, true));
+                        Kept::Done(storage::job_row(&layout, &res))
+                    }
+                    Err(err) => {
+                        let msg = err.to_string();
+                        failed.push((j, msg.clone()));
+                        counted.push((j, false));
+                        Kept::Failed(msg)
+                    }
+                };
+                store.add(crate::storage::rows::Value { row: r, outcome })?;
             }
-            Err(err) => {
-                let msg = err.to_string();
-                let g = file.group("sweep/errors").map_err(&e)?;
-                str_attr(&g, &r.to_string(), &msg).map_err(&e)?;
-                done[r] = 2;
-                failed.push((j, msg));
-                progress(Progress::Done { job: j, ok: false });
+            store.commit()?;
+            for (job, ok) in counted {
+                progress(Progress::Done { job, ok });
+                finished += 1;
             }
-        }
-        file.dataset("sweep/done")
-            .and_then(|d| d.write_slice(&Array1::from(vec![done[r]]), s![r..r + 1]))
-            .map_err(&e)?;
-        finished += 1;
-        if finished >= limit {
-            stop.store(true, Ordering::SeqCst);
-        }
-        file.flush().map_err(&e)
-    };
+            if finished >= limit {
+                stop.store(true, Ordering::SeqCst);
+            }
+            Ok(())
+        };
     if sw.continuation {
-        // In order; each job starts from the previous job's final state (read back from the file
-        // when resuming, so a resumed run continues from exactly the same state). Never sharded:
-        // rows are jobs.
+        // In order; each job starts from the previous job's final state (read back from the
+        // values kept when resuming, so a resumed run continues from exactly the same state).
+        // Never sharded: rows are jobs.
         let mut prev: Option<HybridState> = None;
-        let sweep = file.group("sweep").map_err(&e)?;
         for j in 0..n {
             if stop.load(Ordering::SeqCst) || user_stop.requested() {
                 break;
             }
-            if done[j] != 0 {
-                prev = if done[j] == 1 {
-                    Some(hybrid::read_row(&sweep, j).map_err(&e)?)
-                } else {
-                    None
+            if let Some(v) = &store.values[j] {
+                prev = match &v.outcome {
+                    Kept::Done(row) => Some(storage::row_state(row).map_err(|m| Error::Io {
+                        file: journal.clone(),
+                        message: format!("value {j}: {m}"),
+                    })?),
+                    Kept::Failed(_) => None,
                 };
                 continue;
             }
             let job_start = Instant::now();
-            // A block that cannot be written ends the sweep (as a result that cannot be written
-            // does), not the value.
-            let mut write_failure = None;
             let res = st.run_job(
                 Some(st.jobs[j].0),
                 prev.as_ref(),
                 &mut throttled(j, progress),
                 user_stop,
-                Some(&mut |from, time: &[f64], values: &[Vec<f64>]| {
-                    write_history_block(&file, st, j, from, time, values).map_err(|err| {
-                        write_failure = Some(e(err));
-                        Error::Interrupted { time: None }
-                    })
-                }),
+                None,
             );
-            if let Some(err) = write_failure {
-                return Err(err);
-            }
             busy.fetch_add(job_start.elapsed().as_nanos() as u64, Ordering::Relaxed);
             prev = res.as_ref().ok().map(|r| r.trace.final_state.clone());
-            write(j, res, &mut done)?;
+            keep(vec![(j, res)], &mut store)?;
         }
     } else {
         // The jobs run on the caller's rayon pool (the global one, or one it installed); a
-        // thread of its own writes each result as it comes.
+        // thread of its own keeps each result as it comes.
         threads = rayon::current_num_threads();
-        // Bounded, so that a job that produces its histories faster than the writer compresses
-        // them waits for it instead of piling blocks up in memory.
-        let (tx, rx) = mpsc::sync_channel::<Message>(2 * threads);
-        // The costs of the values a resumed file holds already seed the estimate.
-        let known: Vec<Option<f64>> = match file.dataset("sweep/wall_time") {
-            Ok(d) => {
-                let w = d.read_raw::<f64>().map_err(&e)?;
-                (0..n).map(|r| (done[r] == 1).then(|| w[r])).collect()
-            }
-            Err(_) => vec![None; n],
-        };
-        let todo: Vec<bool> = done.iter().map(|&d| d == 0).collect();
+        // Bounded, so that finished jobs wait for the writer instead of piling up in memory.
+        let (tx, rx) = mpsc::sync_channel::<(usize, Box<Result<JobResult>>)>(2 * threads);
+        // The costs of the values kept already seed the estimate.
+        let known: Vec<Option<f64>> = store
+            .values
+            .iter()
+            .map(|v| match v.as_ref().map(|v| &v.outcome) {
+                Some(Kept::Done(row)) => row.f64s("wall_time").first().copied(),
+                _ => None,
+            })
+            .collect();
+        let todo: Vec<bool> = store.values.iter().map(|v| v.is_none()).collect();
         let queue = std::sync::Mutex::new(crate::schedule::Queue::new(
             rows.iter().map(|&j| st.jobs[j].0).collect(),
             &todo,
@@ -1423,25 +1372,20 @@ pub fn execute_until(
         ));
         let busy = &busy;
         let write_err = std::thread::scope(|scope| {
-            let (stop, done, file, e) = (&stop, &mut done, &file, &e);
+            let (stop, store) = (&stop, &mut store);
             let writer = scope.spawn(move || {
                 let mut write_err = None;
-                for message in rx {
-                    // Jobs that were running when the limit was reached are dropped unwritten.
+                while let Ok(first) = rx.recv() {
+                    // The results that came meanwhile are kept together: one commit for all.
+                    let mut batch = vec![(first.0, *first.1)];
+                    while let Ok((r, res)) = rx.try_recv() {
+                        batch.push((r, *res));
+                    }
                     if write_err.is_some() || stop.load(Ordering::SeqCst) {
                         continue;
                     }
-                    let written = match message {
-                        Message::History {
-                            row,
-                            from,
-                            time,
-                            values,
-                        } => write_history_block(file, st, row, from, &time, &values).map_err(e),
-                        Message::Done(r, res) => write(r, *res, done),
-                    };
-                    if let Err(err) = written {
-                        // Stop the other jobs: their results could not be written.
+                    if let Err(err) = keep(batch, store) {
+                        // Stop the other jobs: their results could not be kept.
                         stop.store(true, Ordering::SeqCst);
                         write_err = Some(err);
                     }
@@ -1459,25 +1403,12 @@ pub fn execute_until(
                     let Some(r) = next else { return };
                     let j = rows[r];
                     let job_start = Instant::now();
-                    // The time histories go to the writer block by block.
-                    let mut hand = |from: usize, time: &[f64], values: &[Vec<f64>]| {
-                        let block = Message::History {
-                            row: r,
-                            from,
-                            time: time.to_vec(),
-                            values: values.to_vec(),
-                        };
-                        tx.send(block).map_err(|_| Error::Io {
-                            file: path.clone(),
-                            message: "the thread writing the sweep's results stopped".into(),
-                        })
-                    };
                     let res = st.run_job(
                         Some(st.jobs[j].0),
                         None,
                         &mut throttled(j, progress),
                         user_stop,
-                        Some(&mut hand),
+                        None,
                     );
                     let took = job_start.elapsed();
                     busy.fetch_add(took.as_nanos() as u64, Ordering::Relaxed);
@@ -1488,7 +1419,7 @@ pub fn execute_until(
                         q.finished(r, took.as_secs_f64());
                     }
                     // The writer lives until every sender is gone.
-                    let _ = tx.send(Message::Done(r, Box::new(res)));
+                    let _ = tx.send((r, Box::new(res)));
                 }
             });
             writer.join()
@@ -1498,17 +1429,21 @@ pub fn execute_until(
             Ok(Some(err)) => return Err(err),
             Err(_) => {
                 return Err(Error::Io {
-                    file: path.clone(),
-                    message: "the thread writing the sweep's results stopped unexpectedly".into(),
+                    file: journal.clone(),
+                    message: "the thread keeping the sweep's results stopped unexpectedly".into(),
                 });
             }
         }
     }
+    // The file, written from the values kept; a complete one ends the journal.
     let wall = start.elapsed().as_secs_f64();
-    let complete = done.iter().all(|&d| d != 0);
-    u8_attr_set(&file, "complete", u8::from(complete)).map_err(&e)?;
-    f64_attr_set(&file, "wall_time", wall).map_err(&e)?;
-    file.close().map_err(&e)?;
+    let jobs: Vec<(f64, i8)> = rows.iter().map(|&j| st.jobs[j]).collect();
+    let shard = opts.shard.map(|sh| (sh, rows.as_slice()));
+    let complete = storage::write_file(&path, &layout, version, &jobs, shard, &store.values, wall)?;
+    if complete {
+        drop(store);
+        crate::storage::durable::remove(&journal)?;
+    }
     Ok(Outcome {
         file: path.clone(),
         jobs: n,
@@ -1516,7 +1451,7 @@ pub fn execute_until(
         complete,
         interrupted: user_stop.requested() && !complete,
         failed,
-        warnings: Vec::new(),
+        warnings,
         wall,
         rhs_evals: rhs,
         busy: busy.load(Ordering::Relaxed) as f64 * 1e-9,
@@ -1895,7 +1830,7 @@ fn write_single(file: &hdf5::File, st: &Loaded, r: &JobResult) -> hdf5::Result<(
     hybrid::write_state(file, &t.final_state)
 }
 
-/// Creates the sweep file `path` of `layout` with one row per job of `jobs` (parameter value
+/// Creates the sweep file `path` of `layout`, in memory ([`crate::h5::create_in_memory`]), with one row per job of `jobs` (parameter value
 /// and direction), every row not done. A shard file also records its shard (root attributes
 /// `shard` and `shards`) and the index of each row's job in the whole sweep (`/sweep/job`).
 pub(crate) fn create_sweep_file(
@@ -1909,7 +1844,7 @@ pub(crate) fn create_sweep_file(
     let l = layout;
     let n = jobs.len();
     let (kept, hl) = (l.kept, l.history);
-    let file = crate::h5::create_file(path).map_err(&e)?;
+    let file = crate::h5::create_in_memory(path).map_err(&e)?;
     (|| -> hdf5::Result<()> {
         str_attr(&file, "program", "jointplay")?;
         str_attr(&file, "program_version", version)?;
@@ -1947,6 +1882,13 @@ pub(crate) fn create_sweep_file(
             "0 not run, 1 done, 2 failed (message in /sweep/errors)",
         )?;
         g.create_group("errors")?;
+        let d = g.new_dataset::<u32>().shape(n).create("checksum")?;
+        str_attr(
+            &d,
+            "description",
+            "CRC-32 of each done value's row data (its rows of every dataset here and its section crossings), by which resume and merge check it; 0 for a value not done",
+        )?;
+        str_attr(&d, "unit", "1")?;
         u8_attr_set(&g, "continuation", u8::from(l.continuation))?;
         create_nan(&g, "strobe_time", &[n, kept], "s", "strobe times of each job")?;
         for (o, u) in l.observables.iter().zip(&l.units) {
@@ -2024,79 +1966,4 @@ pub(crate) fn create_sweep_file(
     .map_err(&e)?;
     file.flush().map_err(&e)?;
     Ok(file)
-}
-
-/// What a sweep's jobs hand to the thread writing its file.
-enum Message {
-    /// Samples `from..` of the time histories of the job in row `row`.
-    History {
-        row: usize,
-        from: usize,
-        time: Vec<f64>,
-        values: Vec<Vec<f64>>,
-    },
-    /// The job in the row is over.
-    Done(usize, Box<Result<JobResult>>),
-}
-
-/// Writes samples `from..from + time.len()` of the time histories of the job in row `row`, while
-/// it runs: whole chunks of the history datasets (see [`create_sweep_file`]) but the last; and
-/// flushes the file.
-fn write_history_block(
-    file: &hdf5::File,
-    st: &Loaded,
-    row: usize,
-    from: usize,
-    time: &[f64],
-    values: &[Vec<f64>],
-) -> hdf5::Result<()> {
-    let h = file.group("sweep/history")?;
-    let put = |name: &str, v: &[f64]| {
-        h.dataset(name)?
-            .write_slice(v, s![row, from..from + v.len()])
-    };
-    put("time", time)?;
-    let bits = st.spec.analysis.history_bits();
-    for (o, v) in st.spec.observables.iter().zip(values) {
-        put(&o.name, &crate::bitround::rounded(v, bits))?;
-    }
-    // On disk before the job goes on: a sweep killed while a job runs leaves a file that
-    // `--resume` can open, as one killed between jobs does.
-    file.flush()
-}
-
-/// Writes the result of the job in row `row` of the file.
-fn write_job(file: &hdf5::File, st: &Loaded, row: usize, r: &JobResult) -> hdf5::Result<()> {
-    let g = file.group("sweep")?;
-    let t = &r.trace;
-    write_row(&g, "strobe_time", row, &t.strobe_time)?;
-    for (o, v) in st.spec.observables.iter().zip(&t.strobe) {
-        write_row(&g, &o.name, row, v)?;
-    }
-    // The time histories were written while the job ran (write_history_block).
-    hybrid::write_row(&g, row, &t.final_state)?;
-    write_element(&g, "rhs_evals", row, t.stats.rhs_evals)?;
-    write_element(&g, "wall_time", row, r.wall)?;
-    if let Some(c) = &r.chaos {
-        crate::chaos::write_row(&g, row, c)?;
-    }
-    if !st.planes.is_empty() {
-        let sec = g.group("sections")?;
-        // A job interrupted while being written left a partial group: replace it.
-        if sec.link_exists(&row.to_string()) {
-            sec.unlink(&row.to_string())?;
-        }
-        let gj = sec.create_group(&row.to_string())?;
-        for (p, c) in st.planes.iter().zip(&t.crossings) {
-            write_crossings(
-                &gj,
-                &p.name,
-                &st.spec.observables,
-                &r.units,
-                &c.time,
-                &c.values,
-            )?;
-        }
-    }
-    Ok(())
 }

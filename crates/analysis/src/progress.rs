@@ -35,10 +35,25 @@ impl Stop {
         self.0.store(true, Ordering::SeqCst);
     }
 
-    /// True once [`Stop::request`] was called.
+    /// True once [`Stop::request`] was called, or [`request_process_stop`].
     pub fn requested(&self) -> bool {
-        self.0.load(Ordering::SeqCst)
+        self.0.load(Ordering::SeqCst) || PROCESS_STOP.load(Ordering::SeqCst)
     }
+}
+
+/// A stop asked of every computation of the process (see [`request_process_stop`]).
+static PROCESS_STOP: AtomicBool = AtomicBool::new(false);
+
+/// Asks every computation of this process to stop as if its own [`Stop`] were requested: what
+/// the program does on SIGINT and SIGTERM, so that a sweep keeps its finished values, a run is
+/// written incomplete and a continuation keeps its points, each in a file that resumes.
+pub fn request_process_stop() {
+    PROCESS_STOP.store(true, Ordering::SeqCst);
+}
+
+/// True once [`request_process_stop`] was called.
+pub fn process_stop_requested() -> bool {
+    PROCESS_STOP.load(Ordering::SeqCst)
 }
 
 /// The state of a computation made of jobs, from its [`Progress`] reports: the fraction of each

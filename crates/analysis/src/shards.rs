@@ -26,14 +26,9 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 use std::str::FromStr;
 
-use hdf5::types::VarLenUnicode;
-use ndarray::s;
-
-use crate::h5::{f64_attr_set, h5err, read_attr, read_str, u8_attr_set};
-use crate::nonlinear::{
-    AnalysisStudy, Loaded, Root, SweepLayout, create_sweep_file, sweep_jobs, write_crossings,
-};
-use crate::sections::HISTORY_BLOCK;
+use crate::h5::{h5err, read_attr, read_str};
+use crate::nonlinear::{AnalysisStudy, Loaded, Root, SweepLayout, sweep_jobs};
+use crate::storage::rows::Outcome as Kept;
 use crate::study::invalid;
 use crate::{Error, Result};
 
@@ -211,6 +206,10 @@ struct ShardFile {
     done: Vec<u8>,
     /// Messages of failed rows.
     errors: Vec<(usize, String)>,
+    /// The done values that check, by row of the shard file.
+    values: Vec<crate::storage::rows::Value>,
+    /// Rows that do not check: why.
+    bad: Vec<String>,
 }
 
 fn io(file: &Path, message: impl Into<String>) -> Error {
@@ -240,16 +239,22 @@ impl ShardFile {
             .dataset("done")
             .and_then(|d| d.read_raw::<u8>())
             .map_err(&e)?;
-        let eg = g.group("errors").map_err(&e)?;
+        // Every value is checked against its checksum; one that does not check counts as not
+        // run (the shard's `--resume` computes it again).
+        let (values, bad) = crate::storage::sweep::read_values(path, &file, &layout, done.len())?;
+        let mut done = vec![0u8; done.len()];
         let mut errors = Vec::new();
-        for (r, d) in done.iter().enumerate() {
-            if *d == 2 {
-                let m = eg
-                    .attr(&r.to_string())
-                    .and_then(|a| a.read_scalar::<VarLenUnicode>())
-                    .map(|v| v.to_string())
-                    .unwrap_or_else(|_| "no message recorded".into());
-                errors.push((r, m));
+        let mut kept = Vec::new();
+        for v in values {
+            match v.outcome {
+                Kept::Done(_) => {
+                    done[v.row] = 1;
+                    kept.push(v);
+                }
+                Kept::Failed(m) => {
+                    done[v.row] = 2;
+                    errors.push((v.row, m));
+                }
             }
         }
         Ok(ShardFile {
@@ -261,6 +266,8 @@ impl ShardFile {
             layout,
             done,
             errors,
+            values: kept,
+            bad,
         })
     }
 }
@@ -290,36 +297,6 @@ fn some_values(name: &str, values: &[f64]) -> String {
         s.push(format!("... ({} more)", values.len() - 8));
     }
     format!("{name} = {}", s.join(", "))
-}
-
-/// Copies every row of dataset `name` of shard `sh` into its rows of the merged file.
-fn copy_rows<T: hdf5::H5Type + Clone>(
-    src: &hdf5::Group,
-    dst: &hdf5::Group,
-    name: &str,
-    sh: Shard,
-) -> hdf5::Result<()> {
-    let ds = src.dataset(name)?;
-    let shape = ds.shape();
-    if shape.contains(&0) {
-        return Ok(());
-    }
-    let (a, step) = (sh.index, sh.count);
-    let b = a + step * (shape[0] - 1) + 1;
-    let out = dst.dataset(name)?;
-    match shape.len() {
-        1 => out.write_slice(&ds.read_1d::<T>()?, s![a..b;step]),
-        // A block of a row at a time (a sweep's history rows are chunked so): a row of time
-        // histories may be long.
-        2 => (0..shape[0]).try_for_each(|r| {
-            (0..shape[1]).step_by(HISTORY_BLOCK).try_for_each(|c0| {
-                let c1 = (c0 + HISTORY_BLOCK).min(shape[1]);
-                let block = ds.read_slice_1d::<T, _>(s![r, c0..c1])?;
-                out.write_slice(&block, s![a + r * step, c0..c1])
-            })
-        }),
-        d => Err(format!("{name}: {d} dimensions, expected 1 or 2").into()),
-    }
 }
 
 /// Merges the shard files `inputs` into the study file `out` (written under a temporary name and
@@ -406,6 +383,7 @@ pub fn merge(inputs: &[PathBuf], out: &Path, version: &str, partial: bool) -> Re
         shards.push(s);
     }
     let o = &shards[0];
+    let shards_layout = o.layout.clone();
     if o.version != version {
         return Err(io(
             first,
@@ -497,6 +475,13 @@ pub fn merge(inputs: &[PathBuf], out: &Path, version: &str, partial: bool) -> Re
                 not_done.extend(js);
             }
             Some(s) => {
+                for b in &s.bad {
+                    lines.push(format!(
+                        "shard {sh}: {} {b}: counted as not run; rerun: {}",
+                        s.path.display(),
+                        rerun(sh)
+                    ));
+                }
                 let missing: Vec<usize> = (0..js.len()).filter(|&r| s.done[r] == 0).collect();
                 if !missing.is_empty() {
                     let idx: Vec<usize> = missing.iter().map(|&r| js[r]).collect();
@@ -542,32 +527,39 @@ pub fn merge(inputs: &[PathBuf], out: &Path, version: &str, partial: bool) -> Re
             ),
         ));
     }
-    // Write the study file as a single process writes it, then copy each shard's rows in.
-    if let Some(d) = out.parent().filter(|d| !d.as_os_str().is_empty()) {
-        std::fs::create_dir_all(d)
-            .map_err(|err| io(d, format!("cannot create output directory: {err}")))?;
-    }
-    let mut tmp = out.as_os_str().to_owned();
-    tmp.push(".partial");
-    let tmp = PathBuf::from(tmp);
-    let _ = std::fs::remove_file(&tmp);
-    let costs = match write_merged(&tmp, &shards, version, &jobs) {
-        Ok(c) => c,
-        Err(err) => {
-            let _ = std::fs::remove_file(&tmp);
-            return Err(err);
+    // The study file, written from the shards' values as a single process writes it.
+    crate::storage::durable::create_dir(crate::storage::durable::parent(out))?;
+    let _lock = crate::storage::lock::Lock::acquire(out)?;
+    let mut values = Vec::new();
+    let mut value_walls = Vec::new();
+    let mut shard_walls = Vec::new();
+    for s in shards {
+        let js = s.shard.jobs(jobs.len());
+        for v in s.values {
+            if let Kept::Done(row) = &v.outcome {
+                value_walls.push(row.f64s("wall_time").first().copied().unwrap_or(f64::NAN));
+            }
+            values.push(Some(crate::storage::rows::Value {
+                row: js[v.row],
+                outcome: v.outcome,
+            }));
         }
-    };
-    crate::h5::move_into_place(&tmp, out).map_err(|err| {
-        io(
-            out,
-            format!("cannot move the merged file into place: {err}"),
-        )
-    })?;
-    let Costs {
-        value_walls,
-        mut shard_walls,
-    } = costs;
+        shard_walls.push((
+            s.shard,
+            read_attr::<f64>(&s.file, "wall_time").unwrap_or(f64::NAN),
+        ));
+    }
+    let mut by_row = vec![None; jobs.len()];
+    for v in values.into_iter().flatten() {
+        let r = v.row;
+        by_row[r] = Some(v);
+    }
+    let total: f64 = shard_walls
+        .iter()
+        .map(|w| w.1)
+        .filter(|w| w.is_finite())
+        .sum();
+    crate::storage::sweep::write_file(out, &shards_layout, version, &jobs, None, &by_row, total)?;
     shard_walls.sort_by_key(|w| w.0.index);
     Ok(Merged {
         file: out.to_path_buf(),
@@ -577,132 +569,6 @@ pub fn merge(inputs: &[PathBuf], out: &Path, version: &str, partial: bool) -> Re
         value_walls,
         shard_walls,
     })
-}
-
-/// The wall times a merge reads from the shards.
-struct Costs {
-    value_walls: Vec<f64>,
-    shard_walls: Vec<(Shard, f64)>,
-}
-
-/// Writes the merged file `tmp`: the study file of the first shard's layout with every job of
-/// `jobs`, each shard's rows copied into place, `/sweep/done`, `complete` and `wall_time`.
-fn write_merged(
-    tmp: &Path,
-    shards: &[ShardFile],
-    version: &str,
-    jobs: &[(f64, i8)],
-) -> Result<Costs> {
-    let layout = &shards[0].layout;
-    let file = create_sweep_file(tmp, layout, version, jobs, None)?;
-    let e = h5err(tmp);
-    let dst = file.group("sweep").map_err(&e)?;
-    let mut done = vec![0u8; jobs.len()];
-    let mut value_walls = Vec::new();
-    let mut shard_walls = Vec::new();
-    for s in shards {
-        let src = s.file.group("sweep").map_err(h5err(&s.path))?;
-        copy_shard(s, &src, &dst, layout).map_err(|err| Error::Hdf5 {
-            file: s.path.clone(),
-            message: format!("copying into {}: {err}", tmp.display()),
-        })?;
-        let walls = src
-            .dataset("wall_time")
-            .and_then(|d| d.read_raw::<f64>())
-            .map_err(h5err(&s.path))?;
-        for (r, &j) in s.shard.jobs(jobs.len()).iter().enumerate() {
-            if s.done[r] == 1 {
-                done[j] = 1;
-                value_walls.push(walls[r]);
-            }
-        }
-        shard_walls.push((
-            s.shard,
-            read_attr::<f64>(&s.file, "wall_time").unwrap_or(f64::NAN),
-        ));
-    }
-    let ds = dst.dataset("done").map_err(&e)?;
-    ds.write(&ndarray::Array1::from(done.clone())).map_err(&e)?;
-    let complete = done.iter().all(|&d| d == 1);
-    u8_attr_set(&file, "complete", u8::from(complete)).map_err(&e)?;
-    let total: f64 = shard_walls
-        .iter()
-        .map(|w| w.1)
-        .filter(|w| w.is_finite())
-        .sum();
-    f64_attr_set(&file, "wall_time", total).map_err(&e)?;
-    file.close().map_err(&e)?;
-    Ok(Costs {
-        value_walls,
-        shard_walls,
-    })
-}
-
-/// Copies the rows and sections of one shard into the merged file's `/sweep`.
-fn copy_shard(
-    s: &ShardFile,
-    src: &hdf5::Group,
-    dst: &hdf5::Group,
-    l: &SweepLayout,
-) -> hdf5::Result<()> {
-    let sh = s.shard;
-    let mut f64s = vec![
-        "strobe_time",
-        "final_state",
-        "final_time",
-        "final_onset",
-        "final_stepper",
-        "wall_time",
-    ];
-    f64s.extend(l.observables.iter().map(|o| o.name.as_str()));
-    for name in f64s {
-        copy_rows::<f64>(src, dst, name, sh)?;
-    }
-    copy_rows::<u8>(src, dst, "final_warned", sh)?;
-    copy_rows::<u64>(src, dst, "rhs_evals", sh)?;
-    if l.history > 0 {
-        let (hs, hd) = (src.group("history")?, dst.group("history")?);
-        copy_rows::<f64>(&hs, &hd, "time", sh)?;
-        for o in &l.observables {
-            copy_rows::<f64>(&hs, &hd, &o.name, sh)?;
-        }
-    }
-    if l.chaos.any() {
-        let (cs, cd) = (src.group("chaos")?, dst.group("chaos")?);
-        copy_rows::<u8>(&cs, &cd, "class", sh)?;
-        for name in [
-            "exponents",
-            "stderr",
-            "map_exponents",
-            "two_trajectory",
-            "k",
-        ] {
-            if cs.link_exists(name) {
-                copy_rows::<f64>(&cs, &cd, name, sh)?;
-            }
-        }
-    }
-    if !l.sections.is_empty() {
-        let (ss, sd) = (src.group("sections")?, dst.group("sections")?);
-        for (r, d) in s.done.iter().enumerate() {
-            if *d != 1 {
-                continue;
-            }
-            let j = sh.index + r * sh.count;
-            let (gr, gj) = (ss.group(&r.to_string())?, sd.create_group(&j.to_string())?);
-            for name in &l.sections {
-                let gp = gr.group(name)?;
-                let time = gp.dataset("time")?.read_raw::<f64>()?;
-                let values = l
-                    .observables
-                    .iter()
-                    .map(|o| gp.dataset(&o.name)?.read_raw::<f64>())
-                    .collect::<hdf5::Result<Vec<_>>>()?;
-                write_crossings(&gj, name, &l.observables, &l.units, &time, &values)?;
-            }
-        }
-    }
-    Ok(())
 }
 
 #[cfg(test)]

@@ -164,6 +164,11 @@ impl Batch {
             format!("#SBATCH --job-name={}", self.name),
             format!("#SBATCH --array=0-{}{throttle}", n - 1),
             format!("#SBATCH --cpus-per-task={}", self.cpus_per_task),
+            "# SIGTERM a minute before the time limit, to the program itself (B:, as the script"
+                .into(),
+            "# execs it): it keeps its finished values and stops cleanly before Slurm's SIGKILL."
+                .into(),
+            "#SBATCH --signal=B:TERM@60".into(),
         ];
         self.common(&mut l);
         l.push(format!(
@@ -269,6 +274,7 @@ mod tests {
             "#SBATCH --partition=short",
             "#SBATCH --time=00:30:00",
             "#SBATCH --chdir=/home/u/work",
+            "#SBATCH --signal=B:TERM@60",
             "exec /opt/jp/bin/jointplay run analyses/duffing/cascade.toml --out out/duffing \
              --shard \"$SLURM_ARRAY_TASK_ID/20\" --resume --quiet",
         ] {
