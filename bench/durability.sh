@@ -1,0 +1,53 @@
+#!/usr/bin/env bash
+# What durable results cost (docs/durable-results.md): two builds of jointplay side by side,
+# alternating, on the 601-value Duffing cascade (analyses/duffing/cascade.toml, both cores), a
+# single streamed run of the mixed 4-UPS/RPU (10 s, DOPRI5 rtol 1e-6, 1 ms output) and, with
+# FULL=1, the section-3 diagram (analyses/4ups-rpu/section3-diagram.toml, about 4 minutes each).
+# Each row gives the median elapsed time of the whole command (journal, file, fsyncs included)
+# over the repeats and the ratio of the second build to the first.
+#
+#   bench/durability.sh OLD NEW [REPEATS]      # two jointplay binaries (release builds);
+#                                              # REPEATS default 3, about 2 minutes on 2 cores
+set -euo pipefail
+root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+old=$(realpath "$1")
+new=$(realpath "$2")
+reps=${3:-3}
+work=$(mktemp -d)
+trap 'rm -rf "$work"' EXIT
+cd "$work"
+awk '
+  /^\[solver\]/ { print; print "integrator = \"dopri5\""; print "rtol = 1e-6"; print "atol = 1e-9";
+                  print "baumgarte_alpha = 5.0"; print "baumgarte_beta = 5.0"; print "periods = 5"; skip = 1; next }
+  /^\[/ { skip = 0 }
+  !skip { print }' "$root/data/scenes/4ups-rpu-mixed.toml" >p5.toml
+median() { sort -g | awk '{ v[NR] = $1 } END { print v[int((NR + 1) / 2)] }'; }
+# one BIN TAG ARGS...: elapsed seconds of `BIN run ARGS --out out-TAG --no-plots -q`
+one() {
+  local bin=$1 tag=$2 t0 t1
+  shift 2
+  rm -rf "out-$tag"
+  t0=$(date +%s.%N)
+  "$bin" run "$@" --out "out-$tag" --no-plots -q >/dev/null
+  t1=$(date +%s.%N)
+  echo "$t1 - $t0" | bc -l
+}
+row() { # row NAME ARGS...
+  local name=$1 a=() b=() i
+  shift
+  for i in $(seq "$reps"); do
+    a+=("$(one "$old" old "$@")")
+    b+=("$(one "$new" new "$@")")
+  done
+  local ma mb
+  ma=$(printf '%s\n' "${a[@]}" | median)
+  mb=$(printf '%s\n' "${b[@]}" | median)
+  printf '| %s | %.2f s | %.2f s | %.3f |\n' "$name" "$ma" "$mb" "$(echo "$mb / $ma" | bc -l)"
+}
+echo "| workload | old | new | new / old |"
+echo "|---|---|---|---|"
+row "Duffing cascade, 601 values" "$root/analyses/duffing/cascade.toml"
+row "4-UPS/RPU mixed, one streamed 10 s run" p5.toml
+if [ "${FULL:-0}" = 1 ]; then
+  row "section-3 diagram, 40 values" "$root/analyses/4ups-rpu/section3-diagram.toml"
+fi
