@@ -279,7 +279,11 @@ fn main() {
         } => compare(&files, &dataset, component, &out, title),
     };
     if let Err(e) = res {
-        eprintln!("error: {e:#}");
+        // A huge value in an input is echoed at most in part, wherever the message quotes it.
+        eprintln!(
+            "error: {}",
+            jointplay_analysis::clip_lines(&format!("{e:#}"))
+        );
         std::process::exit(1);
     }
 }

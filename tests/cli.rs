@@ -1639,3 +1639,20 @@ fn a_bad_ramp_time_names_the_drive_field() {
         assert!(se.contains("drives[0].profile.ramp_time"), "{se}");
     }
 }
+
+/// Error messages echoed up to 10 MB of input.
+#[test]
+fn an_error_message_echoes_at_most_200_characters_of_a_huge_value() {
+    let huge = "x".repeat(10_000_000);
+    for (from, to) in [
+        (
+            "gravity = [0.0, -9.81, 0.0]",
+            format!("gravity = \"{huge}\""),
+        ),
+        ("body_a = \"ground\"", format!("body_a = \"{huge}\"")),
+    ] {
+        let msg = check_error("huge.toml", from, &to);
+        assert!(msg.len() < 2000, "{} characters", msg.len());
+        assert!(msg.contains("more characters)"), "{msg}");
+    }
+}

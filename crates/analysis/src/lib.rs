@@ -62,6 +62,8 @@ pub mod zero_one;
 
 use std::path::PathBuf;
 
+pub use jointplay_solver::error::{clip, clip_lines};
+
 /// Errors of the analysis crate.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {

@@ -61,7 +61,8 @@ create_exception!(
 );
 
 fn err(e: impl std::fmt::Display) -> PyErr {
-    JointplayError::new_err(e.to_string())
+    // A huge value in a file or an edit is echoed at most in part.
+    JointplayError::new_err(jointplay_analysis::clip_lines(&e.to_string()).into_owned())
 }
 
 // ---------------------------------------------------------------------------------------------

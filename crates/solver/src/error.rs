@@ -40,3 +40,69 @@ pub enum Error {
 
 /// Result alias of the solver crate.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// The most characters of input (a name, a value, a line of the file) an error message echoes.
+pub const ECHO_LIMIT: usize = 200;
+
+/// `text` as an error message echoes it: at most [`ECHO_LIMIT`] characters, then
+/// "... (N more characters)", so that a huge value in a file does not flood the message.
+pub fn clip(text: &str) -> std::borrow::Cow<'_, str> {
+    match text.char_indices().nth(ECHO_LIMIT) {
+        None => text.into(),
+        Some((cut, _)) => {
+            let more = text[cut..].chars().count();
+            format!("{}... ({more} more characters)", &text[..cut]).into()
+        }
+    }
+}
+
+/// Every line of a message [`clip`]ped, but a line is cut only when it is much longer than
+/// any message of the program's own (three times [`ECHO_LIMIT`]): then it holds echoed input
+/// (the parser's copy of the offending line, a value quoted in full).
+pub fn clip_lines(message: &str) -> std::borrow::Cow<'_, str> {
+    if message.lines().all(|l| l.len() <= 3 * ECHO_LIMIT) {
+        return message.into();
+    }
+    let lines: Vec<String> = message
+        .split('\n')
+        .map(|l| {
+            if l.len() <= 3 * ECHO_LIMIT {
+                l.to_string()
+            } else {
+                clip(l).into_owned()
+            }
+        })
+        .collect();
+    lines.join("\n").into()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Error messages echoed up to 10 MB of input (a huge string in a TOML field).
+    #[test]
+    fn error_messages_echo_at_most_200_characters_of_input() {
+        let huge = "x".repeat(10_000_000);
+        let clipped = clip(&huge);
+        assert_eq!(
+            clipped,
+            format!("{}... (9999800 more characters)", "x".repeat(200))
+        );
+        assert_eq!(clip("short"), "short");
+        let message = format!("head\n1 | name = \"{huge}\"\ntail");
+        let clipped = clip_lines(&message);
+        assert_eq!(clipped.lines().count(), 3);
+        assert!(clipped.len() < 400, "{clipped}");
+        let own = "y".repeat(500);
+        assert_eq!(clip_lines(&own), own);
+        let err = crate::scene::SceneSpec::parse(
+            &format!("name = 1\ndescription = \"{huge}\"\ngravity = \"{huge}\""),
+            std::path::Path::new("huge.toml"),
+        )
+        .unwrap_err()
+        .to_string();
+        assert!(err.len() < 2000, "{} characters", err.len());
+        assert!(err.contains("more characters)"), "{err}");
+    }
+}

@@ -642,7 +642,8 @@ pub struct SceneFile {
 pub fn parse_toml<T: serde::de::DeserializeOwned>(text: &str, file: &Path) -> Result<T> {
     let err = |message: String| Error::Parse {
         file: file.to_path_buf(),
-        message: message.trim_end().to_string(),
+        // The parser quotes the offending line and value in full.
+        message: crate::error::clip_lines(message.trim_end()).into_owned(),
     };
     let de = toml::Deserializer::parse(text).map_err(|e| err(e.to_string()))?;
     serde_path_to_error::deserialize(de).map_err(|e| {
