@@ -1656,3 +1656,44 @@ fn an_error_message_echoes_at_most_200_characters_of_a_huge_value() {
         assert!(msg.contains("more characters)"), "{msg}");
     }
 }
+
+/// `gravity = [0, -9.81, 0, 5]` was taken as its first three components.
+#[test]
+fn a_vector_with_extra_components_is_refused_naming_the_field() {
+    let cases = [
+        (
+            "gravity = [0.0, -9.81, 0.0]",
+            "gravity = [0, -9.81, 0, 5]",
+            "gravity",
+        ),
+        (
+            "gravity = [0.0, -9.81, 0.0]",
+            "gravity = [0, -9.81]",
+            "gravity",
+        ),
+        (
+            "position = [0.8660254037844386, -0.5, 0.0]",
+            "position = [0.8660254037844386, -0.5, 0.0, 0.0]",
+            "bodies[0].position",
+        ),
+        (
+            "points = { pivot = [0.0, 0.0, 0.0] }",
+            "points = { pivot = [0.0, 0.0, 0.0, 1.0] }",
+            "ground.points.pivot",
+        ),
+        (
+            "point_a = \"pivot\"",
+            "point_a = [0.0, 0.0, 0.0, 1.0]",
+            "joints[0].point_a",
+        ),
+        (
+            "axis = [0.0, 0.0, 1.0]",
+            "axis = [0.0, 0.0, 1.0, 0.0]",
+            "bodies[0].orientation.axis",
+        ),
+    ];
+    for (from, to, field) in cases {
+        let msg = check_error("long.toml", from, to);
+        assert!(msg.contains(field), "'{to}' should name {field}: {msg}");
+    }
+}
