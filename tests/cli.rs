@@ -1697,3 +1697,18 @@ fn a_vector_with_extra_components_is_refused_naming_the_field() {
         assert!(msg.contains(field), "'{to}' should name {field}: {msg}");
     }
 }
+
+/// `check` hung on a body placed at 1e200 m: the assembly's corrections overflowed to NaN, which
+/// the residual test missed, and the rank analysis iterated on it without end. Such a number is
+/// refused naming the field; one just below the bound fails the assembly instead, at once.
+#[test]
+fn check_does_not_hang_on_a_coordinate_of_1e200() {
+    let from = "position = [0.8660254037844386, -0.5, 0.0]";
+    let msg = check_error("far.toml", from, "position = [1e200, -0.5, 0.0]");
+    assert!(
+        msg.contains("bodies[0].position[0]") && msg.contains("1e100"),
+        "{msg}"
+    );
+    let msg = check_error("far.toml", from, "position = [1e99, -0.5, 0.0]");
+    assert!(msg.contains("initial assembly failed"), "{msg}");
+}
