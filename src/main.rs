@@ -469,8 +469,11 @@ fn run(
     // The run goes to its file as it is recorded: memory does not grow with its length.
     let meta = Meta::of(&model, path, &scene.text, VERSION);
     let (result, written) = match from {
-        None => simulate_to_file(&model, state, &mut progress, out, &meta),
-        Some(f) => resume_to_file(&model, read_run_file(f)?, &mut progress, out, &meta),
+        None => {
+            simulate_to_file(&model, state, &mut progress, out, &meta).map_err(anyhow::Error::new)
+        }
+        Some(f) => resume_to_file(&model, read_run_file(f)?, &mut progress, out, &meta)
+            .map_err(|e| anyhow::Error::new(e).context(format!("continuing from {}", f.display()))),
     }
     .with_context(|| format!("simulating {}", path.display()))?;
     bar.finish_and_clear();

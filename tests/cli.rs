@@ -1712,3 +1712,76 @@ fn check_does_not_hang_on_a_coordinate_of_1e200() {
     let msg = check_error("far.toml", from, "position = [1e99, -0.5, 0.0]");
     assert!(msg.contains("initial assembly failed"), "{msg}");
 }
+
+/// `analysis.period = 1e12` passed the guard against runs that cannot finish.
+#[test]
+fn an_analysis_period_that_cannot_finish_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    for (from, to, field) in [
+        (
+            "periods = 30\n",
+            "periods = 30\nperiod = 1e12\n",
+            "analysis.period",
+        ),
+        (
+            "periods = 30\n",
+            "periods = 100000000000000\n",
+            "analysis.periods",
+        ),
+    ] {
+        let edited = DUFFING_SWEEP.replacen(from, to, 1);
+        let study = write_scene(dir.path(), "long.toml", &edited);
+        let out = bin().arg("check").arg(&study).output().unwrap();
+        let (_, se) = text(&out);
+        assert_eq!(out.status.code(), Some(1), "{se}");
+        assert!(
+            se.contains("long.toml") && se.contains(field) && se.contains("at most 1e12"),
+            "{se}"
+        );
+    }
+}
+
+/// A run resumed (`--from`) from a file whose final_time is -1e300 would integrate forever.
+#[test]
+fn run_from_a_file_whose_final_time_is_minus_1e300_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = write_scene(
+        dir.path(),
+        "pendulum.toml",
+        &PENDULUM.replace("end_time = 10.0", "end_time = 0.01"),
+    );
+    let out = bin()
+        .args(["run", "--no-plots", "-q"])
+        .arg(&scene)
+        .arg("--out")
+        .arg(dir.path().join("a"))
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{:?}", text(&out));
+    let file = dir.path().join("a/pendulum.h5");
+    for (t, what) in [
+        (-1e300, "not before the scene's start time"),
+        (f64::NAN, "final_time"),
+        (-1.0, "not before the scene's start time"),
+    ] {
+        {
+            let f = hdf5::File::open_rw(&file).unwrap();
+            f.dataset("final_time").unwrap().write_scalar(&t).unwrap();
+        }
+        let out = bin()
+            .args(["run", "--no-plots", "-q"])
+            .arg(&scene)
+            .arg("--out")
+            .arg(dir.path().join("b"))
+            .arg("--from")
+            .arg(&file)
+            .output()
+            .unwrap();
+        let (_, se) = text(&out);
+        assert_eq!(out.status.code(), Some(1), "{t}: {se}");
+        assert!(
+            se.contains("a/pendulum.h5") && se.contains(what),
+            "{t}: {se}"
+        );
+    }
+}
