@@ -1785,3 +1785,22 @@ fn run_from_a_file_whose_final_time_is_minus_1e300_is_refused() {
         );
     }
 }
+
+/// `figures[].values` took NaN and infinities.
+#[test]
+fn figure_values_that_are_not_finite_are_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    for v in ["nan", "inf", "-inf"] {
+        let edited = format!(
+            "{DUFFING_SWEEP}[[figures]]\nkind = \"bifurcation\"\ny = \"x\"\nvalues = [0.2, {v}]\n"
+        );
+        let study = write_scene(dir.path(), "fig.toml", &edited);
+        let out = bin().arg("check").arg(&study).output().unwrap();
+        let (_, se) = text(&out);
+        assert_eq!(out.status.code(), Some(1), "{v}: {se}");
+        assert!(
+            se.contains("fig.toml") && se.contains("figures[0].values[1]"),
+            "{v}: {se}"
+        );
+    }
+}

@@ -580,6 +580,21 @@ impl Loaded {
             loaded.check_continuation(c)?;
         }
         for (i, f) in loaded.spec.figures.iter().enumerate() {
+            for (k, &v) in f.values.iter().enumerate() {
+                finite(&loaded.path, &format!("figures[{i}].values[{k}]"), v)?;
+            }
+            if let Some(c) = f.circle {
+                finite(&loaded.path, &format!("figures[{i}].circle"), c)?;
+            }
+            if let Some(sc) = f.scale
+                && !(sc.is_finite() && sc != 0.0)
+            {
+                return Err(invalid(
+                    &loaded.path,
+                    format!("figures[{i}].scale"),
+                    format!("{sc}: must be a finite, non-zero factor"),
+                ));
+            }
             for (what, name) in [("x", f.x.as_deref()), ("y", Some(f.y.as_str()))] {
                 if let Some(n) = name
                     && loaded.spec.observable(n).is_none()
