@@ -1804,3 +1804,44 @@ fn figure_values_that_are_not_finite_are_refused() {
         );
     }
 }
+
+/// An unknown `report.joints` entry was found only after every case had run.
+#[test]
+fn an_unknown_report_joint_is_refused_when_the_study_is_loaded() {
+    let dir = tempfile::tempdir().unwrap();
+    let study = r#"
+[study]
+name = "rep"
+scene = "SCENE"
+[[cases]]
+label = "a"
+[report]
+joints = ["piston_pin", "nope"]
+"#;
+    let path = write_scene(
+        dir.path(),
+        "rep.toml",
+        &study.replace(
+            "SCENE",
+            &scenes()
+                .join("slider-crank-clearance.toml")
+                .display()
+                .to_string(),
+        ),
+    );
+    for cmd in ["check", "run"] {
+        let mut c = bin();
+        c.arg(cmd).arg(&path);
+        if cmd == "run" {
+            c.arg("--out").arg(dir.path()).arg("-q");
+        }
+        let out = c.output().unwrap();
+        let (_, se) = text(&out);
+        assert_eq!(out.status.code(), Some(1), "{cmd}: {se}");
+        assert!(
+            se.contains("rep.toml") && se.contains("report.joints[1]") && se.contains("'nope'"),
+            "{cmd}: {se}"
+        );
+        assert!(!dir.path().join("rep.h5").exists());
+    }
+}
