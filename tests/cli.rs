@@ -1845,3 +1845,42 @@ joints = ["piston_pin", "nope"]
         assert!(!dir.path().join("rep.h5").exists());
     }
 }
+
+/// `plot` panicked on a sweep file whose /sweep/done was shorter than /sweep/parameter.
+#[test]
+fn plot_of_a_sweep_file_with_a_short_done_dataset_names_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let study = write_scene(dir.path(), "duffing.toml", DUFFING_SWEEP);
+    let out = bin()
+        .arg("run")
+        .arg(&study)
+        .arg("--out")
+        .arg(dir.path())
+        .args(["-q", "--no-plots"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{:?}", text(&out));
+    let h5 = dir.path().join("duffing-small.h5");
+    {
+        let f = hdf5::File::open_rw(&h5).unwrap();
+        let g = f.group("sweep").unwrap();
+        g.unlink("done").unwrap();
+        g.new_dataset_builder()
+            .with_data(&[1u8, 1])
+            .create("done")
+            .unwrap();
+    }
+    let out = bin()
+        .arg("plot")
+        .arg(&h5)
+        .arg("--out")
+        .arg(dir.path().join("figs"))
+        .output()
+        .unwrap();
+    let (_, se) = text(&out);
+    assert_eq!(out.status.code(), Some(1), "{se}");
+    assert!(
+        se.contains("duffing-small.h5") && se.contains("/sweep/done has 2 rows"),
+        "{se}"
+    );
+}
