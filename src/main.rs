@@ -871,7 +871,14 @@ fn compare(
 /// In a Slurm job, rayon uses the job's CPUs per task (`SLURM_CPUS_PER_TASK`) unless
 /// `RAYON_NUM_THREADS` is set.
 fn threads_from_slurm() -> Result<()> {
-    if std::env::var_os("RAYON_NUM_THREADS").is_some() {
+    let max = jointplay_analysis::max_threads();
+    // rayon starts this many threads at its first parallel loop: a huge count stalls the machine.
+    if let Ok(v) = std::env::var("RAYON_NUM_THREADS") {
+        if let Ok(n) = v.trim().parse::<usize>()
+            && n > max
+        {
+            anyhow::bail!("RAYON_NUM_THREADS={n}: more than the {max} threads allowed");
+        }
         return Ok(());
     }
     let Ok(v) = std::env::var("SLURM_CPUS_PER_TASK") else {
@@ -883,6 +890,9 @@ fn threads_from_slurm() -> Result<()> {
         .ok()
         .filter(|&n| n >= 1)
         .with_context(|| format!("SLURM_CPUS_PER_TASK='{v}' is not a positive whole number"))?;
+    if n > max {
+        anyhow::bail!("SLURM_CPUS_PER_TASK={n}: more than the {max} threads allowed");
+    }
     rayon::ThreadPoolBuilder::new()
         .num_threads(n)
         .build_global()

@@ -1884,3 +1884,21 @@ fn plot_of_a_sweep_file_with_a_short_done_dataset_names_the_file() {
         "{se}"
     );
 }
+
+/// A huge thread count started threads until the machine stalled.
+#[test]
+fn a_huge_thread_count_is_refused() {
+    for var in ["RAYON_NUM_THREADS", "SLURM_CPUS_PER_TASK"] {
+        let out = bin()
+            .env_remove("RAYON_NUM_THREADS")
+            .env(var, "1000000")
+            .arg("check")
+            .arg(scenes().join("pendulum.toml"))
+            .output()
+            .unwrap();
+        let (_, se) = text(&out);
+        assert_eq!(out.status.code(), Some(1), "{var}: {se}");
+        assert!(se.contains(var) && se.contains("threads allowed"), "{se}");
+    }
+}
+

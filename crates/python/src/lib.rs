@@ -38,7 +38,9 @@ use jointplay_solver::scene::{SceneFile, SceneSpec};
 use numpy::PyArray;
 use numpy::ndarray::{ArrayD, ArrayView1, ArrayView2, IxDyn};
 use pyo3::create_exception;
-use pyo3::exceptions::{PyException, PyKeyError, PyKeyboardInterrupt, PyRuntimeError, PyTypeError};
+use pyo3::exceptions::{
+    PyException, PyKeyError, PyKeyboardInterrupt, PyRuntimeError, PyTypeError, PyValueError,
+};
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString};
 use toml::{Table, Value};
@@ -218,9 +220,13 @@ fn interrupted(py: Python<'_>, signal: PyErr, message: &str, partial: Py<PyAny>)
 }
 
 fn pool(threads: Option<usize>) -> PyResult<Option<rayon::ThreadPool>> {
+    let max = jointplay_analysis::max_threads();
     match threads {
         None => Ok(None),
         Some(0) => Err(err("threads: must be at least 1")),
+        Some(n) if n > max => Err(PyValueError::new_err(format!(
+            "threads: {n} is more than the {max} allowed (1024, or 64 per core on a larger machine)"
+        ))),
         Some(n) => rayon::ThreadPoolBuilder::new()
             .num_threads(n)
             .build()

@@ -343,3 +343,10 @@ def test_a_continuation_from_python_stops_and_resumes_to_the_programs_branches(p
     for name in ["continuation/branch_0/parameter", "continuation/branch_0/state",
                  "continuation/branch_1/state", "continuation/special/parameter"]:
         assert np.array_equal(a[name].view(np.uint64), b[name].view(np.uint64)), name
+
+
+def test_a_huge_thread_count_is_a_value_error_naming_the_argument(tmp_path):
+    # threads=10**6 started threads until the machine stalled.
+    with pytest.raises(ValueError, match="threads: 1000000 is more than"):
+        jointplay.run_study(SWEEP, out=tmp_path, threads=10**6, progress=False)
+
