@@ -1902,3 +1902,29 @@ fn a_huge_thread_count_is_refused() {
     }
 }
 
+/// Found by scripts/fuzz-formats: an error in a value the study's own `set` put into its scene
+/// named the scene alone, and a built-in system took infinite tolerances.
+#[test]
+fn errors_in_a_study_edited_scene_name_the_study_and_system_tolerances_are_finite() {
+    let dir = tempfile::tempdir().unwrap();
+    let study = format!(
+        "[study]\nname = \"p\"\nscene = \"{}\"\nset = {{ \"solver.rtol\" = -1.0 }}\n\
+         [analysis]\nperiods = 2\nperiod = 1.0\n[[observables]]\nname = \"x\"\n\
+         path = \"bodies.bob.position.x\"\n",
+        scenes().join("pendulum.toml").display()
+    );
+    let system = DUFFING_SWEEP.replace(
+        "initial = [1.0, 0.0] }",
+        "initial = [1.0, 0.0], solver = { rtol = inf } }",
+    );
+    for (input, field) in [
+        (study, "solver.rtol: must be positive"),
+        (system, "study.system.solver.rtol"),
+    ] {
+        let p = write_scene(dir.path(), "edited.toml", &input);
+        let out = bin().arg("check").arg(&p).output().unwrap();
+        let (_, se) = text(&out);
+        assert_eq!(out.status.code(), Some(1), "{se}");
+        assert!(se.contains("edited.toml") && se.contains(field), "{se}");
+    }
+}

@@ -739,13 +739,25 @@ impl Loaded {
                 let text = toml::to_string(&tree)
                     .map_err(|e| invalid(&self.path, "study.scene", e.to_string()))?;
                 let named = match edits.first() {
+                    // The value as `{:?}` writes it: 1e308, not 309 digits.
                     Some(ed) => PathBuf::from(format!(
-                        "{} ({} = {} in {})",
+                        "{} ({} = {:?} in {})",
                         sp.display(),
                         ed.path,
                         ed.value,
                         self.path.display()
                     )),
+                    // A value the study's own `set` put there is named with the study, as a
+                    // comparison case's scene is.
+                    None if !self.spec.study.set.is_empty()
+                        || !self.spec.study.remove.is_empty() =>
+                    {
+                        PathBuf::from(format!(
+                            "{} (edited by {})",
+                            sp.display(),
+                            self.path.display()
+                        ))
+                    }
                     None => sp.clone(),
                 };
                 let spec = SceneSpec::parse(&text, &named)?;
