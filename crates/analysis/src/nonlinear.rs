@@ -739,11 +739,12 @@ impl Loaded {
                 let text = toml::to_string(&tree)
                     .map_err(|e| invalid(&self.path, "study.scene", e.to_string()))?;
                 let named = match edits.first() {
-                    // The value as `{:?}` writes it: 1e308, not 309 digits.
+                    // The value as `{:?}` writes it (1e308, not 309 digits) and the path
+                    // clipped, so that the message clipping keeps the study's name.
                     Some(ed) => PathBuf::from(format!(
                         "{} ({} = {:?} in {})",
                         sp.display(),
-                        ed.path,
+                        crate::clip(&ed.path),
                         ed.value,
                         self.path.display()
                     )),
