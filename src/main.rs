@@ -285,7 +285,7 @@ fn main() {
         // A huge value in an input is echoed at most in part, wherever the message quotes it.
         eprintln!(
             "error: {}",
-            jointplay_analysis::clip_lines(&format!("{e:#}"))
+            jointplay_analysis::clip_lines(&format!("{e:#}"), jointplay_analysis::MESSAGE_LIMIT)
         );
         std::process::exit(1);
     }

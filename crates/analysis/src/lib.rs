@@ -62,7 +62,7 @@ pub mod zero_one;
 
 use std::path::PathBuf;
 
-pub use jointplay_solver::error::{clip, clip_lines};
+pub use jointplay_solver::error::{MESSAGE_LIMIT, clip, clip_lines};
 
 /// Errors of the analysis crate.
 #[derive(Debug, thiserror::Error)]

@@ -64,7 +64,10 @@ create_exception!(
 
 fn err(e: impl std::fmt::Display) -> PyErr {
     // A huge value in a file or an edit is echoed at most in part.
-    JointplayError::new_err(jointplay_analysis::clip_lines(&e.to_string()).into_owned())
+    JointplayError::new_err(
+        jointplay_analysis::clip_lines(&e.to_string(), jointplay_analysis::MESSAGE_LIMIT)
+            .into_owned(),
+    )
 }
 
 // ---------------------------------------------------------------------------------------------

@@ -708,7 +708,8 @@ pub fn parse_toml<T: serde::de::DeserializeOwned>(text: &str, file: &Path) -> Re
     let err = |message: String| Error::Parse {
         file: file.to_path_buf(),
         // The parser quotes the offending line and value in full.
-        message: crate::error::clip_lines(message.trim_end()).into_owned(),
+        message: crate::error::clip_lines(message.trim_end(), 3 * crate::error::ECHO_LIMIT)
+            .into_owned(),
     };
     let de = toml::Deserializer::parse(text).map_err(|e| err(e.to_string()))?;
     serde_path_to_error::deserialize(de).map_err(|e| {
@@ -725,6 +726,8 @@ pub fn parse_toml<T: serde::de::DeserializeOwned>(text: &str, file: &Path) -> Re
                 format!("{path}.{field}")
             };
         }
+        // A key of the file (an unknown field) is echoed input too.
+        let path = crate::error::clip(&path);
         let inner = e.into_inner().to_string();
         if path.is_empty() || path == "." {
             err(inner)
