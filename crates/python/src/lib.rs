@@ -1214,6 +1214,8 @@ fn run_study(
     plots: bool,
     precision: bool,
 ) -> PyResult<StudyResult> {
+    // The arguments first: a bad thread count is refused whatever the source.
+    let pool = pool(threads)?;
     let as_text = source.to_string_lossy().to_string();
     let (path, kind, text) = if source.is_file() {
         let (kind, text) = Input::read(&source).map_err(err)?;
@@ -1248,7 +1250,6 @@ fn run_study(
             path.display()
         )));
     }
-    let pool = pool(threads)?;
     let tally = Mutex::new(Tally::default());
     let shown = Mutex::new(Shown::default());
     let report = |p: Progress| {

@@ -350,6 +350,8 @@ def test_a_huge_thread_count_is_a_value_error_naming_the_argument(tmp_path):
     # threads=10**6 started threads until the machine stalled.
     with pytest.raises(ValueError, match="threads: 1000000 is more than"):
         jointplay.run_study(SWEEP, out=tmp_path, threads=10**6, progress=False)
+    with pytest.raises(ValueError, match="threads: 1000000 is more than"):
+        jointplay.run_study(tmp_path / "missing.toml", threads=10**6, progress=False)
 
 
 def test_a_scene_is_used_from_another_thread_while_it_runs():
