@@ -943,6 +943,25 @@ clearance = {{ ball_radius = 0.01, radial_clearance = 1e-4, normal = {normal} }}
         }
     }
 
+    /// The parser's messages echoed a 10 MB value, and a 10 MB key, in full.
+    #[test]
+    fn a_huge_value_or_key_is_echoed_clipped() {
+        let huge = "x".repeat(10_000_000);
+        for text in [
+            format!("name = 1\ndescription = \"{huge}\"\ngravity = \"{huge}\""),
+            format!("{huge} = 1"),
+        ] {
+            let err = SceneSpec::parse(&text, Path::new("huge.toml"))
+                .unwrap_err()
+                .to_string();
+            assert!(err.len() < 2000, "{} characters", err.len());
+            assert!(
+                err.starts_with("huge.toml: ") && err.contains("more characters)"),
+                "{err}"
+            );
+        }
+    }
+
     #[test]
     fn a_field_the_friction_law_does_not_take_names_its_path() {
         let err = scene(
