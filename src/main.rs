@@ -1,6 +1,7 @@
 //! `jointplay`: simulate mechanisms with ideal and clearance joints from TOML scene files.
 //!
-//! * `jointplay check SCENE`: validate and compile a scene and print what will be simulated.
+//! * `jointplay check SCENE`: validate and compile a scene and print what will be simulated;
+//!   `jointplay check STUDY` checks a study as `run` does before anything runs.
 //! * `jointplay run SCENE --out DIR`: simulate it and write `DIR/<scene>.h5` plus figures.
 //! * `jointplay run STUDY --out DIR`: run a comparison study or a nonlinear-analysis study
 //!   (N-period runs, Poincare sections, bifurcation sweeps with `--resume`).
@@ -59,9 +60,11 @@ struct Cli {
 #[derive(Subcommand)]
 enum Command {
     /// Validate a scene and print its compiled summary: bodies, constraints, rank, degrees of
-    /// freedom, redundancy, drives and the effects that will be simulated.
+    /// freedom, redundancy, drives and the effects that will be simulated. A study is checked
+    /// as `run` checks it before anything runs (every case's scene compiled, or the analysis
+    /// study and its first flow), without running it.
     Check {
-        /// Scene file (TOML).
+        /// Scene or study file (TOML).
         scene: PathBuf,
     },
     /// Simulate a scene, or every case of a study; write DIR/<name>.h5 and figures (PNG and
@@ -292,7 +295,11 @@ fn main() {
         } => compare(&files, &dataset, component, &out, title),
     };
     if let Err(e) = res {
-        eprintln!("error: {e:#}");
+        // A huge value in an input is echoed at most in part, wherever the message quotes it.
+        eprintln!(
+            "error: {}",
+            jointplay_analysis::clip_lines(&format!("{e:#}"), jointplay_analysis::MESSAGE_LIMIT)
+        );
         std::process::exit(1);
     }
     if jointplay_analysis::progress::process_stop_requested() {
@@ -305,6 +312,63 @@ fn main() {
 }
 
 fn check(path: &Path) -> Result<()> {
+    match Input::read(path)?.0 {
+        Input::Scene => check_scene(path),
+        Input::Comparison => {
+            // Everything `run` checks before the first case starts: the study, every case's
+            // edited scene compiled and assembled.
+            let study = Study::load(path)?;
+            println!(
+                "study        {} ({}), comparison of {} cases",
+                study.spec.study.name,
+                path.display(),
+                study.cases.len()
+            );
+            for c in &study.cases {
+                let (model, mut state) = Model::compile(&c.scene)?;
+                for w in &model.warnings {
+                    eprintln!("warning: {w}");
+                }
+                let s = Summary::new(&c.scene.path, &model, &mut state)?;
+                println!(
+                    "case         {}: {} bodies, {} joints, {} s to {} s",
+                    c.label,
+                    s.bodies.len(),
+                    s.joints.len(),
+                    s.start_time,
+                    s.end_time
+                );
+            }
+            Ok(())
+        }
+        kind => {
+            // The study and the flow of its first value, as `run` builds them before running.
+            let st = Loaded::load(path)?;
+            let what = if kind == Input::Precision {
+                let p = precision::Precision::new(st)?;
+                println!(
+                    "study        {} ({}), work-precision, {} runs",
+                    p.study().spec.study.name,
+                    path.display(),
+                    p.total_runs()
+                );
+                return Ok(());
+            } else if st.spec.sweep.is_some() {
+                format!("analysis sweep of {} values", st.jobs.len())
+            } else {
+                "analysis".to_string()
+            };
+            println!(
+                "study        {} ({}), {what}",
+                st.spec.study.name,
+                path.display()
+            );
+            Ok(())
+        }
+    }
+}
+
+fn check_scene(path: &Path) -> Result<()> {
     let scene = SceneSpec::load(path)?;
     let (model, mut state) = Model::compile(&scene)?;
     for w in &model.warnings {
@@ -425,8 +489,11 @@ fn run(
     // The run goes to its file as it is recorded: memory does not grow with its length.
     let meta = Meta::of(&model, path, &scene.text, VERSION);
     let (result, written) = match from {
-        None => simulate_to_file(&model, state, &mut progress, out, &meta),
-        Some(f) => resume_to_file(&model, read_run_file(f)?, &mut progress, out, &meta),
+        None => {
+            simulate_to_file(&model, state, &mut progress, out, &meta).map_err(anyhow::Error::new)
+        }
+        Some(f) => resume_to_file(&model, read_run_file(f)?, &mut progress, out, &meta)
+            .map_err(|e| anyhow::Error::new(e).context(format!("continuing from {}", f.display()))),
     }
     .with_context(|| format!("simulating {}", path.display()))?;
     bar.finish_and_clear();
@@ -843,7 +910,14 @@ fn compare(
 /// In a Slurm job, rayon uses the job's CPUs per task (`SLURM_CPUS_PER_TASK`) unless
 /// `RAYON_NUM_THREADS` is set.
 fn threads_from_slurm() -> Result<()> {
-    if std::env::var_os("RAYON_NUM_THREADS").is_some() {
+    let max = jointplay_analysis::max_threads();
+    // rayon starts this many threads at its first parallel loop: a huge count stalls the machine.
+    if let Ok(v) = std::env::var("RAYON_NUM_THREADS") {
+        if let Ok(n) = v.trim().parse::<usize>()
+            && n > max
+        {
+            anyhow::bail!("RAYON_NUM_THREADS={n}: more than the {max} threads allowed");
+        }
         return Ok(());
     }
     let Ok(v) = std::env::var("SLURM_CPUS_PER_TASK") else {
@@ -855,6 +929,9 @@ fn threads_from_slurm() -> Result<()> {
         .ok()
         .filter(|&n| n >= 1)
         .with_context(|| format!("SLURM_CPUS_PER_TASK='{v}' is not a positive whole number"))?;
+    if n > max {
+        anyhow::bail!("SLURM_CPUS_PER_TASK={n}: more than the {max} threads allowed");
+    }
     rayon::ThreadPoolBuilder::new()
         .num_threads(n)
         .build_global()

@@ -233,10 +233,11 @@ impl<'m> MechFlow<'m> {
 
     /// Free degrees of freedom at the declared start (what `jointplay check` prints).
     pub fn remaining_dof(&self) -> usize {
-        self.mech
-            .model
-            .structure(self.start.t, &self.start.y)
-            .remaining_dof
+        // The start was assembled when the flow was built, which refuses a state whose rank
+        // analysis cannot be done; every velocity coordinate is the bound otherwise.
+        let m = self.mech.model;
+        m.structure(self.start.t, &self.start.y)
+            .map_or(6 * m.nb(), |s| s.remaining_dof)
     }
 }
 

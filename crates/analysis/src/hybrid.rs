@@ -132,13 +132,27 @@ pub fn read_run_file(path: &Path) -> Result<HybridState> {
                 .into(),
         });
     }
-    read_state(&file).map_err(|err| Error::Io {
+    let state = read_state(&file).map_err(|err| Error::Io {
         file: path.to_path_buf(),
         message: format!(
             "no final state to continue from ({err}); files written before the \
                           hybrid state was saved cannot be continued"
         ),
-    })
+    })?;
+    // A damaged or edited file: a run from t = -1e300 to the end time could never finish.
+    if !state.t.is_finite() {
+        return Err(Error::Io {
+            file: path.to_path_buf(),
+            message: format!("final_time: {} s is not a time to continue from", state.t),
+        });
+    }
+    if !state.y.iter().all(|v| v.is_finite()) {
+        return Err(Error::Io {
+            file: path.to_path_buf(),
+            message: "final_state: not finite, not a state to continue from".into(),
+        });
+    }
+    Ok(state)
 }
 
 /// Sizes of the state rows of a sweep: the continuous state, the contacts and the clearance

@@ -63,6 +63,8 @@ pub mod zero_one;
 
 use std::path::PathBuf;
 
+pub use jointplay_solver::error::{MESSAGE_LIMIT, clip, clip_lines};
+
 /// Errors of the analysis crate.
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
@@ -113,6 +115,14 @@ pub enum Error {
 }
 
 pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// The most threads a computation may be given: 1024, or 64 per available core on a machine
+/// with more than 16. A count beyond it is a mistake (`threads=10**6` started threads until
+/// the machine stalled), not a setting.
+pub fn max_threads() -> usize {
+    let cores = std::thread::available_parallelism().map_or(1, |n| n.get());
+    1024usize.max(cores.saturating_mul(64))
+}
 
 /// Whether `name` is non-empty and made of ASCII letters, digits and the characters of `also`:
 /// the names that become HDF5 paths or parts of file names.

@@ -573,11 +573,27 @@ impl Loaded {
         // Build the first job (or the single run) now, so that a bad scene, path or observable
         // fails before anything runs.
         let first = loaded.jobs.first().map(|j| j.0);
-        loaded.target(first)?;
+        let target = loaded.target(first)?;
+        loaded.check_span(&target)?;
         if let Some(c) = &loaded.spec.continuation {
             loaded.check_continuation(c)?;
         }
         for (i, f) in loaded.spec.figures.iter().enumerate() {
+            for (k, &v) in f.values.iter().enumerate() {
+                finite(&loaded.path, &format!("figures[{i}].values[{k}]"), v)?;
+            }
+            if let Some(c) = f.circle {
+                finite(&loaded.path, &format!("figures[{i}].circle"), c)?;
+            }
+            if let Some(sc) = f.scale
+                && !(sc.is_finite() && sc != 0.0)
+            {
+                return Err(invalid(
+                    &loaded.path,
+                    format!("figures[{i}].scale"),
+                    format!("{sc}: must be a finite, non-zero factor"),
+                ));
+            }
             for (what, name) in [("x", f.x.as_deref()), ("y", Some(f.y.as_str()))] {
                 if let Some(n) = name
                     && loaded.spec.observable(n).is_none()
@@ -626,6 +642,42 @@ impl Loaded {
             }
         }
         Ok(loaded)
+    }
+
+    /// Refuses a run that could never finish, as scenes do (`solver.step`): `analysis.periods`
+    /// periods of `analysis.period` (or the drive's) that take more than 1e12 steps of the
+    /// fixed step or the step bound, or of the drive period, which an adaptive method resolves
+    /// with a step at least.
+    fn check_span(&self, target: &Target) -> Result<()> {
+        use jointplay_solver::ode::Accuracy;
+        let (period, own) = match target {
+            Target::Scene { model, period, .. } => (*period, model.settings.period),
+            Target::System { sys, period, .. } => (*period, sys.builtin.period()),
+        };
+        let step = match target.method().accuracy() {
+            Accuracy::Fixed { step } => step,
+            Accuracy::Adaptive { max_step, .. } => max_step,
+        };
+        let step = own.map_or(step, |p| step.min(p));
+        let a = &self.spec.analysis;
+        let span = a.periods as f64 * period + a.phase;
+        if span / step > 1e12 {
+            let field = if a.period.is_some() {
+                "analysis.period"
+            } else {
+                "analysis.periods"
+            };
+            return Err(invalid(
+                &self.path,
+                field,
+                format!(
+                    "{} periods of {period:e} s with steps of at most {step:.3e} s (the step bound or the drive period) mean at least {:.3e} steps; at most 1e12 are allowed",
+                    a.periods,
+                    span / step
+                ),
+            ));
+        }
+        Ok(())
     }
 
     /// Text of the flow (the edited scene or the system table) for the file.
@@ -686,13 +738,26 @@ impl Loaded {
                 let text = toml::to_string(&tree)
                     .map_err(|e| invalid(&self.path, "study.scene", e.to_string()))?;
                 let named = match edits.first() {
+                    // The value as `{:?}` writes it (1e308, not 309 digits) and the path
+                    // clipped, so that the message clipping keeps the study's name.
                     Some(ed) => PathBuf::from(format!(
-                        "{} ({} = {} in {})",
+                        "{} ({} = {:?} in {})",
                         sp.display(),
-                        ed.path,
+                        crate::clip(&ed.path),
                         ed.value,
                         self.path.display()
                     )),
+                    // A value the study's own `set` put there is named with the study, as a
+                    // comparison case's scene is.
+                    None if !self.spec.study.set.is_empty()
+                        || !self.spec.study.remove.is_empty() =>
+                    {
+                        PathBuf::from(format!(
+                            "{} (edited by {})",
+                            sp.display(),
+                            self.path.display()
+                        ))
+                    }
                     None => sp.clone(),
                 };
                 let spec = SceneSpec::parse(&text, &named)?;

@@ -1234,14 +1234,20 @@ pub fn resume(
 fn resumable(model: &Model, state: &HybridState) -> Result<AssemblyReport> {
     let mut sys = Mechanism::new(model);
     sys.load_memory(state)?;
-    let t1 = model.settings.end_time;
-    if !state.t.is_finite() || state.t >= t1 || !state.y.iter().all(|v| v.is_finite()) {
+    let (t0, t1) = (model.settings.start_time, model.settings.end_time);
+    // A state before the start time is not one of this scene's runs, and continuing from far
+    // before it (t = -1e300) would pass the scene's bound on the steps of a run and never end.
+    if !state.t.is_finite()
+        || state.t < t0
+        || state.t >= t1
+        || !state.y.iter().all(|v| v.is_finite())
+    {
         return Err(jointplay_solver::Error::Invalid {
             file: model.file.clone(),
             field: "state".into(),
             message: format!(
-                "cannot continue from the state at t = {} s: it must be finite and before the \
-                 scene's end time {t1} s",
+                "cannot continue from the state at t = {} s: it must be finite, not before the \
+                 scene's start time {t0} s and before its end time {t1} s",
                 state.t
             ),
         }

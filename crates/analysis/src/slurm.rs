@@ -67,6 +67,14 @@ impl Batch {
         if self.cpus_per_task == 0 {
             return Err("--cpus-per-task: give at least 1".into());
         }
+        // Each task's threads are its CPUs: a million would stall the node.
+        if self.cpus_per_task > crate::max_threads() {
+            return Err(format!(
+                "--cpus-per-task {}: more than the {} threads allowed",
+                self.cpus_per_task,
+                crate::max_threads()
+            ));
+        }
         if self.max_running == Some(0) {
             return Err("--max-running: give at least 1".into());
         }
@@ -329,10 +337,11 @@ mod tests {
     #[test]
     fn bad_settings_name_the_option() {
         type Edit = fn(&mut Batch);
-        let cases: [(Edit, &str); 5] = [
+        let cases: [(Edit, &str); 6] = [
             (|b| b.shards = 0, "--shards"),
             (|b| b.shards = 602, "at most 601"),
             (|b| b.cpus_per_task = 0, "--cpus-per-task"),
+            (|b| b.cpus_per_task = 1_000_000, "--cpus-per-task 1000000"),
             (|b| b.max_running = Some(0), "--max-running"),
             (|b| b.time = Some("1 day".into()), "--time '1 day'"),
         ];

@@ -350,6 +350,9 @@ impl Study {
                 path.display()
             ));
             let scene_spec = SceneSpec::parse(&edited, &named)?;
+            // The report reads these from every case's file: a name no case records would be
+            // found only once the whole study had run.
+            check_recorded(path, &spec.report, &c.label, &scene_spec)?;
             cases.push(Case {
                 label: c.label.clone(),
                 scene: SceneFile {
@@ -366,6 +369,62 @@ impl Study {
             cases,
         })
     }
+}
+
+/// Refuses a `report.joints` entry or `report.body` that the scene of case `label` does not
+/// declare or does not record (its `output.joints` / `output.bodies` leave it out).
+fn check_recorded(path: &Path, report: &ReportSpec, label: &str, scene: &SceneSpec) -> Result<()> {
+    for (i, j) in report.joints.iter().enumerate() {
+        let declared = scene.joints.iter().any(|x| x.name == *j);
+        let recorded = scene
+            .output
+            .joints
+            .as_ref()
+            .is_none_or(|o| o.iter().any(|x| x == j));
+        if !declared || !recorded {
+            return Err(invalid(
+                path,
+                format!("report.joints[{i}]"),
+                if declared {
+                    format!(
+                        "'{}': case '{label}' does not record it (its output.joints leaves it out)",
+                        crate::clip(j)
+                    )
+                } else {
+                    format!(
+                        "'{}': case '{label}' has no joint of that name",
+                        crate::clip(j)
+                    )
+                },
+            ));
+        }
+    }
+    if let Some(b) = &report.body {
+        let declared = scene.bodies.iter().any(|x| x.name == *b);
+        let recorded = scene
+            .output
+            .bodies
+            .as_ref()
+            .is_none_or(|o| o.iter().any(|x| x == b));
+        if !declared || !recorded {
+            return Err(invalid(
+                path,
+                "report.body",
+                if declared {
+                    format!(
+                        "'{}': case '{label}' does not record it (its output.bodies leaves it out)",
+                        crate::clip(b)
+                    )
+                } else {
+                    format!(
+                        "'{}': case '{label}' has no body of that name",
+                        crate::clip(b)
+                    )
+                },
+            ));
+        }
+    }
+    Ok(())
 }
 
 /// One finished case.

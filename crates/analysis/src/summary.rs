@@ -106,7 +106,7 @@ impl Summary {
     /// constraints) and summarises it; `file` is the scene file as the user named it.
     pub fn new(file: &Path, model: &Model, state: &mut State) -> Result<Summary> {
         let assembly = model.assemble(state)?;
-        let structure = model.structure(state.t, &state.y);
+        let structure = model.structure(state.t, &state.y)?;
         let s = &model.settings;
         let o = &model.outputs;
         Ok(Summary {

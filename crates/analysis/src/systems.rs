@@ -310,13 +310,16 @@ impl SystemSpec {
             }
             step
         } else {
-            if !(solver.rtol > 0.0 && solver.atol > 0.0) {
-                return Err((
-                    "solver.rtol".to_string(),
-                    "tolerances must be positive".to_string(),
-                ));
+            // An infinite tolerance was taken: every step accepted, whatever its error.
+            for (field, v) in [("solver.rtol", solver.rtol), ("solver.atol", solver.atol)] {
+                if !(v > 0.0 && v.is_finite()) {
+                    return Err((
+                        field.to_string(),
+                        format!("{v}: tolerances must be positive and finite"),
+                    ));
+                }
             }
-            if max_step <= 0.0 {
+            if max_step <= 0.0 || max_step.is_nan() {
                 return Err((
                     "solver.max_step".to_string(),
                     "must be positive".to_string(),

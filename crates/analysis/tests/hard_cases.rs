@@ -588,7 +588,7 @@ fn redundant_constraints_of_the_ideal_4ups_rpu() {
     let f = parsed("4ups-rpu.toml", &text);
     let (m, mut s) = Model::compile(&f).unwrap();
     m.assemble(&mut s).unwrap();
-    let st = m.structure(s.t, &s.y);
+    let st = m.structure(s.t, &s.y).unwrap();
     assert!(
         st.redundant_joint_rows + st.redundant_drives > 0,
         "the case needs redundancy: {st:?}"

@@ -38,7 +38,9 @@ use jointplay_solver::scene::{SceneFile, SceneSpec};
 use numpy::PyArray;
 use numpy::ndarray::{ArrayD, ArrayView1, ArrayView2, IxDyn};
 use pyo3::create_exception;
-use pyo3::exceptions::{PyException, PyKeyError, PyKeyboardInterrupt, PyRuntimeError, PyTypeError};
+use pyo3::exceptions::{
+    PyException, PyKeyError, PyKeyboardInterrupt, PyRuntimeError, PyTypeError, PyValueError,
+};
 use pyo3::prelude::*;
 use pyo3::types::{PyBool, PyDict, PyFloat, PyInt, PyList, PyString};
 use toml::{Table, Value};
@@ -61,7 +63,11 @@ create_exception!(
 );
 
 fn err(e: impl std::fmt::Display) -> PyErr {
-    JointplayError::new_err(e.to_string())
+    // A huge value in a file or an edit is echoed at most in part.
+    JointplayError::new_err(
+        jointplay_analysis::clip_lines(&e.to_string(), jointplay_analysis::MESSAGE_LIMIT)
+            .into_owned(),
+    )
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -217,9 +223,13 @@ fn interrupted(py: Python<'_>, signal: PyErr, message: &str, partial: Py<PyAny>)
 }
 
 fn pool(threads: Option<usize>) -> PyResult<Option<rayon::ThreadPool>> {
+    let max = jointplay_analysis::max_threads();
     match threads {
         None => Ok(None),
         Some(0) => Err(err("threads: must be at least 1")),
+        Some(n) if n > max => Err(PyValueError::new_err(format!(
+            "threads: {n} is more than the {max} allowed (1024, or 64 per core on a larger machine)"
+        ))),
         Some(n) => rayon::ThreadPoolBuilder::new()
             .num_threads(n)
             .build()
@@ -238,8 +248,17 @@ fn pool(threads: Option<usize>) -> PyResult<Option<rayon::ThreadPool>> {
 /// scene format at once, and a bad path or value raises ``JointplayError`` naming the path.
 /// ``del scene[path]`` removes a key as a study's ``remove`` does (removing a joint's
 /// ``clearance`` makes it ideal).
-#[pyclass(module = "jointplay")]
+///
+/// A scene may be used from several threads and from a progress callback while it runs: it is
+/// a frozen class whose tree is behind a lock held only for the moment of a read or an edit
+/// (never while Python code or a simulation runs), so no call meets pyo3's "Already borrowed".
+#[pyclass(module = "jointplay", frozen)]
 struct Scene {
+    data: Mutex<SceneData>,
+}
+
+#[derive(Clone)]
+struct SceneData {
     /// The file the scene was read from (or the path that names it); names it in messages.
     path: PathBuf,
     /// The text as read, and whether the tree was edited since.
@@ -255,13 +274,23 @@ impl Scene {
             err(format!("{}: {}", path.display(), e.to_string().trim_end()))
         })?;
         Ok(Scene {
-            path,
-            text,
-            edited: false,
-            tree,
+            data: Mutex::new(SceneData {
+                path,
+                text,
+                edited: false,
+                tree,
+            }),
         })
     }
 
+    /// The scene's data; a lock poisoned by a panic elsewhere still holds a valid tree (every
+    /// edit is applied to a copy and swapped in whole).
+    fn data(&self) -> std::sync::MutexGuard<'_, SceneData> {
+        self.data.lock().unwrap_or_else(|e| e.into_inner())
+    }
+}
+
+impl SceneData {
     fn current_text(&self) -> PyResult<String> {
         if self.edited {
             toml::to_string(&self.tree).map_err(|e| err(format!("{}: {e}", self.path.display())))
@@ -308,8 +337,9 @@ impl Scene {
     /// The value at a study path (a list for a path with ``*``); ``KeyError`` naming the path
     /// when nothing is there (a field left at its default is not in the scene).
     fn __getitem__<'py>(&self, py: Python<'py>, path: &str) -> PyResult<Bound<'py, PyAny>> {
-        let found = lookup(&self.tree, path)
-            .map_err(|m| PyKeyError::new_err(format!("{path}: {m} in {}", self.path.display())))?;
+        let d = self.data();
+        let found = lookup(&d.tree, path)
+            .map_err(|m| PyKeyError::new_err(format!("{path}: {m} in {}", d.path.display())))?;
         if path.split('.').any(|s| s == "*") {
             let items = found
                 .iter()
@@ -321,61 +351,60 @@ impl Scene {
         }
     }
 
-    fn __setitem__(&mut self, path: &str, value: &Bound<'_, PyAny>) -> PyResult<()> {
+    fn __setitem__(&self, path: &str, value: &Bound<'_, PyAny>) -> PyResult<()> {
+        // The value is converted (which may run Python code) before the scene is locked.
         let v = from_py(value, path)?;
-        self.apply(path, Some(&v))
+        self.data().apply(path, Some(&v))
     }
 
-    fn __delitem__(&mut self, path: &str) -> PyResult<()> {
-        self.apply(path, None)
+    fn __delitem__(&self, path: &str) -> PyResult<()> {
+        self.data().apply(path, None)
     }
 
     fn __contains__(&self, path: &str) -> bool {
-        lookup(&self.tree, path).is_ok()
+        lookup(&self.data().tree, path).is_ok()
     }
 
     /// The scene's name (its ``name`` field, or the file stem): names its output file.
     #[getter]
     fn name(&self) -> PyResult<String> {
-        Ok(self.file()?.name())
+        Ok(self.data().file()?.name())
     }
 
     /// The file the scene was read from, or the path given to ``from_toml``.
     #[getter]
     fn path(&self) -> String {
-        self.path.display().to_string()
+        self.data().path.display().to_string()
     }
 
     /// The scene as TOML text: the file as read until it is edited, the edited tree after.
     fn to_toml(&self) -> PyResult<String> {
-        self.current_text()
+        self.data().current_text()
     }
 
     /// The scene as a dict (a copy: edit the scene by path).
     fn to_dict<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        table_to_py(py, &self.tree)
+        let tree = self.data().tree.clone();
+        table_to_py(py, &tree)
     }
 
     fn copy(&self) -> Scene {
         Scene {
-            path: self.path.clone(),
-            text: self.text.clone(),
-            edited: self.edited,
-            tree: self.tree.clone(),
+            data: Mutex::new(self.data().clone()),
         }
     }
 
     fn __repr__(&self) -> String {
-        format!("<jointplay.Scene {}>", self.path.display())
+        format!("<jointplay.Scene {}>", self.data().path.display())
     }
 
     /// Compiles the scene and assembles its initial state: what ``jointplay check`` prints, as a
     /// dict (degrees of freedom, ranks and redundancy, effects, solver, span in s, outputs,
     /// warnings; ``lines`` holds the printed text).
     fn check<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let file = self.file()?;
+        let file = self.data().file()?;
         let (model, mut state) = Model::compile(&file).map_err(err)?;
-        let s = Summary::new(&self.path, &model, &mut state).map_err(err)?;
+        let s = Summary::new(&file.path, &model, &mut state).map_err(err)?;
         let d = PyDict::new(py);
         d.set_item("name", &s.name)?;
         d.set_item("file", s.file.display().to_string())?;
@@ -475,7 +504,9 @@ impl Scene {
     /// ``jointplay.Interrupted`` whose ``partial`` is the run up to the interruption.
     #[pyo3(signature = (progress = true))]
     fn run(&self, py: Python<'_>, progress: bool) -> PyResult<Run> {
-        let file = self.file()?;
+        // The scene as it is now; it stays free for other calls (from the progress callback or
+        // other threads) while it runs.
+        let file = self.data().file()?;
         let (model, state) = Model::compile(&file).map_err(err)?;
         let shown = Mutex::new(Shown::default());
         let (res, signal) = drive(
@@ -497,7 +528,7 @@ impl Scene {
                 )
             },
         )?;
-        let result = res.map_err(|e| err(format!("simulating {}: {e}", self.path.display())))?;
+        let result = res.map_err(|e| err(format!("simulating {}: {e}", file.path.display())))?;
         let run = Run {
             model,
             path: file.path,
@@ -515,7 +546,7 @@ impl Scene {
                     .unwrap_or(f64::NAN);
                 let message = format!(
                     "{}: interrupted at t = {t} s; the run up to then is in the exception's `partial`",
-                    self.path.display()
+                    run.path.display()
                 );
                 let partial = Py::new(py, run)?.into_any();
                 Err(interrupted(py, s, &message, partial))
@@ -1183,6 +1214,8 @@ fn run_study(
     plots: bool,
     precision: bool,
 ) -> PyResult<StudyResult> {
+    // The arguments first: a bad thread count is refused whatever the source.
+    let pool = pool(threads)?;
     let as_text = source.to_string_lossy().to_string();
     let (path, kind, text) = if source.is_file() {
         let (kind, text) = Input::read(&source).map_err(err)?;
@@ -1217,7 +1250,6 @@ fn run_study(
             path.display()
         )));
     }
-    let pool = pool(threads)?;
     let tally = Mutex::new(Tally::default());
     let shown = Mutex::new(Shown::default());
     let report = |p: Progress| {

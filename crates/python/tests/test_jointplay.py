@@ -6,6 +6,7 @@ import pathlib
 import signal
 import sys
 import threading
+import time
 
 import numpy as np
 import pytest
@@ -343,3 +344,40 @@ def test_a_continuation_from_python_stops_and_resumes_to_the_programs_branches(p
     for name in ["continuation/branch_0/parameter", "continuation/branch_0/state",
                  "continuation/branch_1/state", "continuation/special/parameter"]:
         assert np.array_equal(a[name].view(np.uint64), b[name].view(np.uint64)), name
+
+
+def test_a_huge_thread_count_is_a_value_error_naming_the_argument(tmp_path):
+    # threads=10**6 started threads until the machine stalled.
+    with pytest.raises(ValueError, match="threads: 1000000 is more than"):
+        jointplay.run_study(SWEEP, out=tmp_path, threads=10**6, progress=False)
+    with pytest.raises(ValueError, match="threads: 1000000 is more than"):
+        jointplay.run_study(tmp_path / "missing.toml", threads=10**6, progress=False)
+
+
+def test_a_scene_is_used_from_another_thread_while_it_runs():
+    # The run held a borrow of the scene while it ran with the GIL released: an edit from
+    # another thread (or from a progress callback) raised "RuntimeError: Already borrowed".
+    scene = jointplay.load_scene(SCENES / "pendulum.toml")
+    scene["solver.end_time"] = 300.0
+    scene["output.interval"] = 1.0
+    errors = []
+
+    def use():
+        for k in range(40):
+            try:
+                scene["bodies.bob.mass"] = 1.0 + k
+                scene.check()
+                scene.to_toml()
+                del scene["output.interval"]
+                scene["output.interval"] = 1.0
+            except Exception as e:  # noqa: BLE001 - every failure is the finding
+                errors.append(e)
+            time.sleep(0.005)
+
+    t = threading.Thread(target=use)
+    t.start()
+    run = scene.run(progress=False)
+    t.join()
+    assert errors == []
+    assert run.complete
+    assert scene["bodies.bob.mass"] == 40.0

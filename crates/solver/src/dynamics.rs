@@ -913,7 +913,9 @@ impl Model {
         }
         let res = max_abs(&ws.phi);
         report.final_residual = res;
-        if res.is_nan() || res >= 1e-9 {
+        // A position so far off that the corrections overflowed leaves NaN in the state: refused
+        // here, before anything (the rank analysis, a run) works on it.
+        if !res.is_finite() || res >= 1e-9 || state.y[..np].iter().any(|v| !v.is_finite()) {
             let worst = ws
                 .phi
                 .iter()
@@ -952,6 +954,15 @@ impl Model {
         self.kinematics(&state.y, &mut ws);
         self.constraints(t, &mut ws);
         report.final_velocity_residual = max_abs(&ws.phi_dot);
+        if state.y.iter().any(|v| !v.is_finite()) {
+            return Err(Error::Assembly {
+                file: self.file.clone(),
+                time: t,
+                message: "the velocities projected onto the constraints are not finite; check \
+                          the initial velocities and the masses"
+                    .into(),
+            });
+        }
         Ok(report)
     }
 
@@ -990,21 +1001,42 @@ impl Model {
         g
     }
 
-    /// Rank and redundancy analysis of the constraint Jacobian at (t, y).
-    pub fn structure(&self, t: f64, y: &[f64]) -> Structure {
+    /// Rank and redundancy analysis of the constraint Jacobian at (t, y). Refused (naming the
+    /// file) when the Jacobian is not finite or its singular values do not converge: nalgebra's
+    /// SVD iterates without end on a NaN.
+    pub fn structure(&self, t: f64, y: &[f64]) -> Result<Structure> {
         let g = self.jacobian(t, y);
-        let rank_of = |m: DMatrix<f64>| -> usize {
+        let fail = |message: &str| Error::Assembly {
+            file: self.file.clone(),
+            time: t,
+            message: format!("rank analysis of the constraint Jacobian: {message}"),
+        };
+        let rank_of = |m: DMatrix<f64>| -> Result<usize> {
             if m.nrows() == 0 || m.ncols() == 0 {
-                return 0;
+                return Ok(0);
             }
-            let sv = m.singular_values();
+            if m.iter().any(|v| !v.is_finite()) {
+                return Err(fail(
+                    "it is not finite (a coordinate or a length of the scene too large?)",
+                ));
+            }
+            // The rank is that of the matrix scaled to entries of at most 1, whose squares
+            // cannot overflow.
+            let scale = m.amax();
+            if scale == 0.0 {
+                return Ok(0);
+            }
+            let sv = (m / scale)
+                .try_svd_unordered(false, false, f64::EPSILON, 10_000)
+                .ok_or_else(|| fail("its singular values did not converge"))?
+                .singular_values;
             let smax = sv.iter().cloned().fold(0.0, f64::max);
-            sv.iter().filter(|s| **s > 1e-9 * smax.max(1e-300)).count()
+            Ok(sv.iter().filter(|s| **s > 1e-9 * smax.max(1e-300)).count())
         };
         let n_coords = 6 * self.nb();
-        let joint_rank = rank_of(g.rows(0, self.joint_rows).into_owned());
-        let rank = rank_of(g);
-        Structure {
+        let joint_rank = rank_of(g.rows(0, self.joint_rows).into_owned())?;
+        let rank = rank_of(g)?;
+        Ok(Structure {
             n_coords,
             joint_rows: self.joint_rows,
             drive_rows: self.n_rows - self.joint_rows,
@@ -1014,7 +1046,7 @@ impl Model {
             redundant_joint_rows: self.joint_rows - joint_rank,
             redundant_drives: (self.n_rows - self.joint_rows) - (rank - joint_rank),
             remaining_dof: n_coords - rank,
-        }
+        })
     }
 
     /// Constraint drift |Phi| (2-norm over rows, m and rad) and velocity drift |Phi'| at (t, y).
@@ -1140,8 +1172,15 @@ pub struct AssemblyReport {
     pub final_velocity_residual: f64,
 }
 
+/// The largest magnitude in `v`; NaN when any entry is NaN (`f64::max` would skip it, and a
+/// residual that became NaN would pass for a small one).
 fn max_abs(v: &[f64]) -> f64 {
-    v.iter().fold(0.0, |m, x| m.max(x.abs()))
+    v.iter().fold(
+        0.0,
+        |m: f64, x| {
+            if x.is_nan() { f64::NAN } else { m.max(x.abs()) }
+        },
+    )
 }
 
 /// G_i . G_j over the bodies the two rows share.

@@ -40,3 +40,77 @@ pub enum Error {
 
 /// Result alias of the solver crate.
 pub type Result<T, E = Error> = std::result::Result<T, E>;
+
+/// The most characters of input (a name, a value, a line of the file) an error message echoes.
+pub const ECHO_LIMIT: usize = 200;
+
+/// The longest line of a message the program prints before [`clip_lines`] cuts it.
+pub const MESSAGE_LIMIT: usize = 10 * ECHO_LIMIT;
+
+/// `text` as an error message echoes it: at most [`ECHO_LIMIT`] characters, then
+/// "... (N more characters)", so that a huge value in a file does not flood the message.
+pub fn clip(text: &str) -> std::borrow::Cow<'_, str> {
+    match text.char_indices().nth(ECHO_LIMIT) {
+        None => text.into(),
+        Some((cut, _)) => {
+            let more = text[cut..].chars().count();
+            format!("{}... ({more} more characters)", &text[..cut]).into()
+        }
+    }
+}
+
+/// Every line of a message longer than `longest` characters clipped: such a line holds echoed
+/// input (the parser's copy of the offending line, a value quoted in full). It keeps its first
+/// and last [`ECHO_LIMIT`] characters around "... (N more characters) ...", so that what the
+/// program says after the echo (the file a path ends with, "expected f64") survives. The parser's
+/// messages are clipped at three times [`ECHO_LIMIT`], where they are made; the program's and
+/// the Python module's messages at [`MESSAGE_LIMIT`], a net for any other echo.
+pub fn clip_lines(message: &str, longest: usize) -> std::borrow::Cow<'_, str> {
+    let longest = longest.max(2 * ECHO_LIMIT);
+    let long = |l: &str| l.chars().count() > longest;
+    if !message.split('\n').any(long) {
+        return message.into();
+    }
+    let lines: Vec<String> = message
+        .split('\n')
+        .map(|l| {
+            if !long(l) {
+                return l.to_string();
+            }
+            let chars: Vec<char> = l.chars().collect();
+            let head: String = chars[..ECHO_LIMIT].iter().collect();
+            let tail: String = chars[chars.len() - ECHO_LIMIT..].iter().collect();
+            let more = chars.len() - 2 * ECHO_LIMIT;
+            format!("{head}... ({more} more characters) ...{tail}")
+        })
+        .collect();
+    lines.join("\n").into()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Error messages echoed up to 10 MB of input (a huge string in a TOML field).
+    #[test]
+    fn error_messages_echo_at_most_200_characters_of_input() {
+        let huge = "x".repeat(10_000_000);
+        let clipped = clip(&huge);
+        assert_eq!(
+            clipped,
+            format!("{}... (9999800 more characters)", "x".repeat(200))
+        );
+        assert_eq!(clip("short"), "short");
+        let message = format!("head\n1 | name = \"{huge}\"\ntail");
+        let clipped = clip_lines(&message, 3 * ECHO_LIMIT);
+        assert_eq!(clipped.lines().count(), 3);
+        assert!(clipped.len() < 500, "{clipped}");
+        assert!(
+            clipped.contains("... (9999613 more characters) ..."),
+            "{clipped}"
+        );
+        assert!(clipped.contains("xx\"\ntail"), "{clipped}");
+        let own = "y".repeat(500);
+        assert_eq!(clip_lines(&own, 3 * ECHO_LIMIT), own);
+    }
+}

@@ -21,6 +21,66 @@ use serde::{Deserialize, Serialize};
 use crate::error::{Error, Result};
 use crate::ode::{Integrator, Method};
 
+/// Fixed-length vectors of the scene format (`[x, y, z]`, a quaternion). TOML's deserializer
+/// hands an array's elements to serde's `[f64; N]` one by one and leaves those after the Nth
+/// unread, so `gravity = [0, -9.81, 0, 5]` was taken as its first three components. These read
+/// the whole array and refuse any other length (the field path is added by the caller).
+pub mod fixed {
+    use std::collections::BTreeMap;
+
+    use serde::de::{Deserialize, Deserializer, Error, SeqAccess, Visitor};
+
+    /// An array of exactly N numbers.
+    struct Exact<const N: usize>([f64; N]);
+
+    impl<'de, const N: usize> Deserialize<'de> for Exact<N> {
+        fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+            struct Numbers<const N: usize>;
+            impl<'de, const N: usize> Visitor<'de> for Numbers<N> {
+                type Value = Exact<N>;
+                fn expecting(&self, f: &mut std::fmt::Formatter) -> std::fmt::Result {
+                    write!(f, "an array of {N} numbers")
+                }
+                fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<Exact<N>, A::Error> {
+                    let mut out = [0.0; N];
+                    let mut n = 0;
+                    while let Some(x) = seq.next_element::<f64>()? {
+                        if let Some(slot) = out.get_mut(n) {
+                            *slot = x;
+                        }
+                        n += 1;
+                    }
+                    if n != N {
+                        return Err(A::Error::invalid_length(n, &self));
+                    }
+                    Ok(Exact(out))
+                }
+            }
+            d.deserialize_seq(Numbers::<N>)
+        }
+    }
+
+    /// `[f64; N]`, refusing an array of another length.
+    pub fn array<'de, D: Deserializer<'de>, const N: usize>(d: D) -> Result<[f64; N], D::Error> {
+        Exact::<N>::deserialize(d).map(|e| e.0)
+    }
+
+    /// `Option<[f64; N]>`, refusing an array of another length.
+    pub fn option<'de, D: Deserializer<'de>, const N: usize>(
+        d: D,
+    ) -> Result<Option<[f64; N]>, D::Error> {
+        Option::<Exact<N>>::deserialize(d).map(|o| o.map(|e| e.0))
+    }
+
+    /// Named `[f64; N]`s, refusing an array of another length.
+    pub fn map<'de, D: Deserializer<'de>, const N: usize>(
+        d: D,
+    ) -> Result<BTreeMap<String, [f64; N]>, D::Error> {
+        let m = BTreeMap::<String, Exact<N>>::deserialize(d)?;
+        Ok(m.into_iter().map(|(k, v)| (k, v.0)).collect())
+    }
+}
+
 /// A whole scene file.
 #[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
@@ -32,7 +92,7 @@ pub struct SceneSpec {
     #[serde(default)]
     pub description: Option<String>,
     /// Gravitational acceleration vector (m/s^2, global). Absent: no gravity.
-    #[serde(default)]
+    #[serde(default, deserialize_with = "fixed::option")]
     pub gravity: Option<[f64; 3]>,
     /// The fixed frame: named points and axes in global coordinates.
     #[serde(default)]
@@ -61,9 +121,9 @@ pub struct SceneSpec {
 #[derive(Debug, Clone, Default, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct GroundSpec {
-    #[serde(default)]
+    #[serde(default, deserialize_with = "fixed::map")]
     pub points: BTreeMap<String, [f64; 3]>,
-    #[serde(default)]
+    #[serde(default, deserialize_with = "fixed::map")]
     pub axes: BTreeMap<String, [f64; 3]>,
 }
 
@@ -77,25 +137,25 @@ pub struct BodySpec {
     /// Inertia tensor about the centre of mass, body axes (kg m^2).
     pub inertia: InertiaSpec,
     /// Centre of mass in the body frame (m).
-    #[serde(default)]
+    #[serde(default, deserialize_with = "fixed::array")]
     pub com: [f64; 3],
     /// Initial global position of the body-frame origin (m).
-    #[serde(default)]
+    #[serde(default, deserialize_with = "fixed::array")]
     pub position: [f64; 3],
     /// Initial orientation (body to global).
     #[serde(default)]
     pub orientation: OrientationSpec,
     /// Initial velocity of the centre of mass (m/s, global).
-    #[serde(default)]
+    #[serde(default, deserialize_with = "fixed::array")]
     pub velocity: [f64; 3],
     /// Initial angular velocity (rad/s, global).
-    #[serde(default)]
+    #[serde(default, deserialize_with = "fixed::array")]
     pub angular_velocity: [f64; 3],
     /// Named points in the body frame (m).
-    #[serde(default)]
+    #[serde(default, deserialize_with = "fixed::map")]
     pub points: BTreeMap<String, [f64; 3]>,
     /// Named directions in the body frame (need not be unit length).
-    #[serde(default)]
+    #[serde(default, deserialize_with = "fixed::map")]
     pub axes: BTreeMap<String, [f64; 3]>,
 }
 
@@ -119,16 +179,16 @@ pub struct InertiaSpec {
 #[derive(Debug, Clone, Default, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct OrientationSpec {
-    #[serde(default)]
+    #[serde(default, deserialize_with = "fixed::option")]
     pub axis: Option<[f64; 3]>,
     /// Rotation angle about `axis` (rad).
     #[serde(default)]
     pub angle: Option<f64>,
-    #[serde(default)]
+    #[serde(default, deserialize_with = "fixed::option")]
     pub quaternion: Option<[f64; 4]>,
-    #[serde(default)]
+    #[serde(default, deserialize_with = "fixed::option")]
     pub x: Option<[f64; 3]>,
-    #[serde(default)]
+    #[serde(default, deserialize_with = "fixed::option")]
     pub y: Option<[f64; 3]>,
 }
 
@@ -140,6 +200,7 @@ pub struct OrientationSpec {
 )]
 pub enum VecRef {
     Name(String),
+    #[serde(deserialize_with = "fixed::array")]
     Coords([f64; 3]),
 }
 
@@ -314,9 +375,13 @@ pub enum ProfileSpec {
     /// p(t) = center + cos_amplitude cos(omega t) + sin_amplitude sin(omega t), plus `offset`:
     /// the inverse kinematics of a parallel mechanism whose platform translates on an ellipse.
     LegLength {
+        #[serde(deserialize_with = "fixed::array")]
         anchor: [f64; 3],
+        #[serde(deserialize_with = "fixed::array")]
         center: [f64; 3],
+        #[serde(deserialize_with = "fixed::array")]
         cos_amplitude: [f64; 3],
+        #[serde(deserialize_with = "fixed::array")]
         sin_amplitude: [f64; 3],
         omega: f64,
         #[serde(default)]
@@ -366,10 +431,10 @@ pub struct LoadSpec {
     #[serde(default)]
     pub point: Option<VecRef>,
     /// N.
-    #[serde(default)]
+    #[serde(default, deserialize_with = "fixed::array")]
     pub force: [f64; 3],
     /// N m.
-    #[serde(default)]
+    #[serde(default, deserialize_with = "fixed::array")]
     pub torque: [f64; 3],
     #[serde(default)]
     pub frame: LoadFrame,
@@ -642,7 +707,9 @@ pub struct SceneFile {
 pub fn parse_toml<T: serde::de::DeserializeOwned>(text: &str, file: &Path) -> Result<T> {
     let err = |message: String| Error::Parse {
         file: file.to_path_buf(),
-        message: message.trim_end().to_string(),
+        // The parser quotes the offending line and value in full.
+        message: crate::error::clip_lines(message.trim_end(), 3 * crate::error::ECHO_LIMIT)
+            .into_owned(),
     };
     let de = toml::Deserializer::parse(text).map_err(|e| err(e.to_string()))?;
     serde_path_to_error::deserialize(de).map_err(|e| {
@@ -659,6 +726,8 @@ pub fn parse_toml<T: serde::de::DeserializeOwned>(text: &str, file: &Path) -> Re
                 format!("{path}.{field}")
             };
         }
+        // A key of the file (an unknown field) is echoed input too.
+        let path = crate::error::clip(&path);
         let inner = e.into_inner().to_string();
         if path.is_empty() || path == "." {
             err(inner)
@@ -870,6 +939,25 @@ clearance = {{ ball_radius = 0.01, radial_clearance = 1e-4, normal = {normal} }}
                 std::ptr::eq(sv.integrator.0, integrator),
                 "{}",
                 integrator.name
+            );
+        }
+    }
+
+    /// The parser's messages echoed a 10 MB value, and a 10 MB key, in full.
+    #[test]
+    fn a_huge_value_or_key_is_echoed_clipped() {
+        let huge = "x".repeat(10_000_000);
+        for text in [
+            format!("name = 1\ndescription = \"{huge}\"\ngravity = \"{huge}\""),
+            format!("{huge} = 1"),
+        ] {
+            let err = SceneSpec::parse(&text, Path::new("huge.toml"))
+                .unwrap_err()
+                .to_string();
+            assert!(err.len() < 2000, "{} characters", err.len());
+            assert!(
+                err.starts_with("huge.toml: ") && err.contains("more characters)"),
+                "{err}"
             );
         }
     }

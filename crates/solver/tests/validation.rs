@@ -260,7 +260,7 @@ fn slider_crank_follows_closed_form_kinematics() {
 #[test]
 fn slider_crank_has_three_redundant_rows_and_one_dof() {
     let (model, state) = scene("slider-crank.toml");
-    let s = model.structure(state.t, &state.y);
+    let s = model.structure(state.t, &state.y).unwrap();
     assert_eq!(s.dof, 1);
     assert_eq!(s.redundant_joint_rows, 3);
     assert_eq!(s.redundant_drives, 0);
@@ -270,7 +270,7 @@ fn slider_crank_has_three_redundant_rows_and_one_dof() {
 #[test]
 fn ideal_4ups_rpu_has_four_dof_and_one_redundant_drive() {
     let (model, state) = scene("4ups-rpu.toml");
-    let s = model.structure(state.t, &state.y);
+    let s = model.structure(state.t, &state.y).unwrap();
     assert_eq!(s.n_coords, 66);
     assert_eq!(s.joint_rows, 62);
     assert_eq!(s.dof, 4);

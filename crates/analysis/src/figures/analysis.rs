@@ -183,21 +183,44 @@ fn read(path: &Path) -> Result<Data> {
             .dataset("done")
             .and_then(|d| d.read_raw::<u8>())
             .map_err(&e)?;
+        // Every per-value dataset has a row per value of /sweep/parameter: a damaged or edited
+        // file is refused, naming the dataset, rather than indexed out of its bounds.
+        let rows = |name: &str, n: usize| {
+            if n == params.len() {
+                Ok(())
+            } else {
+                Err(Error::Io {
+                    file: path.to_path_buf(),
+                    message: format!(
+                        "/sweep/{name} has {n} rows but /sweep/parameter has {}: not a sweep file \
+                         jointplay wrote (damaged or edited)",
+                        params.len()
+                    ),
+                })
+            }
+        };
+        rows("direction", dirs.len())?;
+        rows("done", done.len())?;
         let mut strobe = BTreeMap::new();
         let mut hist = BTreeMap::new();
         for o in &spec.observables {
             let ds = g.dataset(&o.name).map_err(&e)?;
             units.insert(o.name.clone(), read_str(&ds, "unit").unwrap_or_default());
-            strobe.insert(o.name.clone(), read_rows(&g, &o.name).map_err(&e)?);
+            let r = read_rows(&g, &o.name).map_err(&e)?;
+            rows(&o.name, r.len())?;
+            strobe.insert(o.name.clone(), r);
         }
         let hg = g.group("history").ok();
         let htime = match &hg {
             Some(h) => {
                 for o in &spec.observables {
-                    let rows = read_tail_rows(h, &o.name, &done).map_err(&e)?;
-                    hist.insert(o.name.clone(), rows);
+                    let r = read_tail_rows(h, &o.name, &done).map_err(&e)?;
+                    rows(&format!("history/{}", o.name), r.len())?;
+                    hist.insert(o.name.clone(), r);
                 }
-                read_tail_rows(h, "time", &done).map_err(&e)?
+                let t = read_tail_rows(h, "time", &done).map_err(&e)?;
+                rows("history/time", t.len())?;
+                t
             }
             None => Vec::new(),
         };
@@ -257,9 +280,10 @@ fn read(path: &Path) -> Result<Data> {
                 col("two_trajectory", 0),
                 col("k", 0),
             );
+            let at = |v: &[f64], j: usize| v.get(j).copied().unwrap_or(f64::NAN);
             for (j, p) in params.iter().enumerate() {
                 if done[j] == 1 {
-                    chaos.push([*p, l1[j], e1[j], two[j], k[j]]);
+                    chaos.push([*p, at(&l1, j), at(&e1, j), at(&two, j), at(&k, j)]);
                 }
             }
         }

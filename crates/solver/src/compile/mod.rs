@@ -4,7 +4,8 @@
 //! validates it and produces its part of the model; a later pass sees only what the earlier ones
 //! produced. In order:
 //!
-//! 1. finite numbers ([`check_finite`]): the raw TOML tree holds no NaN or infinity;
+//! 1. finite numbers ([`check_finite`]): the raw TOML tree holds no NaN, infinity or magnitude
+//!    beyond [`MAX_MAGNITUDE`];
 //! 2. bodies ([`bodies::compile`]): the [`Body`](crate::model::Body) list, the initial state as
 //!    declared, the name index and the frames that resolve named points and axes;
 //! 3. joints ([`joints::compile`]): the [`Joint`](crate::model::Joint) list, the constraint
@@ -160,8 +161,13 @@ pub(crate) fn list<'a>(it: impl Iterator<Item = &'a String>) -> String {
     }
 }
 
-/// Pass 1: parses the scene text as a raw TOML tree and rejects NaN and infinities anywhere in
-/// it, naming the field path.
+/// The largest magnitude of a number in a scene. Far beyond any physical quantity in SI units,
+/// and small enough that squares and products of a few stay finite: a body placed at 1e200 m
+/// made the assembly's corrections overflow to NaN, on which the rank analysis never ended.
+pub(crate) const MAX_MAGNITUDE: f64 = 1e100;
+
+/// Pass 1: parses the scene text as a raw TOML tree and rejects NaN, infinities and magnitudes
+/// beyond [`MAX_MAGNITUDE`] anywhere in it, naming the field path.
 pub(crate) fn check_finite(text: &str, file: &Path, cx: &Ctx) -> Result<()> {
     let raw: toml::Value = toml::from_str(text).map_err(|e| Error::Parse {
         file: file.to_path_buf(),
@@ -175,6 +181,13 @@ fn finite(v: &toml::Value, path: &str, cx: &Ctx) -> Result<()> {
         toml::Value::Float(f) if !f.is_finite() => {
             Err(cx.err(path, format!("must be a finite number, got {f}")))
         }
+        toml::Value::Float(f) if f.abs() > MAX_MAGNITUDE => Err(cx.err(
+            path,
+            format!(
+                "{f:e} is beyond any quantity of a mechanism in SI units (at most 1e100 in \
+                 magnitude: the numerics square lengths, masses and forces)"
+            ),
+        )),
         toml::Value::Array(a) => {
             for (i, x) in a.iter().enumerate() {
                 finite(x, &format!("{path}[{i}]"), cx)?;
