@@ -451,18 +451,22 @@ pub(crate) fn image(file: &hdf5::File) -> hdf5::Result<Vec<u8>> {
     use hdf5_sys::h5f::H5Fget_file_image;
     file.flush()?;
     let id = file.id();
-    // SAFETY: a null buffer asks for the size only; the second call writes at most `len` bytes
-    // into a buffer of that length.
-    let len = unsafe { H5Fget_file_image(id, std::ptr::null_mut(), 0) };
-    if len < 0 {
-        return Err("cannot take the file's image".into());
-    }
-    let mut buf = vec![0u8; len as usize];
-    let got = unsafe { H5Fget_file_image(id, buf.as_mut_ptr().cast(), buf.len()) };
-    if got != len {
-        return Err("cannot take the file's image".into());
-    }
-    Ok(buf)
+    // Under the crate's lock, as every HDF5 call of the `hdf5` crate: the library is not safe to
+    // call from two threads at once.
+    hdf5::sync::sync(|| {
+        // SAFETY: a null buffer asks for the size only; the second call writes at most `len`
+        // bytes into a buffer of that length.
+        let len = unsafe { H5Fget_file_image(id, std::ptr::null_mut(), 0) };
+        if len < 0 {
+            return Err("cannot take the file's image".into());
+        }
+        let mut buf = vec![0u8; len as usize];
+        let got = unsafe { H5Fget_file_image(id, buf.as_mut_ptr().cast(), buf.len()) };
+        if got != len {
+            return Err("cannot take the file's image".into());
+        }
+        Ok(buf)
+    })
 }
 
 impl PartialFile {

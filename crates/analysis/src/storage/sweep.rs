@@ -309,6 +309,21 @@ pub(crate) fn open(
     let _ = std::fs::remove_file(with_suffix(&jp, ".tmp"));
     let mut values: Vec<Option<Value>> = vec![None; n];
     if !resume {
+        // The journal of a run that did not finish holds finished values: never thrown away
+        // unasked.
+        if jp.exists() {
+            let kept = journal::scan(&jp).map(|s| s.records.len()).unwrap_or(0);
+            if kept > 0 {
+                return Err(Error::Io {
+                    file: jp.clone(),
+                    message: format!(
+                        "holds {kept} finished values of an earlier run of this output that did \
+                         not finish: go on with --resume, or remove this file to start afresh \
+                         (its values are then lost)"
+                    ),
+                });
+            }
+        }
         let journal = Journal::create(&jp, &head)?;
         return Ok(Store { journal, values });
     }
