@@ -23,7 +23,7 @@ use ndarray::Array1;
 
 use super::durable::{self, with_suffix};
 use super::journal::{self, Journal};
-use super::rows::{Cells, Kind, Outcome, Row, Section, Value, read_cells, write_cells};
+use super::rows::{Cells, Kind, Outcome, Row, Section, Value, read_cells};
 use crate::h5::{f64_attr_set, h5err, read_attr, read_str, str_attr, u8_attr_set};
 use crate::nonlinear::{JobResult, SweepLayout, create_sweep_file, write_crossings};
 use crate::shards::Shard;
@@ -445,8 +445,9 @@ impl Store {
 }
 
 /// Writes the sweep file `path` of `layout` with `jobs` (parameter value and direction of each
-/// row) and the `values` kept (see the module documentation): under a temporary name, read back
-/// and checked, then moved into place. Returns whether every row is done or failed.
+/// row) and the `values` kept (see the module documentation): built in memory, each dataset
+/// read back and compared with what was written, then written under no name, forced to disk
+/// and moved into place. Returns whether every row is done or failed.
 #[allow(clippy::too_many_arguments)]
 pub(crate) fn write_file(
     path: &Path,
@@ -463,6 +464,7 @@ pub(crate) fn write_file(
     let n = jobs.len();
     let mut done = vec![0u8; n];
     let mut sums = vec![0u32; n];
+    let mut rows: Vec<Option<&Row>> = vec![None; n];
     (|| -> hdf5::Result<()> {
         let g = file.group("sweep")?;
         let errors = g.group("errors")?;
@@ -470,7 +472,6 @@ pub(crate) fn write_file(
             let r = v.row;
             match &v.outcome {
                 Outcome::Done(row) => {
-                    write_cells(&g, r, row)?;
                     if !row.sections.is_empty() {
                         let gj = g.group("sections")?.create_group(&r.to_string())?;
                         for s in &row.sections {
@@ -486,6 +487,7 @@ pub(crate) fn write_file(
                     }
                     sums[r] = row.checksum();
                     done[r] = 1;
+                    rows[r] = Some(row);
                 }
                 Outcome::Failed(m) => {
                     str_attr(&errors, &r.to_string(), m)?;
@@ -493,35 +495,94 @@ pub(crate) fn write_file(
                 }
             }
         }
-        g.dataset("done")?.write(&Array1::from(done.clone()))?;
-        g.dataset("checksum")?.write(&Array1::from(sums.clone()))?;
+        // Dataset by dataset, every row at once: each chunk is compressed once.
+        for (cell, kind, width) in row_names(layout) {
+            write_checked(&g, &cell, kind, width, &rows)?;
+        }
+        write_checked_u8(&g, "done", &done)?;
+        let ds = g.dataset("checksum")?;
+        ds.write(&Array1::from(sums.clone()))?;
+        if ds.read_raw::<u32>()? != sums {
+            return Err("/sweep/checksum does not read back as written".into());
+        }
         let complete = done.iter().all(|&d| d != 0);
         u8_attr_set(&file, "complete", u8::from(complete))?;
         f64_attr_set(&file, "wall_time", wall)?;
         Ok(())
     })()
     .map_err(&e)?;
-    // Read back: every value as it was handed over, or the file is not written.
-    let (back, bad) = read_values(&name, &file, layout, n)?;
-    let expect = values.iter().flatten().count();
-    if let Some(b) = bad.first() {
-        return Err(Error::Write {
-            file: name.clone(),
-            message: format!("the file written does not read back as written: {b}"),
-        });
-    }
-    if back.len() != expect {
-        return Err(Error::Write {
-            file: name.clone(),
-            message: format!(
-                "the file written reads back {} values of the {expect} written",
-                back.len()
-            ),
-        });
-    }
     let complete: u8 = read_attr(&file, "complete").map_err(&e)?;
     let bytes = crate::h5::image(&file).map_err(&e)?;
     file.close().map_err(&e)?;
     durable::write_new(path, &bytes)?;
     Ok(complete == 1)
+}
+
+/// Writes dataset `name` of `g` (a row per value, `width` columns or one value) from the cells
+/// of `rows` (rows without a value: NaN, or 0 for integers, as an unwritten row reads), in one
+/// write, and reads it back: an error when it does not read back bit for bit.
+fn write_checked(
+    g: &hdf5::Group,
+    name: &str,
+    kind: Kind,
+    width: Option<usize>,
+    rows: &[Option<&Row>],
+) -> hdf5::Result<()> {
+    let w = width.unwrap_or(1);
+    if w == 0 {
+        return Ok(());
+    }
+    let n = rows.len();
+    let ds = g.dataset(name)?;
+    let back = |same: bool| -> hdf5::Result<()> {
+        if same {
+            Ok(())
+        } else {
+            Err(format!("/sweep/{name} does not read back as written").into())
+        }
+    };
+    macro_rules! column {
+        ($t:ty, $fill:expr, $variant:ident) => {{
+            let mut v: Vec<$t> = vec![$fill; n * w];
+            for (r, row) in rows.iter().enumerate() {
+                if let Some(Cells::$variant(c)) = row.and_then(|row| row.cell(name)) {
+                    let k = c.len().min(w);
+                    v[r * w..r * w + k].copy_from_slice(&c[..k]);
+                }
+            }
+            match width {
+                Some(w) => ds.write(
+                    &ndarray::Array2::from_shape_vec((n, w), v.clone())
+                        .map_err(|e| hdf5::Error::from(e.to_string()))?,
+                )?,
+                None => ds.write(&Array1::from(v.clone()))?,
+            }
+            v
+        }};
+    }
+    match kind {
+        Kind::F64 => {
+            let v = column!(f64, f64::NAN, F64);
+            let r = ds.read_raw::<f64>()?;
+            back(r.len() == v.len() && r.iter().zip(&v).all(|(a, b)| a.to_bits() == b.to_bits()))
+        }
+        Kind::U8 => {
+            let v = column!(u8, 0, U8);
+            back(ds.read_raw::<u8>()? == v)
+        }
+        Kind::U64 => {
+            let v = column!(u64, 0, U64);
+            back(ds.read_raw::<u64>()? == v)
+        }
+    }
+}
+
+/// Writes the one-dimensional u8 dataset `name` and reads it back.
+fn write_checked_u8(g: &hdf5::Group, name: &str, v: &[u8]) -> hdf5::Result<()> {
+    let ds = g.dataset(name)?;
+    ds.write(&Array1::from(v.to_vec()))?;
+    if ds.read_raw::<u8>()? != v {
+        return Err(format!("/sweep/{name} does not read back as written").into());
+    }
+    Ok(())
 }
