@@ -1,13 +1,13 @@
 #!/usr/bin/env bash
 # What durable results cost (docs/durable-results.md): two builds of jointplay side by side,
 # alternating, on the 601-value Duffing cascade (analyses/duffing/cascade.toml, both cores), a
-# single streamed run of the mixed 4-UPS/RPU (10 s, DOPRI5 rtol 1e-6, 1 ms output) and, with
+# single streamed run of the mixed 4-UPS/RPU (10 s and 100 s, DOPRI5 rtol 1e-6, 1 ms output) and, with
 # FULL=1, the section-3 diagram (analyses/4ups-rpu/section3-diagram.toml, about 4 minutes each).
 # Each row gives the median elapsed time of the whole command (journal, file, fsyncs included)
 # over the repeats and the ratio of the second build to the first.
 #
 #   bench/durability.sh OLD NEW [REPEATS]      # two jointplay binaries (release builds);
-#                                              # REPEATS default 3, about 2 minutes on 2 cores
+#                                              # REPEATS default 3, about 3 minutes on 2 cores
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 old=$(realpath "$1")
@@ -16,11 +16,15 @@ reps=${3:-3}
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 cd "$work"
-awk '
-  /^\[solver\]/ { print; print "integrator = \"dopri5\""; print "rtol = 1e-6"; print "atol = 1e-9";
-                  print "baumgarte_alpha = 5.0"; print "baumgarte_beta = 5.0"; print "periods = 5"; skip = 1; next }
-  /^\[/ { skip = 0 }
-  !skip { print }' "$root/data/scenes/4ups-rpu-mixed.toml" >p5.toml
+scene() { # scene PERIODS FILE: the mixed 4-UPS/RPU over PERIODS drive periods (2 s each)
+  awk -v p="$1" '
+    /^\[solver\]/ { print; print "integrator = \"dopri5\""; print "rtol = 1e-6"; print "atol = 1e-9";
+                    print "baumgarte_alpha = 5.0"; print "baumgarte_beta = 5.0"; print "periods = " p; skip = 1; next }
+    /^\[/ { skip = 0 }
+    !skip { print }' "$root/data/scenes/4ups-rpu-mixed.toml" >"$2"
+}
+scene 5 p5.toml
+scene 50 p50.toml
 median() { sort -g | awk '{ v[NR] = $1 } END { print v[int((NR + 1) / 2)] }'; }
 # one BIN TAG ARGS...: elapsed seconds of `BIN run ARGS --out out-TAG --no-plots -q`
 one() {
@@ -48,6 +52,7 @@ echo "| workload | old | new | new / old |"
 echo "|---|---|---|---|"
 row "Duffing cascade, 601 values" "$root/analyses/duffing/cascade.toml"
 row "4-UPS/RPU mixed, one streamed 10 s run" p5.toml
+row "4-UPS/RPU mixed, one streamed 100 s run" p50.toml
 if [ "${FULL:-0}" = 1 ]; then
   row "section-3 diagram, 40 values" "$root/analyses/4ups-rpu/section3-diagram.toml"
 fi

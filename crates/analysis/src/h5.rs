@@ -353,6 +353,8 @@ pub(crate) struct PartialFile {
     path: PathBuf,
     /// One writer per output (crate::storage::lock), held until the file is in place.
     _lock: crate::storage::lock::Lock,
+    /// Still in memory ([`create_streamed`]), not yet on disk.
+    in_memory: bool,
 }
 
 /// The oldest HDF5 library the files written must open in (`jointplay --hdf5-format`).
@@ -402,18 +404,21 @@ pub fn format() -> Format {
     }
 }
 
-/// Creates (truncates) the HDF5 file `path` that a run streams its samples into, in the 1.8
-/// format whatever the [`format`] set: its superblock (version 0) has no "open for writing" flag,
-/// which the 1.10 format's keeps set while a writer holds the file and which a process killed
-/// leaves set, so that HDF5 1.10 and later refuse the file. Written so, a run killed while it
-/// streams leaves `<name>.h5.partial` that opens, readable to its last block (the file is flushed
-/// after every block). The cost is the 1.8 format's larger object headers and B-tree chunk
-/// indexes: measured on a 10 s run of the mixed 4-UPS/RPU in the README's "Written as the run
-/// goes".
-pub(crate) fn create_streamed(path: &Path) -> hdf5::Result<hdf5::File> {
+/// Creates, in memory, the HDF5 file that a run streams its samples into, named `path` in
+/// messages; [`PartialFile::materialize`] writes it to disk once its structure is laid out. It is
+/// in the 1.8 format whatever the [`format`] set: its superblock (version 0) has no "open for
+/// writing" flag, which the 1.10 format's keeps set while a writer holds the file and which a
+/// process killed leaves set, so that HDF5 1.10 and later refuse the file. Written so, a run
+/// killed while it streams leaves `<name>.h5.partial` that opens, readable to its last block (the
+/// file is flushed after every block); and since the file appears on disk whole, with its groups
+/// and empty datasets, a run killed while HDF5 lays out a new file leaves no file at all. The cost
+/// is the 1.8 format's larger object headers and B-tree chunk indexes: measured in
+/// docs/durable-results.md.
+pub(crate) fn create_streamed(path: &Path) -> Result<hdf5::File> {
     hdf5::File::with_options()
-        .with_fapl(|p| p.libver_earliest())
-        .create(path)
+        .with_fapl(|p| p.libver_earliest().core_options(1 << 20, false))
+        .create(unique(path))
+        .map_err(h5err(path))
 }
 
 /// A file of the [`format`] set held in memory (HDF5's core driver, nothing written to disk),
@@ -479,12 +484,13 @@ impl PartialFile {
         let path = dir.join(format!("{name}.h5"));
         let lock = crate::storage::lock::Lock::acquire(&path)?;
         let tmp = crate::storage::durable::Unnamed::named(&path);
-        let file = create_streamed(tmp.path()).map_err(h5err(tmp.name()))?;
+        let file = create_streamed(tmp.path())?;
         let out = PartialFile {
             file,
             tmp,
             path,
             _lock: lock,
+            in_memory: true,
         };
         let attrs = || -> hdf5::Result<()> {
             str_attr(&out.file, "program", "jointplay")?;
@@ -502,13 +508,31 @@ impl PartialFile {
         self.tmp.name()
     }
 
+    /// Writes the file, built in memory so far, to disk under its temporary name, whole, and
+    /// goes on with it there (handles into the file must be opened again). Nothing when it is
+    /// on disk already.
+    pub fn materialize(&mut self) -> Result<()> {
+        if !self.in_memory {
+            return Ok(());
+        }
+        let e = h5err(self.tmp.name());
+        let bytes = image(&self.file).map_err(&e)?;
+        crate::storage::durable::write_new(self.tmp.path(), &bytes)?;
+        let on_disk = hdf5::File::open_rw(self.tmp.path()).map_err(&e)?;
+        let in_memory = std::mem::replace(&mut self.file, on_disk);
+        self.in_memory = false;
+        in_memory.close().map_err(&e)
+    }
+
     /// Closes the file and gives it its name, durably; on an error it is discarded.
-    pub fn finish(self) -> Result<PathBuf> {
+    pub fn finish(mut self) -> Result<PathBuf> {
+        self.materialize()?;
         let PartialFile {
             file,
             tmp,
             path,
             _lock,
+            ..
         } = self;
         if let Err(err) = file.close() {
             return Err(h5err(tmp.name())(err));
@@ -914,16 +938,36 @@ impl OpenedRun {
                     }
                 })
                 .collect::<hdf5::Result<Vec<_>>>()?;
-            file.flush()?;
             Ok((time, sets))
         })();
+        let mut out = out;
         match made {
-            Ok((time, sets)) => Ok(RunWriter {
-                out,
-                time,
-                sets,
-                rows: 0,
-            }),
+            Ok((time, sets)) => {
+                drop((time, sets));
+                // On disk whole, then its datasets opened there.
+                if let Err(err) = out.materialize() {
+                    out.discard();
+                    return Err(err);
+                }
+                let file = &out.file;
+                let opened = (|| -> hdf5::Result<(hdf5::Dataset, Vec<hdf5::Dataset>)> {
+                    let sets = rec
+                        .channels
+                        .iter()
+                        .map(|c| file.dataset(&c.dataset))
+                        .collect::<hdf5::Result<Vec<_>>>()?;
+                    Ok((file.dataset("time")?, sets))
+                })();
+                match opened {
+                    Ok((time, sets)) => Ok(RunWriter {
+                        out,
+                        time,
+                        sets,
+                        rows: 0,
+                    }),
+                    Err(err) => Err(out.fail(err)),
+                }
+            }
             Err(err) => Err(out.fail(err)),
         }
     }

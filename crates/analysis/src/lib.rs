@@ -12,6 +12,8 @@
 //! stroboscopic and hyperplane Poincare sections; [`observe`] addresses a mechanism's quantities
 //! by path; [`systems`] holds the built-in reference ODEs (Duffing, pendulum, Lorenz); and
 //! [`nonlinear`] reads analysis studies, runs their sweeps in parallel and streams them to HDF5;
+//! [`storage`] keeps what is finished through kills, full disks and second writers (a journal of
+//! checksummed values, files replaced atomically, one lock per output);
 //! [`shards`] splits a sweep over processes or machines and merges the shard files exactly, and
 //! [`slurm`] writes the batch scripts that run the shards as a Slurm job array;
 //! [`hybrid`] saves and loads the hybrid state of a run (continue a run as if it never stopped);

@@ -1218,11 +1218,23 @@ pub fn execute_until(
         });
         // A run that fails keeps what it recorded, in a file marked incomplete. The time
         // histories are appended to the file while the run goes.
-        let out = PartialFile::create(dir, name, version)?;
+        let mut out = PartialFile::create(dir, name, version)?;
         let partial = out.partial().to_path_buf();
         let e = h5err(&partial);
         let history = if st.spec.analysis.samples_per_period > 0 {
-            match SingleHistory::create(
+            if let Err(err) = SingleHistory::create(
+                &out.file,
+                &st.spec.observables,
+                st.spec.analysis.history_bits(),
+            ) {
+                return Err(out.fail(err));
+            }
+            // On disk whole (h5::create_streamed), then the histories opened there.
+            if let Err(err) = out.materialize() {
+                out.discard();
+                return Err(err);
+            }
+            match SingleHistory::open(
                 &out.file,
                 &st.spec.observables,
                 st.spec.analysis.history_bits(),
@@ -1816,6 +1828,24 @@ impl SingleHistory {
             values: observables
                 .iter()
                 .map(|o| create(&o.name))
+                .collect::<hdf5::Result<_>>()?,
+            bits,
+        })
+    }
+
+    /// The histories [`SingleHistory::create`] made in `file`, opened again (after the file was
+    /// moved from memory to disk).
+    fn open(
+        file: &hdf5::File,
+        observables: &[ObservableSpec],
+        bits: Option<u32>,
+    ) -> hdf5::Result<SingleHistory> {
+        let g = file.group("history")?;
+        Ok(SingleHistory {
+            time: g.dataset("time")?,
+            values: observables
+                .iter()
+                .map(|o| g.dataset(&o.name))
                 .collect::<hdf5::Result<_>>()?,
             bits,
         })
