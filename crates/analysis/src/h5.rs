@@ -5,7 +5,8 @@
 //! A file written whole (a study, a sweep, a run recorded in memory) is built in memory and
 //! written under no name, forced to disk and renamed into place ([`write_atomically`],
 //! [`crate::storage`]); a file streamed while its run goes is written under the temporary name
-//! `<name>.h5.partial`, in the 1.8 format ([`create_streamed`]), and renamed once complete. So
+//! `<name>.h5.partial`, in the 1.8 format and unflushed until its end ([`create_streamed`]), and
+//! renamed once complete. So
 //! a crash or an error never leaves a file that looks finished. Every dataset carries a `unit`
 //! attribute (SI) and a `description`.
 //!
@@ -405,15 +406,23 @@ pub fn format() -> Format {
 }
 
 /// Creates, in memory, the HDF5 file that a run streams its samples into, named `path` in
-/// messages; [`PartialFile::materialize`] writes it to disk once its structure is laid out. It is
-/// in the 1.8 format whatever the [`format`] set: its superblock (version 0) has no "open for
-/// writing" flag, which the 1.10 format's keeps set while a writer holds the file and which a
-/// process killed leaves set, so that HDF5 1.10 and later refuse the file. Written so, a run
-/// killed while it streams leaves `<name>.h5.partial` that opens, readable to its last block (the
-/// file is flushed after every block); and since the file appears on disk whole, with its groups
-/// and empty datasets, a run killed while HDF5 lays out a new file leaves no file at all. The cost
-/// is the 1.8 format's larger object headers and B-tree chunk indexes: measured in
-/// docs/durable-results.md.
+/// messages; [`PartialFile::materialize`] writes it to disk, whole, once its groups and empty
+/// datasets are laid out, so that a run killed while HDF5 lays out a new file leaves none.
+///
+/// It is in the 1.8 format whatever the [`format`] set: its superblock (version 0) has no "open
+/// for writing" flag, which the 1.10 format's keeps set while a writer holds the file and which a
+/// process killed leaves set, so that HDF5 1.10 and later refuse the file.
+///
+/// While the run goes, its blocks of samples are appended as chunks written beyond the file's
+/// recorded end, and the file is not flushed: HDF5 updates its metadata (chunk indexes, dataset
+/// extents, the superblock's end of file) in place and in no particular order, so that a process
+/// killed while a flush writes them leaves a file that does not open (seen in the crash tests
+/// when the file was flushed after every block). Unflushed, the file on disk keeps the layout
+/// written whole at its start, and a run killed by SIGKILL leaves a `.partial` that opens, with
+/// the samples that HDF5 happened to write out (often none). The one flush is the close at the
+/// run's end, or at a stop on SIGINT or SIGTERM, which writes a complete file (`complete` = 0
+/// for a stop). The cost of the 1.8 format, its larger object headers and B-tree chunk indexes,
+/// is measured in docs/durable-results.md.
 pub(crate) fn create_streamed(path: &Path) -> Result<hdf5::File> {
     hdf5::File::with_options()
         .with_fapl(|p| p.libver_earliest().core_options(1 << 20, false))
@@ -1037,7 +1046,8 @@ impl RunWriter {
                     }
                 }
             }
-            self.out.file.flush()
+            // Not flushed: see create_streamed.
+            Ok(())
         })()
         .map_err(&e)?;
         self.rows += n;
