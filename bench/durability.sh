@@ -16,16 +16,9 @@ reps=${3:-3}
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 cd "$work"
-scene() { # scene PERIODS FILE: the mixed 4-UPS/RPU over PERIODS drive periods (2 s each)
-  awk -v p="$1" '
-    /^\[solver\]/ { print; print "integrator = \"dopri5\""; print "rtol = 1e-6"; print "atol = 1e-9";
-                    print "baumgarte_alpha = 5.0"; print "baumgarte_beta = 5.0"; print "periods = " p; skip = 1; next }
-    /^\[/ { skip = 0 }
-    !skip { print }' "$root/data/scenes/4ups-rpu-mixed.toml" >"$2"
-}
+. "$root/bench/lib.sh"
 scene 5 p5.toml
 scene 50 p50.toml
-median() { sort -g | awk '{ v[NR] = $1 } END { print v[int((NR + 1) / 2)] }'; }
 # one BIN TAG ARGS...: elapsed seconds of `BIN run ARGS --out out-TAG --no-plots -q`
 one() {
   local bin=$1 tag=$2 t0 t1

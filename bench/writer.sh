@@ -19,18 +19,10 @@ reps=${3:-3}
 work=$(mktemp -d)
 trap 'rm -rf "$work"' EXIT
 cd "$work"
-scene() { # scene PERIODS FILE: the mixed 4-UPS/RPU over PERIODS drive periods (2 s each)
-  awk -v p="$1" '
-    /^\[solver\]/ { print; print "integrator = \"dopri5\""; print "rtol = 1e-6"; print "atol = 1e-9";
-                    print "baumgarte_alpha = 5.0"; print "baumgarte_beta = 5.0"; print "periods = " p; skip = 1; next }
-    /^\[/ { skip = 0 }
-    !skip { print }' "$root/data/scenes/4ups-rpu-mixed.toml" >"$2"
-  grep -q "^periods = $1\$" "$2" || { echo "bench/writer.sh: no [solver] table in the scene" >&2; exit 1; }
-}
+. "$root/bench/lib.sh"
 scene 5 p5.toml
 scene 20 p20.toml
 scene 50 p50.toml
-median() { sort -g | awk '{ v[NR] = $1 } END { print v[int((NR + 1) / 2)] }'; }
 # one BIN TAG INPUT COPIES: elapsed time of COPIES runs at once; sets $size and $mem (of the first)
 one() {
   local bin=$1 tag=$2 input=$3 copies=$4 t0 t1 k

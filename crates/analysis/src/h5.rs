@@ -483,13 +483,17 @@ pub(crate) fn image(file: &hdf5::File) -> hdf5::Result<Vec<u8>> {
     })
 }
 
+/// The root attributes of every file the program writes: `program`, `program_version`, `units`.
+fn root_attrs(file: &hdf5::File, program_version: &str) -> hdf5::Result<()> {
+    str_attr(file, "program", "jointplay")?;
+    str_attr(file, "program_version", program_version)?;
+    str_attr(file, "units", "SI: m, kg, s, rad, N, N m, J")
+}
+
 impl PartialFile {
     /// Creates `dir/<name>.h5.partial` ([`create_streamed`]) with the program's root attributes.
     pub fn create(dir: &Path, name: &str, program_version: &str) -> Result<PartialFile> {
-        std::fs::create_dir_all(dir).map_err(|e| Error::Io {
-            file: dir.to_path_buf(),
-            message: format!("cannot create output directory: {e}"),
-        })?;
+        crate::storage::durable::create_dir(dir)?;
         let path = dir.join(format!("{name}.h5"));
         let lock = crate::storage::lock::Lock::acquire(&path)?;
         let tmp = crate::storage::durable::Unnamed::named(&path);
@@ -501,12 +505,7 @@ impl PartialFile {
             _lock: lock,
             in_memory: true,
         };
-        let attrs = || -> hdf5::Result<()> {
-            str_attr(&out.file, "program", "jointplay")?;
-            str_attr(&out.file, "program_version", program_version)?;
-            str_attr(&out.file, "units", "SI: m, kg, s, rad, N, N m, J")
-        };
-        match attrs() {
+        match root_attrs(&out.file, program_version) {
             Ok(()) => Ok(out),
             Err(err) => Err(out.fail(err)),
         }
@@ -573,22 +572,15 @@ pub(crate) fn write_atomically(
     program_version: &str,
     body: impl FnOnce(&hdf5::File) -> hdf5::Result<()>,
 ) -> Result<PathBuf> {
-    std::fs::create_dir_all(dir).map_err(|e| Error::Io {
-        file: dir.to_path_buf(),
-        message: format!("cannot create output directory: {e}"),
-    })?;
+    crate::storage::durable::create_dir(dir)?;
     let path = dir.join(format!("{name}.h5"));
     let _lock = crate::storage::lock::Lock::acquire(&path)?;
     let label = crate::storage::durable::with_suffix(&path, ".partial");
     let e = h5err(&label);
     let file = create_in_memory(&label).map_err(&e)?;
-    (|| -> hdf5::Result<()> {
-        str_attr(&file, "program", "jointplay")?;
-        str_attr(&file, "program_version", program_version)?;
-        str_attr(&file, "units", "SI: m, kg, s, rad, N, N m, J")?;
-        body(&file)
-    })()
-    .map_err(&e)?;
+    root_attrs(&file, program_version)
+        .and_then(|()| body(&file))
+        .map_err(&e)?;
     let bytes = image(&file).map_err(&e)?;
     file.close().map_err(&e)?;
     crate::storage::durable::write_new(&path, &bytes)?;
