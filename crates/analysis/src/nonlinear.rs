@@ -1222,11 +1222,7 @@ pub fn execute_until(
         let partial = out.partial().to_path_buf();
         let e = h5err(&partial);
         let history = if st.spec.analysis.samples_per_period > 0 {
-            if let Err(err) = SingleHistory::create(
-                &out.file,
-                &st.spec.observables,
-                st.spec.analysis.history_bits(),
-            ) {
+            if let Err(err) = SingleHistory::create(&out.file, &st.spec.observables) {
                 return Err(out.fail(err));
             }
             // On disk whole (h5::create_streamed), then the histories opened there.
@@ -1815,22 +1811,17 @@ struct SingleHistory {
 }
 
 impl SingleHistory {
-    fn create(
-        file: &hdf5::File,
-        observables: &[ObservableSpec],
-        bits: Option<u32>,
-    ) -> hdf5::Result<SingleHistory> {
+    /// Creates the empty histories in `file` (in memory: see h5::create_streamed); they are
+    /// written through [`SingleHistory::open`] once the file is on disk.
+    fn create(file: &hdf5::File, observables: &[ObservableSpec]) -> hdf5::Result<()> {
         let g = file.create_group("history")?;
         // One chunk per block, written whole.
         let create = |name: &str| create_extendable::<f64>(&g, name, 1, true, HISTORY_BLOCK);
-        Ok(SingleHistory {
-            time: create("time")?,
-            values: observables
-                .iter()
-                .map(|o| create(&o.name))
-                .collect::<hdf5::Result<_>>()?,
-            bits,
-        })
+        create("time")?;
+        for o in observables {
+            create(&o.name)?;
+        }
+        Ok(())
     }
 
     /// The histories [`SingleHistory::create`] made in `file`, opened again (after the file was

@@ -1,6 +1,7 @@
 //! The finished value of a sweep as a record: the cells of its row in every dataset of
-//! `/sweep`, and its section crossings, encoded for a [`super::journal::Journal`], written into
-//! or read back from a row of an HDF5 file, and checksummed the same way in both.
+//! `/sweep`, and its section crossings, encoded for a [`super::journal::Journal`], written into a
+//! sweep file by [`super::sweep`] or read back from a row of one, and checksummed the same way in
+//! both.
 //!
 //! **Encoding** (all integers little-endian; a string is its byte length as u32, then its
 //! UTF-8 bytes):
@@ -21,7 +22,7 @@
 //! time (a measurement of the machine, not a result) is the one value it does not check.
 //! Doubles are stored and compared bit for bit (NaN payloads and signed zeros included).
 
-use ndarray::{Array1, s};
+use ndarray::s;
 
 /// The cell a row's checksum leaves out: the value's wall time, the one measurement of the
 /// machine rather than of the inputs.
@@ -136,8 +137,14 @@ impl<'a> Reader<'a> {
 impl Row {
     /// Appends the row data's encoding to `b`.
     pub fn encode_into(&self, b: &mut Vec<u8>) {
-        b.extend_from_slice(&(self.cells.len() as u32).to_le_bytes());
-        for (name, c) in &self.cells {
+        self.encode_cells(b, |_| true);
+    }
+
+    /// [`Row::encode_into`] with only the cells whose name `keep` takes.
+    fn encode_cells(&self, b: &mut Vec<u8>, keep: impl Fn(&str) -> bool) {
+        let cells: Vec<&(String, Cells)> = self.cells.iter().filter(|c| keep(&c.0)).collect();
+        b.extend_from_slice(&(cells.len() as u32).to_le_bytes());
+        for (name, c) in cells {
             put_str(b, name);
             match c {
                 Cells::F64(v) => {
@@ -208,16 +215,7 @@ impl Row {
     /// The CRC-32 of the row data but its wall time (see the module documentation).
     pub fn checksum(&self) -> u32 {
         let mut b = Vec::new();
-        let reproducible = Row {
-            cells: self
-                .cells
-                .iter()
-                .filter(|c| c.0 != WALL_TIME)
-                .cloned()
-                .collect(),
-            sections: self.sections.clone(),
-        };
-        reproducible.encode_into(&mut b);
+        self.encode_cells(&mut b, |name| name != WALL_TIME);
         crc32fast::hash(&b)
     }
 
@@ -267,34 +265,6 @@ impl Value {
         }
         Ok(Value { row, outcome })
     }
-}
-
-/// Writes the cells of `row` into row `index` of the datasets of `g`.
-pub fn write_cells(g: &hdf5::Group, index: usize, row: &Row) -> hdf5::Result<()> {
-    for (name, c) in &row.cells {
-        let ds = g.dataset(name)?;
-        let two = ds.ndim() == 2;
-        macro_rules! put {
-            ($v:expr) => {{
-                let a = Array1::from($v.clone());
-                if two && $v.is_empty() {
-                    Ok(())
-                } else if two {
-                    ds.write_slice(&a, s![index, 0..$v.len()])
-                } else if $v.len() == 1 {
-                    ds.write_slice(&a, s![index..index + 1])
-                } else {
-                    Err(format!("{name}: {} values for one element", $v.len()).into())
-                }
-            }};
-        }
-        match c {
-            Cells::F64(v) => put!(v)?,
-            Cells::U8(v) => put!(v)?,
-            Cells::U64(v) => put!(v)?,
-        }
-    }
-    Ok(())
 }
 
 /// Reads row `index` of the datasets `names` of `g` (whole rows of two-dimensional ones).
@@ -373,7 +343,7 @@ mod tests {
     }
 
     #[test]
-    fn a_row_written_into_a_file_reads_back_with_its_checksum() {
+    fn a_row_read_back_from_a_file_has_its_checksum() {
         let d = tempfile::tempdir().unwrap();
         let f = hdf5::File::create(d.path().join("r.h5")).unwrap();
         let g = f.create_group("sweep").unwrap();
@@ -381,7 +351,12 @@ mod tests {
         g.new_dataset::<u8>().shape((3, 2)).create("b").unwrap();
         g.new_dataset::<u64>().shape(3).create("c").unwrap();
         let row = sample();
-        write_cells(&g, 2, &row).unwrap();
+        let ds = |n: &str| g.dataset(n).unwrap();
+        ds("a")
+            .write_slice(&[1.5, f64::NAN, -0.0], ndarray::s![2, ..])
+            .unwrap();
+        ds("b").write_slice(&[1u8, 0], ndarray::s![2, ..]).unwrap();
+        ds("c").write_slice(&[u64::MAX], ndarray::s![2..3]).unwrap();
         let names = vec![
             ("a".to_string(), Kind::F64),
             ("b".to_string(), Kind::U8),

@@ -305,7 +305,6 @@ pub(crate) fn open(
 ) -> Result<Store> {
     let jp = journal_path(path);
     let head = header(text, shard, n);
-    let _ = std::fs::remove_file(with_suffix(path, ".partial"));
     let _ = std::fs::remove_file(with_suffix(&jp, ".tmp"));
     let mut values: Vec<Option<Value>> = vec![None; n];
     if !resume {
