@@ -635,9 +635,10 @@ fn run_analysis(
     // A continuation's start state, read before the analysis rewrites the output file (it may
     // be the file named by `continuation.start`).
     let start_state = jointplay_analysis::continuation::start_of(&st)?;
-    // A continuation goes on from its file; with no file yet (stopped before its analysis was
-    // written), it starts afresh, as a sweep with nothing kept does.
-    if continuation_only && opts.resume && out.join(format!("{}.h5", st.spec.study.name)).exists() {
+    // A continuation goes on from its file; with none begun (stopped before its first point),
+    // it starts afresh, as a sweep with nothing kept does.
+    let file = out.join(format!("{}.h5", st.spec.study.name));
+    if continuation_only && opts.resume && jointplay_analysis::continuation::begun(&file) {
         return resume_continuation(&st, path, out, plots, quiet, opts.max_jobs);
     }
     // In a Slurm job array, a sweep is sharded by the task's id unless --shard says otherwise.

@@ -1545,6 +1545,13 @@ fn read_from(
     read_group(&file, path, st)
 }
 
+/// Whether a continuation into the analysis file `path` has begun: its state file
+/// ([`snapshot_path`]) exists, or the file holds `/continuation` (finished or not).
+pub fn begun(path: &std::path::Path) -> bool {
+    snapshot_path(path).exists()
+        || hdf5::File::open(path).is_ok_and(|f| f.group("continuation").is_ok())
+}
+
 /// Whether the analysis file `path` holds a finished continuation (and no state of one that
 /// goes on beside it, [`snapshot_path`]).
 pub fn is_finished(path: &std::path::Path) -> Result<bool> {
