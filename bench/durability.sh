@@ -1,5 +1,5 @@
 #!/usr/bin/env bash
-# What durable results cost (docs/durable-results.md): two builds of jointplay side by side,
+# What durable results cost (book/src/explanation/durability.md): two builds of jointplay side by side,
 # alternating, on the 601-value Duffing cascade (analyses/duffing/cascade.toml, both cores), a
 # single streamed run of the mixed 4-UPS/RPU (10 s and 100 s, DOPRI5 rtol 1e-6, 1 ms output) and, with
 # FULL=1, the section-3 diagram (analyses/4ups-rpu/section3-diagram.toml, about 4 minutes each).

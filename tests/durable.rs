@@ -1,4 +1,4 @@
-//! Durable results, end to end through the program (docs/durable-results.md): a sweep's journal
+//! Durable results, end to end through the program (book/src/explanation/durability.md): a sweep's journal
 //! survives the end of its process and a damaged record of it is computed again; a value whose
 //! row in the file does not match its checksum is computed again; a second writer is refused
 //! before it touches anything. The kills themselves are in `scripts/crash-test`.

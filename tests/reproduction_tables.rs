@@ -1,4 +1,4 @@
-//! The committed tables of docs/reproduction.md are what the program computes: the cheap
+//! The committed tables of book/src/results/reproduction.md are what the program computes: the cheap
 //! section-2 studies (RK4 at a fixed step, two drive periods, seconds each) are run again and
 //! their `jointplay report` output must equal the generated block of the document, digit for
 //! digit, apart from the wall times and the file's path. When this fails, the program or a scene
@@ -40,7 +40,7 @@ fn normalised(table: &str) -> Vec<String> {
 
 #[test]
 fn committed_section_2_tables_match_the_program() {
-    let doc = std::fs::read_to_string(root().join("docs/reproduction.md")).unwrap();
+    let doc = std::fs::read_to_string(root().join("book/src/results/reproduction.md")).unwrap();
     let dir = tempfile::tempdir().unwrap();
     for study in ["clearance-type", "clearance-size"] {
         let begin = format!("<!-- begin generated: {study} -->\n");

@@ -1,8 +1,8 @@
 #!/usr/bin/env bash
-# Runs every 4-UPS/RPU study of docs/reproduction.md that takes minutes, not hours: sections
+# Runs every 4-UPS/RPU study of book/src/results/reproduction.md that takes minutes, not hours: sections
 # 2.2-2.5 of Chen et al. 2023, the geometry variants, the step-size check, the gravity-sign screen
 # and the short section-3 analysis; then regenerates the document's tables from their HDF5 files
-# and copies the figures the document shows into docs/figures (the converged section-2 figures
+# and copies the figures the document shows into book/src/results/figures (the converged section-2 figures
 # and the short section-3 analysis's). The ramped start (ramp, its table
 # in OUT_DIR/ramp.md) and the ensembles of perturbed starts
 # (section2-ensemble, section3-ensemble-0.3 and -0.7) are run too and their summaries printed,
@@ -30,14 +30,14 @@ for s in "${tables[@]}" section3-quick section3-updown; do
   "$JOINTPLAY" run "analyses/4ups-rpu/$s.toml" --out "$out" -q
   echo "$s: $((SECONDS - start)) s wall"
 done
-python3 analyses/4ups-rpu/splice_report.py docs/reproduction.md "$out" "${tables[@]}"
+python3 analyses/4ups-rpu/splice_report.py book/src/results/reproduction.md "$out" "${tables[@]}"
 for f in section3-quick-bifurcation-S2_vy section3-quick-bifurcation-R1_vy \
   section3-quick-bifurcation-platform_vy section3-quick-poincare-S2_ey-S2_vy \
   section3-quick-phase-platform_y-platform_vy section3-updown-bifurcation-platform_vy; do
-  cp "$out/$f.png" docs/figures/
+  cp "$out/$f.png" book/src/results/figures/
 done
 for f in type-motion type-forces type-orbits size-forces speed-motion speed-forces friction-forces; do
-  cp "$out/section2-converged-$f.png" docs/figures/
+  cp "$out/section2-converged-$f.png" book/src/results/figures/
 done
 for s in ramp section2-ensemble section3-ensemble-0.3 section3-ensemble-0.7; do
   start=$SECONDS

@@ -422,7 +422,7 @@ pub fn format() -> Format {
 /// the samples that HDF5 happened to write out (often none). The one flush is the close at the
 /// run's end, or at a stop on SIGINT or SIGTERM, which writes a complete file (`complete` = 0
 /// for a stop). The cost of the 1.8 format, its larger object headers and B-tree chunk indexes,
-/// is measured in docs/durable-results.md.
+/// is measured in book/src/explanation/durability.md.
 pub(crate) fn create_streamed(path: &Path) -> Result<hdf5::File> {
     hdf5::File::with_options()
         .with_fapl(|p| p.libver_earliest().core_options(1 << 20, false))

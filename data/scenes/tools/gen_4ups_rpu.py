@@ -21,7 +21,7 @@ alternatives selectable from the command line:
                      gravity along +X (default: the mechanism hangs from its base, or global X
                      points down) or along -X (it stands on its base, X up: the first reading,
                      kept for comparison). Why hanging: analyses/4ups-rpu/gravity-screen.toml and
-                     lever.py, summarised in docs/reproduction.md ("Which way is down?")
+                     lever.py, summarised in book/src/results/reproduction.md ("Which way is down?")
 
 Frames (all SI): global X vertical, gravity +9.81 m/s^2 along X (--gravity hanging) or -9.81
 (--gravity standing). Base points lie in the
@@ -123,12 +123,12 @@ def main():
         w("#   181-257 N, R1 581-618 N against 517-605 N), the platform drifts to +Y as the paper says,")
         w("#   and the contacts of S2, S5 and R1 settle; with gravity along -X (--gravity standing) the")
         w("#   reactions span 27-480 N and 203-966 N, the drift is -Y and the balls rattle for good.")
-        w("#   Evidence: analyses/4ups-rpu/gravity-screen.toml and lever.py; docs/reproduction.md,")
+        w("#   Evidence: analyses/4ups-rpu/gravity-screen.toml and lever.py; book/src/results/reproduction.md,")
         w("#   section \"Which way is down?\";")
     else:
         w("#   centre sits at X = 1.21 m); gravity -9.81 m/s^2 along X: the mechanism stands on its base.")
         w("#   This was the first reading; the default is now --gravity hanging (+9.81 along X), which")
-        w("#   the paper's reactions, drift and settled contacts support (docs/reproduction.md, section")
+        w("#   the paper's reactions, drift and settled contacts support (book/src/results/reproduction.md, section")
         w("#   \"Which way is down?\"). Kept for comparison and for the results computed with it while")
         w("#   it was the default (the section-3 bifurcation and chaos studies of that report);")
     w("# - R1 on the base at (0, 0.710, 0) with its axis along Z, so limb 1 (R1-P1-U1) moves in the X-Y")
@@ -142,7 +142,7 @@ def main():
     w("#   of the four layouts (square or pentagon, U1 at +0.059 or -0.059 m) the square one with U1")
     w("#   at +0.059 m is the default: with gravity along +X only it settles near the paper's loads")
     w("#   (S2 176 N, R1 520 N against about 230 and 580 N; analyses/4ups-rpu/geometry.toml,")
-    w("#   docs/reproduction.md, section \"The reconstructed geometries\");")
+    w("#   book/src/results/reproduction.md, section \"The reconstructed geometries\");")
     w("# - each U joint on the base has its first axis normal to the leg and to X, the second")
     w("#   axis (on the swing rod) along leg x first axis; rods have x along the leg, centre of mass at")
     w("#   mid-length: swing rod 0.38 m from the base joint, telescopic rod 0.42 m from the platform joint;")
