@@ -67,8 +67,13 @@ enum Command {
         /// Scene or study file (TOML).
         scene: PathBuf,
     },
-    /// Simulate a scene, or every case of a study; write DIR/<name>.h5 and figures (PNG and
-    /// SVG); a study also writes DIR/<name>.md, its comparison table.
+    /// Simulate a scene, or run a study. A scene writes DIR/<name>.h5 and the figures of its
+    /// positions, drives and diagnostics (PNG and SVG). A comparison study (a [study] table and
+    /// [[cases]]) writes DIR/<study>.h5 with every case, DIR/<study>.md (its comparison table) and
+    /// the figures it asks for. An analysis study (a [study] and an [analysis] table) writes
+    /// DIR/<study>.h5 (histories, sections, the sweep, Lyapunov exponents, periodic orbits, as it
+    /// asks) and its figures; while a sweep runs its finished values are in DIR/<study>.journal,
+    /// and a continuation's state in DIR/<study>.continuation.h5.
     Run {
         /// Scene or study file (TOML; a study has a [study] table).
         scene: PathBuf,
