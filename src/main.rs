@@ -305,7 +305,9 @@ fn main() {
             "error: {}",
             jointplay_analysis::clip_lines(&format!("{e:#}"), jointplay_analysis::MESSAGE_LIMIT)
         );
-        std::process::exit(1);
+        // A computation stopped by a signal exits as the signal asked, whatever it reports.
+        let stopped = jointplay_analysis::progress::process_stop_requested();
+        std::process::exit(if stopped { 130 } else { 1 });
     }
     if jointplay_analysis::progress::process_stop_requested() {
         eprintln!(
@@ -478,6 +480,20 @@ fn run(
     for w in &model.warnings {
         eprintln!("warning: {w}");
     }
+    let target = out.join(format!("{}.h5", model.name));
+    if let Some(f) = from
+        && let (Ok(a), Ok(b)) = (f.canonicalize(), target.canonicalize())
+        && a == b
+    {
+        // The continuation holds the samples after the file's final state only: written over
+        // the file it continues, it would replace the only copy of the run's first part.
+        anyhow::bail!(
+            "{}: --from {} would be replaced by the run continued from it: write the \
+             continuation to another --out directory",
+            path.display(),
+            f.display()
+        );
+    }
     let start = Instant::now();
     let bar = progress_bar(
         1000,
@@ -506,6 +522,19 @@ fn run(
         eprintln!("warning: {}: {}", path.display(), w.message);
     }
     let file = &written.path;
+    if result.interrupted() {
+        eprintln!(
+            "stopped      {}\nwrote        {} with the {} samples recorded before the stop, marked \
+             incomplete (attributes complete = 0, interrupted = 1); continue it with\n             \
+             jointplay run {} --out OTHER_DIR --from {}",
+            result.stopped.as_ref().map_or(String::new(), |s| s.to_string()),
+            file.display(),
+            written.samples,
+            path.display(),
+            file.display()
+        );
+        return Ok(());
+    }
     if let Some(s) = &result.stopped {
         anyhow::bail!(
             "simulating {}: {}\nwrote {} with the {} samples recorded before the failure, marked incomplete (attribute complete = 0)",

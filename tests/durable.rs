@@ -217,3 +217,107 @@ fn a_second_writer_is_refused_before_it_touches_anything() {
     drop(lock);
     assert!(run(&st, &out, &[]).status.success());
 }
+
+fn read_f64s(file: &Path, name: &str) -> Vec<f64> {
+    let f = hdf5::File::open(file).unwrap();
+    f.dataset(name).unwrap().read_raw::<f64>().unwrap()
+}
+
+fn attr_u8(file: &Path, name: &str) -> Option<u8> {
+    let f = hdf5::File::open(file).unwrap();
+    f.attr(name).and_then(|a| a.read_scalar::<u8>()).ok()
+}
+
+/// A scene run stopped by SIGINT exits with status 130 and keeps a file marked interrupted, and
+/// `--from` that file (into another directory) ends where the run never stopped would have: the
+/// same final state, bit for bit, and the samples the first part lacks. `--from` into the
+/// directory of the file it continues is refused: it would replace the run's first part.
+#[test]
+fn a_run_stopped_by_sigint_is_continued_with_from_to_the_uninterrupted_end() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/crash/run.toml");
+    let (whole, part, rest) = (
+        dir.path().join("whole"),
+        dir.path().join("part"),
+        dir.path().join("rest"),
+    );
+    let started = std::time::Instant::now();
+    let o = bin()
+        .arg("run")
+        .arg(&scene)
+        .args(["--no-plots", "-q", "--out"])
+        .arg(&whole)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{:?}", text(&o));
+    let wall = started.elapsed();
+    // Stopped part-way: at 40% of the uninterrupted run's wall time, or earlier if the machine
+    // got faster and the run finished first.
+    let mut stopped = None;
+    for fraction in [0.4, 0.2, 0.1] {
+        let _ = std::fs::remove_dir_all(&part);
+        let child = bin()
+            .arg("run")
+            .arg(&scene)
+            .args(["--no-plots", "-q", "--out"])
+            .arg(&part)
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(wall.mul_f64(fraction));
+        Command::new("kill")
+            .args(["-INT", &child.id().to_string()])
+            .status()
+            .unwrap();
+        let o = child.wait_with_output().unwrap();
+        if o.status.success() {
+            continue; // finished before the signal
+        }
+        assert_eq!(o.status.code(), Some(130), "{:?}", text(&o));
+        let (_, err) = text(&o);
+        assert!(err.contains("--from"), "{err}");
+        stopped = Some(o);
+        break;
+    }
+    assert!(stopped.is_some(), "the run always finished before SIGINT");
+    let first = part.join("crash-run.h5");
+    assert_eq!(attr_u8(&first, "complete"), Some(0));
+    assert_eq!(attr_u8(&first, "interrupted"), Some(1));
+
+    // Continuing into the directory of the file continued would replace it: refused.
+    let o = bin()
+        .arg("run")
+        .arg(&scene)
+        .args(["--no-plots", "-q", "--out"])
+        .arg(&part)
+        .arg("--from")
+        .arg(&first)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1), "{:?}", text(&o));
+    assert!(text(&o).1.contains("another --out"), "{:?}", text(&o));
+    assert_eq!(attr_u8(&first, "interrupted"), Some(1), "the first part is kept");
+
+    let o = bin()
+        .arg("run")
+        .arg(&scene)
+        .args(["--no-plots", "-q", "--out"])
+        .arg(&rest)
+        .arg("--from")
+        .arg(&first)
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{:?}", text(&o));
+    let second = rest.join("crash-run.h5");
+    let reference = whole.join("crash-run.h5");
+    assert_eq!(attr_u8(&second, "complete"), Some(1));
+    assert_eq!(
+        read_f64s(&second, "final_state"),
+        read_f64s(&reference, "final_state"),
+        "the continued run ends where the run never stopped ends"
+    );
+    let mut time = read_f64s(&first, "time");
+    time.extend(read_f64s(&second, "time"));
+    assert_eq!(time, read_f64s(&reference, "time"), "samples: none lost, none twice");
+}

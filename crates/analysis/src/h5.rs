@@ -668,6 +668,10 @@ fn write_outcome(file: &hdf5::Group, meta: &Meta, run: &RunResult) -> hdf5::Resu
     if let Some(s) = &run.stopped {
         str_attr(file, "error", &s.to_string())?;
         f64_attr(file, "stopped_at", s.time)?;
+        if run.interrupted() {
+            // Stopped on request, not by a failure: `run --from` continues from it.
+            u8_attr_set(file, "interrupted", 1)?;
+        }
     }
     let warnings: Vec<String> = meta
         .scene_warnings

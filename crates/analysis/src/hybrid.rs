@@ -105,7 +105,8 @@ pub fn read_state(g: &Group) -> hdf5::Result<HybridState> {
 }
 
 /// The final state of the run file `path` (written by `jointplay run SCENE`), to continue the
-/// run from. A run that stopped early is refused: its last state is where it failed.
+/// run from: a complete run, or one stopped on request (attribute `interrupted = 1`). A run
+/// that failed is refused: its last state is where it failed.
 pub fn read_run_file(path: &Path) -> Result<HybridState> {
     let e = h5err(path);
     let file = hdf5::File::open(path).map_err(&e)?;
@@ -124,7 +125,13 @@ pub fn read_run_file(path: &Path) -> Result<HybridState> {
             file: path.to_path_buf(),
             message: "not a run file of jointplay (no 'complete' attribute)".into(),
         })?;
-    if complete != 1 {
+    // A run stopped on request (SIGINT, SIGTERM) ended between two steps: its final state is
+    // one the run passed through, and continuing from it is the run that was not stopped.
+    let interrupted = file
+        .attr("interrupted")
+        .and_then(|a| a.read_scalar::<u8>())
+        .is_ok_and(|v| v == 1);
+    if complete != 1 && !interrupted {
         return Err(Error::Io {
             file: path.to_path_buf(),
             message: "the run stopped before its end time: its last state is where it failed, \
