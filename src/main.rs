@@ -311,8 +311,9 @@ fn main() {
     }
     if jointplay_analysis::progress::process_stop_requested() {
         eprintln!(
-            "stopped      on a signal (SIGINT or SIGTERM): what was finished is kept; run the same \
-             command with --resume to go on (a single run: with --from its file)"
+            "stopped      on a signal (SIGINT or SIGTERM): what was finished is kept; a sweep or \
+             a continuation goes on with the same command and --resume, a scene's run with \
+             --from its file"
         );
         std::process::exit(130);
     }
@@ -509,12 +510,18 @@ fn run(
     };
     // The run goes to its file as it is recorded: memory does not grow with its length.
     let meta = Meta::of(&model, path, &scene.text, VERSION);
+    let mut begin = model.settings.start_time;
     let (result, written) = match from {
         None => {
             simulate_to_file(&model, state, &mut progress, out, &meta).map_err(anyhow::Error::new)
         }
-        Some(f) => resume_to_file(&model, read_run_file(f)?, &mut progress, out, &meta)
-            .map_err(|e| anyhow::Error::new(e).context(format!("continuing from {}", f.display()))),
+        Some(f) => {
+            let from_state = read_run_file(f)?;
+            begin = from_state.t;
+            resume_to_file(&model, from_state, &mut progress, out, &meta).map_err(|e| {
+                anyhow::Error::new(e).context(format!("continuing from {}", f.display()))
+            })
+        }
     }
     .with_context(|| format!("simulating {}", path.display()))?;
     bar.finish_and_clear();
@@ -549,7 +556,7 @@ fn run(
     println!("scene        {} ({})", model.name, path.display());
     println!(
         "span         {} s to {} s, {} samples",
-        model.settings.start_time, model.settings.end_time, written.samples
+        begin, model.settings.end_time, written.samples
     );
     println!("integrator   {}", model.settings.method.describe());
     println!(
@@ -788,7 +795,10 @@ fn run_analysis(
             println!("wrote        {}", f.display());
         }
     }
-    if !o.complete {
+    if !o.complete && st.spec.sweep.is_none() {
+        // One run has no finished values to keep: it runs again from its start.
+        println!("incomplete   stopped before its end: run the same command again to redo it");
+    } else if !o.complete {
         println!(
             "incomplete   stopped after {} values: rerun with --resume{} to compute the rest",
             o.ran,
