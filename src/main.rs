@@ -534,7 +534,10 @@ fn run(
             "stopped      {}\nwrote        {} with the {} samples recorded before the stop, marked \
              incomplete (attributes complete = 0, interrupted = 1); continue it with\n             \
              jointplay run {} --out OTHER_DIR --from {}",
-            result.stopped.as_ref().map_or(String::new(), |s| s.to_string()),
+            result
+                .stopped
+                .as_ref()
+                .map_or(String::new(), |s| s.to_string()),
             file.display(),
             written.samples,
             path.display(),

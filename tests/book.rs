@@ -89,7 +89,10 @@ fn blocks(md: &str) -> Vec<Block> {
     let mut text = String::new();
     for (i, line) in md.lines().enumerate() {
         let trimmed = line.trim_start();
-        let fence: String = trimmed.chars().take_while(|&c| c == '`' || c == '~').collect();
+        let fence: String = trimmed
+            .chars()
+            .take_while(|&c| c == '`' || c == '~')
+            .collect();
         match &open {
             None if fence.len() >= 3 => {
                 let info = trimmed[fence.len()..].trim().to_string();
@@ -126,7 +129,10 @@ fn strip_code(md: &str) -> String {
     let mut fence: Option<String> = None;
     for line in md.lines() {
         let trimmed = line.trim_start();
-        let f: String = trimmed.chars().take_while(|&c| c == '`' || c == '~').collect();
+        let f: String = trimmed
+            .chars()
+            .take_while(|&c| c == '`' || c == '~')
+            .collect();
         match &fence {
             None if f.len() >= 3 => fence = Some(f),
             Some(open) if f.len() >= open.len() && trimmed.trim() == f => fence = None,
@@ -293,7 +299,10 @@ fn strip_code_keep_headings(md: &str) -> String {
     let mut fence: Option<String> = None;
     for line in md.lines() {
         let trimmed = line.trim_start();
-        let f: String = trimmed.chars().take_while(|&c| c == '`' || c == '~').collect();
+        let f: String = trimmed
+            .chars()
+            .take_while(|&c| c == '`' || c == '~')
+            .collect();
         match &fence {
             None if f.len() >= 3 => fence = Some(f),
             Some(open) if f.len() >= open.len() && trimmed.trim() == f => fence = None,
@@ -314,7 +323,10 @@ fn every_chapter_exists_and_every_page_is_reachable() {
     let mut problems = Vec::new();
     for c in &chapters {
         if !src().join(c).is_file() {
-            problems.push(format!("SUMMARY.md: chapter {} does not exist", c.display()));
+            problems.push(format!(
+                "SUMMARY.md: chapter {} does not exist",
+                c.display()
+            ));
         }
     }
     let mut included = BTreeSet::new();
@@ -377,7 +389,10 @@ fn every_link_resolves() {
             // The API documentation is built beside the book (scripts/book) from the workspace's
             // crates.
             if let Ok(api) = file.strip_prefix("api") {
-                let krate = api.components().next().map(|c| c.as_os_str().to_string_lossy());
+                let krate = api
+                    .components()
+                    .next()
+                    .map(|c| c.as_os_str().to_string_lossy());
                 let known = ["jointplay_solver", "jointplay_analysis", "jointplay"];
                 if !krate.is_some_and(|k| known.contains(&k.as_ref())) {
                     problems.push(format!("{whence}: not a workspace crate's API page"));
@@ -650,7 +665,10 @@ fn the_checks_read_markdown_as_mdbook_does() {
     );
     let b = blocks("text\n```toml\na = 1\n```\n````md\n```\n````\n");
     assert_eq!(b.len(), 2);
-    assert_eq!((b[0].info.as_str(), b[0].text.as_str()), ("toml", "a = 1\n"));
+    assert_eq!(
+        (b[0].info.as_str(), b[0].text.as_str()),
+        ("toml", "a = 1\n")
+    );
     assert_eq!(b[1].text, "```\n");
     assert_eq!(
         includes("{{#include ../x.toml:3:9}} and {{#include y.md}}"),

@@ -621,7 +621,7 @@ pub fn simulate_until(
     let assembly = model.assemble(&mut state)?;
     record(
         model,
-        HybridState::new(state.t, state.y),
+        (HybridState::new(state.t, state.y), false),
         assembly,
         progress,
         stop,
@@ -1130,7 +1130,7 @@ pub fn simulate_to_file(
     let assembly = model.assemble(&mut state)?;
     stream(
         model,
-        HybridState::new(state.t, state.y),
+        (HybridState::new(state.t, state.y), false),
         assembly,
         progress,
         dir,
@@ -1147,12 +1147,14 @@ pub fn resume_to_file(
     meta: &Meta,
 ) -> Result<(RunResult, Written)> {
     let assembly = resumable(model, &state)?;
-    stream(model, state, assembly, progress, dir, meta)
+    stream(model, (state, true), assembly, progress, dir, meta)
 }
 
+/// `(state, resumed)`: the state the run starts from, and whether it is a file's final state
+/// (whose sample is in that file) rather than a fresh start.
 fn stream(
     model: &Model,
-    state: HybridState,
+    state: (HybridState, bool),
     assembly: AssemblyReport,
     progress: &mut dyn FnMut(f64),
     dir: &Path,
@@ -1227,7 +1229,7 @@ pub fn resume(
     progress: &mut dyn FnMut(f64),
 ) -> Result<RunResult> {
     let assembly = resumable(model, &state)?;
-    record(model, state, assembly, progress, &Stop::new(), None)
+    record(model, (state, true), assembly, progress, &Stop::new(), None)
 }
 
 /// Checks that a run can continue from `state` and reports its constraint residuals.
@@ -1266,19 +1268,21 @@ fn resumable(model: &Model, state: &HybridState) -> Result<AssemblyReport> {
 }
 
 /// Integrates `model` from the hybrid state `state` to the end time and records the outputs at
-/// the sample times from `state.t` on; with a `sink`, the states at the sample times go to it
-/// instead, to be evaluated and written by its thread (whose end, early or not, the caller
-/// learns from [`Stream::close`]).
+/// the sample times from `state.t` on (after it when `resumed`: the file continued holds it);
+/// with a `sink`, the states at the sample times go to it instead, to be evaluated and written
+/// by its thread (whose end, early or not, the caller learns from [`Stream::close`]).
 fn record(
     model: &Model,
-    mut state: HybridState,
+    (mut state, resumed): (HybridState, bool),
     assembly: AssemblyReport,
     progress: &mut dyn FnMut(f64),
     stop: &Stop,
     mut sink: Option<&mut Stream>,
 ) -> Result<RunResult> {
     let mut samples = model.sample_times();
-    samples.retain(|&t| t >= state.t);
+    // A run continued from a file starts after the samples that file holds: those up to and at
+    // its final state.
+    samples.retain(|&t| if resumed { t > state.t } else { t >= state.t });
     // A sink's thread has the recording's declaration; the run returns what the sink keeps.
     let mut rec = match sink {
         Some(_) => Recording::default(),
@@ -1287,12 +1291,10 @@ fn record(
     let order = rec.order();
     let (t0, t1) = (state.t, model.settings.end_time);
     let mut failure = None;
+    let mut requested = None;
     // Outputs are evaluated with the system's own workspace, so that they see its contact
     // history; a sink is handed the history with each state.
     let mut observe = |sys: &mut Mechanism, t: f64, y: &[f64]| -> Result<()> {
-        if stop.requested() {
-            return Err(crate::Error::Interrupted { time: Some(t) });
-        }
         match sink.as_deref_mut() {
             Some(s) => {
                 // The writer thread is gone: the caller learns why when it closes the stream.
@@ -1318,6 +1320,13 @@ fn record(
             t1,
             &samples,
             |sys, t, y| match observe(sys, t, y) {
+                // A stop on request ends the run with the step that holds the sample, its later
+                // samples recorded too: the file then holds every sample up to its final state,
+                // and `--from` it goes on as the run not stopped would.
+                Ok(()) if stop.requested() => {
+                    requested.get_or_insert(t);
+                    Flow::StopAfterStep
+                }
                 Ok(()) => Flow::Continue,
                 Err(e) => {
                     failure = Some((e, t));
@@ -1328,7 +1337,7 @@ fn record(
         ),
     };
     let stopped = match (failure, res) {
-        // Nothing of the sample at `time` was recorded.
+        // The writer thread is gone: nothing of the sample at `time` was recorded.
         (Some((crate::Error::Interrupted { time: Some(time) }, _)), _) => Some(Stopped {
             time,
             message: INTERRUPTED.into(),
@@ -1336,7 +1345,11 @@ fn record(
         // The failed sample was dropped whole.
         (Some((e, t_fail)), _) => Some(Stopped::of(&e, t_fail)),
         (None, Err(e)) => Some(Stopped::from_error(&e, t0)),
-        (None, Ok(())) => None,
+        // Stopped on request before the end time, every sample up to the final state kept.
+        (None, Ok(())) => requested.filter(|_| state.t < t1).map(|time| Stopped {
+            time,
+            message: INTERRUPTED.into(),
+        }),
     };
     if let Some(s) = sink {
         // A writer thread found gone here is reported by `Stream::close`.
@@ -1965,7 +1978,7 @@ mod tests {
         assert!(size(&a) < size(&c), "{} {}", size(&a), size(&c));
     }
 
-    /// A stop requested halfway ends the run at the next sample: the samples before it are
+    /// A stop requested halfway ends the run with the step of the next sample: the samples up to it are
     /// kept whole and equal those of the run to its end, and the run says it was interrupted.
     #[test]
     fn a_stopped_run_keeps_the_samples_before_the_stop() {

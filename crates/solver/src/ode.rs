@@ -535,7 +535,13 @@ impl std::ops::AddAssign for Stats {
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Flow {
     Continue,
+    /// Stop now: the state is left at the end of the step that holds the sample, and the
+    /// step's later samples are not observed.
     Stop,
+    /// Stop at the end of the step that holds the sample, after its later samples and its
+    /// event: every sample up to the state left is observed, and the state is one the run not
+    /// stopped passes through, so that going on from it is that run (a stop on request).
+    StopAfterStep,
 }
 
 /// The value at z = (re, im) of the polynomial with coefficients `coeffs` (constant first), by
@@ -1035,11 +1041,17 @@ fn step_loop<S: OdeSystem>(
     let mut ys = vec![0.0; n];
     let mut next_sample = 0usize;
     // Samples at t0 itself.
+    let mut stop_after_step = false;
     while next_sample < samples.count() && samples.time(next_sample) <= t0 {
-        if observer(sys, t0, y) == Flow::Stop {
-            return Ok(());
+        match observer(sys, t0, y) {
+            Flow::Stop => return Ok(()),
+            Flow::StopAfterStep => stop_after_step = true,
+            Flow::Continue => {}
         }
         next_sample += 1;
+    }
+    if stop_after_step {
+        return Ok(());
     }
     if t_end <= t0 {
         return Ok(());
@@ -1092,6 +1104,10 @@ fn step_loop<S: OdeSystem>(
     }
     let res = 'run: {
         while t < t_end {
+            // The step that held a sample asking to stop after it is done, its event included.
+            if stop_after_step {
+                break 'run Ok(());
+            }
             let t_next_grid = if adaptive {
                 t + h
             } else {
@@ -1239,6 +1255,7 @@ fn step_loop<S: OdeSystem>(
                     t = t_new;
                     break 'run Ok(());
                 }
+                stop_after_step |= flow == Flow::StopAfterStep;
             }
             if let Some(f) = on_step.as_mut() {
                 let step = Step {
