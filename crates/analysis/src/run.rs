@@ -1978,8 +1978,9 @@ mod tests {
         assert!(size(&a) < size(&c), "{} {}", size(&a), size(&c));
     }
 
-    /// A stop requested halfway ends the run with the step of the next sample: the samples up to it are
-    /// kept whole and equal those of the run to its end, and the run says it was interrupted.
+    /// A stop requested halfway ends the run with the step of the next sample: the samples up
+    /// to it are kept whole and equal those of the run to its end, and the run says it was
+    /// interrupted.
     #[test]
     fn a_stopped_run_keeps_the_samples_before_the_stop() {
         let (m, state) = model("pendulum.toml");
