@@ -4,7 +4,7 @@
     python3 -m pip install h5py matplotlib
     python3 analyses/plot_sweep.py out/duffing/duffing-cascade.h5 x   # writes duffing-cascade-x.png
 
-Layout (README, "HDF5 layout of an analysis study"): /sweep/parameter holds one value per job,
+Layout (book/src/reference/hdf5.md): /sweep/parameter holds one value per job,
 /sweep/<observable> the stroboscopic points (jobs x kept periods), /sweep/done which jobs are
 finished (rows of unfinished jobs hold NaN), and every dataset its unit as an attribute.
 """

@@ -93,7 +93,7 @@ def table(md):
 # as do the reaction forces (the ideal mechanism's reaction peaks, equal at two drive periods to
 # about 1e-7, swap their times at fewer) and the diagnostics; the rates and the other loads, which
 # a run gets far less accurately (restart force errors of 6.7e-6 to 1.4 of the peak force in the
-# README's 4-UPS/RPU work-precision table), keep 20 (a relative 4.8e-7).
+# 4-UPS/RPU work-precision table of book/src/results/work-precision.md), keep 20 (a relative 4.8e-7).
 BY_QUANTITY = ("{ default = 28, velocity = 20, angular_velocity = 20, penetration_rate = 20, "
                "acceleration = 20, angular_acceleration = 20, reaction_torque = 20, "
                "normal_force = 20, friction_force = 20, force_on_journal = 20, "

@@ -678,3 +678,27 @@ fn the_checks_read_markdown_as_mdbook_does() {
         ]
     );
 }
+
+/// The README is a front page: short, and every link of it leads to a file of the checkout (the
+/// book's pages among them).
+#[test]
+fn the_front_page_is_short_and_its_links_resolve() {
+    let readme = std::fs::read_to_string(root().join("README.md")).unwrap();
+    let lines = readme.lines().count();
+    assert!(lines <= 200, "README.md has {lines} lines: the rest belongs in the book");
+    let mut problems = Vec::new();
+    for target in links(&strip_code(&readme)) {
+        if target.contains("://") {
+            continue;
+        }
+        let path = target.split('#').next().unwrap();
+        if !root().join(path).exists() {
+            problems.push(format!("README.md: link {target}: no {path}"));
+        }
+    }
+    // The test command .ci/run runs is the README's.
+    let ci = std::fs::read_to_string(root().join(".ci/run")).unwrap();
+    let command = "scripts/setup && cargo test --workspace";
+    assert!(readme.contains(command) && ci.contains(command));
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
+}

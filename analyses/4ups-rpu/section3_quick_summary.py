@@ -17,7 +17,7 @@ import sys
 import h5py
 import numpy as np
 
-# /sweep/chaos/class (README, "Is it chaos?").
+# /sweep/chaos/class (book/src/explanation/lyapunov.md).
 CLASSES = ["undetermined", "periodic", "quasi-periodic", "chaotic"]
 
 

@@ -2,7 +2,7 @@
 //! clearance in S2, S5 and R1 (`data/scenes/4ups-rpu-mixed.toml`), from its state at 0.15 s (the
 //! contacts active). The time is per window: multiply by 50 for one simulated second. The errors
 //! these settings reach are measured by `jointplay precision analyses/precision/4ups-rpu.toml`
-//! (README, "What accuracy costs").
+//! (book/src/results/work-precision.md).
 //!
 //! `cargo bench -p jointplay-analysis --bench integrators`
 

@@ -7,7 +7,7 @@
 //! `"strobe"` by default or a hyperplane section's name). The Lyapunov run starts from the
 //! analysis run's final hybrid state, so the analysis's periods serve as its transient.
 //!
-//! **Classification** (thresholds chosen here, documented in the README). The strobe series of
+//! **Classification** (thresholds chosen here, documented in book/src/explanation/lyapunov.md). The strobe series of
 //! the first observable (of the 0-1 test's observable when it runs) is first searched for a
 //! period p <= 64: over its last half, `|x_(j+p) - x_j| <= 1e-6` of its spread plus 1e-9 of its
 //! size.
@@ -154,7 +154,7 @@ impl ChaosSpec {
     }
 }
 
-/// Writes the measures of a single run into the group `/chaos` (layout in the README).
+/// Writes the measures of a single run into the group `/chaos` (layout in book/src/reference/hdf5.md).
 pub(crate) fn write_single(file: &hdf5::File, c: &Chaos) -> hdf5::Result<()> {
     let g = file.create_group("chaos")?;
     write_class(&g, c.class)?;

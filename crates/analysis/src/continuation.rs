@@ -900,7 +900,7 @@ fn locate(
     })
 }
 
-/// The `[continuation]` table of an analysis study (format in the README, "Periodic orbits and
+/// The `[continuation]` table of an analysis study (format in book/src/reference/analysis.md, "Periodic orbits and
 /// continuation").
 #[derive(Debug, Clone, PartialEq, serde::Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -1366,7 +1366,7 @@ pub fn snapshot_path(path: &std::path::Path) -> std::path::PathBuf {
 }
 
 /// Writes `/continuation` into the analysis file `path` (replacing one written before); layout in
-/// the README, "HDF5 layout". `failure` is the error of a continuation that could not start.
+/// book/src/reference/hdf5.md. `failure` is the error of a continuation that could not start.
 ///
 /// The file is never rewritten in place: a copy with the new `/continuation` is written
 /// ([`crate::storage::durable::Unnamed`]) and moved over it ([`crate::storage::durable::replace`]); the state file of

@@ -1,4 +1,4 @@
-//! HDF5 export of a run (layout documented in the README, "HDF5 layout"), and the small set of
+//! HDF5 export of a run (layout documented in book/src/reference/hdf5.md), and the small set of
 //! helpers every file kind is written and read with (attributes, datasets of one or two
 //! dimensions, rows of a sweep, strings).
 //!

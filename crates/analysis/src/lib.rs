@@ -2,7 +2,7 @@
 //!
 //! Runs of a compiled model and what comes out of them: [`run`] integrates a model and records the
 //! requested outputs, observables of [`observe`], at exact sample times; [`h5`] writes a
-//! recording to HDF5 (layout in the README) and holds the helpers every file kind is written and
+//! recording to HDF5 (layout in book/src/reference/hdf5.md) and holds the helpers every file kind is written and
 //! read with; [`study`] reads study files (several cases of a scene, edited by path) and
 //! [`report`] computes their comparison table from the written file; [`figures`] draws every
 //! figure (runs, studies, analysis files, work-precision) over [`plot`], which draws PNG and SVG

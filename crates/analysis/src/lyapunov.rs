@@ -73,7 +73,7 @@ pub struct LyapunovSpec {
     /// The difference quotient of a mechanism's Jacobian-vector products ("forward", the default,
     /// or "central"; built-in systems have analytic ones). Forward differences halve the
     /// tangent's cost; the exponents are time averages, and forward and central ones agree far
-    /// inside their standard errors (README, "Is it chaos?").
+    /// inside their standard errors (book/src/explanation/lyapunov.md).
     #[serde(default = "forward")]
     pub difference: Difference,
 }

@@ -1,7 +1,7 @@
 //! Nonlinear-analysis studies: N-period runs, Poincare sections and bifurcation sweeps of a
 //! mechanism scene or a built-in reference system, written to one HDF5 file.
 //!
-//! A study file with an `[analysis]` table (format in the README, "Nonlinear analysis") names a
+//! A study file with an `[analysis]` table (format in book/src/reference/analysis.md) names a
 //! flow (`study.scene`, edited like a comparison study's cases, or `study.system`), the run
 //! ([`Plan`]: periods, transient, phase, samples per period), the observables by path
 //! ([`crate::observe`]), hyperplane sections, an optional sweep and the figures.

@@ -887,7 +887,7 @@ impl Outcome {
         s
     }
 
-    /// Writes `dir/<name>.h5` (layout in the README, "HDF5 layout of a work-precision run").
+    /// Writes `dir/<name>.h5` (layout in book/src/reference/hdf5.md).
     pub fn write(&self, dir: &Path, study: &Loaded) -> Result<PathBuf> {
         let file = dir.join(format!("{}.h5", self.name));
         let n = self.runs.len();

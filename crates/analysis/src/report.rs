@@ -422,7 +422,7 @@ fn table(out: &mut String, cases: &[String], qs: &[Quantity]) {
 }
 
 /// The report as markdown (headed by the study name; definitions in this module's docs and the
-/// README).
+/// book, book/src/reference/study.md).
 pub fn markdown(r: &Report) -> String {
     let mut s = String::new();
     let _ = writeln!(s, "### Study `{}`", r.study_name);

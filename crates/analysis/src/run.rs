@@ -128,7 +128,7 @@ pub struct Clearance {
 }
 
 /// Everything one run recorded: the sample times and one [`Channel`] per dataset of the run file
-/// (layout in the README, "HDF5 layout"), in the order they are written.
+/// (layout in book/src/reference/hdf5.md), in the order they are written.
 #[derive(Debug, Clone, Default)]
 pub struct Recording {
     /// s.

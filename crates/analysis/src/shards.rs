@@ -7,7 +7,7 @@
 //! sharded: each of its values starts from the previous value's final state.
 //!
 //! **Shard files.** Shard `I` of `N` writes `DIR/<study>.shard-I-of-N.h5`: a sweep file (layout in
-//! the README) whose rows are the shard's jobs alone, in order, with the root attributes `shard`
+//! book/src/reference/hdf5.md) whose rows are the shard's jobs alone, in order, with the root attributes `shard`
 //! (`I`) and `shards` (`N`) and the dataset `/sweep/job` (each row's index in the whole sweep).
 //! It records each value's status in `/sweep/done` like any sweep file, so `run --resume`
 //! computes only what the shard lacks, and `plot` draws the shard's values.

@@ -1,4 +1,4 @@
-//! Study-format paths as a user writes them from the README: a built-in system's default
+//! Study-format paths as a user writes them from the book: a built-in system's default
 //! observables, a sweep over one component of a vector field, and a `*` edit that adds a field
 //! the scene leaves at its default.
 

@@ -2,7 +2,7 @@
 //!
 //! [`SceneSpec`] maps the file one to one (serde, unknown fields rejected). [`SceneSpec::load`]
 //! reads and parses it; [`crate::model::Model::compile`] validates it and builds the simulation
-//! model. The format is documented with examples in the project README ("Scene format").
+//! model. The format is documented with examples in the book (book/src/reference/scene.md).
 //!
 //! Conventions:
 //! * every body has a body frame; `com` is the centre of mass in that frame, `inertia` is the
