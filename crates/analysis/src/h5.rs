@@ -3,9 +3,9 @@
 //! dimensions, rows of a sweep, strings).
 //!
 //! A file written whole (a study, a sweep, a run recorded in memory) is built in memory and
-//! written under no name, forced to disk and renamed into place ([`write_atomically`],
+//! written under no name, forced to disk and renamed into place (`write_atomically`,
 //! [`crate::storage`]); a file streamed while its run goes is written under the temporary name
-//! `<name>.h5.partial`, in the 1.8 format and unflushed until its end ([`create_streamed`]), and
+//! `<name>.h5.partial`, in the 1.8 format and unflushed until its end (`create_streamed`), and
 //! renamed once complete. So
 //! a crash or an error never leaves a file that looks finished. Every dataset carries a `unit`
 //! attribute (SI) and a `description`.
@@ -21,10 +21,10 @@
 //! attribute `significant_bits`.) The chunks of a run's recording (streamed by [`RunWriter`] or
 //! written whole by [`write_run`] and [`write_study`]), and those of a single analysis run's
 //! histories, are shuffled and deflated by
-//! [`crate::chunk`], with libdeflate and on several threads where nothing else runs, and written
+//! `crate::chunk`, with libdeflate and on several threads where nothing else runs, and written
 //! as they are; every other dataset goes through HDF5's own filters (zlib). The chunks are in
 //! the format of the declared filters either way, and decompress to the same values. Chunks hold about [`CHUNK_BYTES`] (a recording's datasets one
-//! column at a time, [`column_chunks`]; other tables whole rows; a sweep's history rows chunked
+//! column at a time, `column_chunks`; other tables whole rows; a sweep's history rows chunked
 //! by the block its jobs write them in; a streamed recording's chunks hold [`STREAM_ROWS`]
 //! samples of a column), small enough
 //! that reading one column of a long recording decompresses little beyond it, large enough that
@@ -158,7 +158,7 @@ pub const SMALL: usize = 256;
 pub const CHUNK_BYTES: usize = 64 * 1024;
 
 /// Deflate level after the shuffle filter, of zlib (HDF5's filter) and of libdeflate
-/// ([`crate::chunk`]) alike. Level 4 is the middle of zlib's range. On a 6 s run of the mixed
+/// (`crate::chunk`) alike. Level 4 is the middle of zlib's range. On a 6 s run of the mixed
 /// 4-UPS/RPU (DOPRI5, 1 ms output) zlib's level 1 made the file 0.8 % larger and took the same
 /// share of the run's time (about 16 %, by `perf`): recorded trajectories compress little either
 /// way. On a 10 s run's chunks libdeflate's levels 1, 4 and 6 gave 1.357, 1.382 and 1.385 times
@@ -1016,7 +1016,7 @@ impl RunWriter {
     }
 
     /// Appends the samples `rec` holds (all its channels, the same number of samples each) and
-    /// flushes the file. The chunks are compressed by [`crate::chunk`] (by the threads of
+    /// flushes the file. The chunks are compressed by `crate::chunk` (by the threads of
     /// rayon's pool when `parallel`: the last block of a run, which nothing else waits beside)
     /// when the samples start a chunk, as every block of a streamed run does; otherwise they go
     /// through HDF5's own filters.

@@ -21,7 +21,7 @@
 //! only reads the states at the sample times (with the contacts' onset history, which the
 //! contact laws with hysteresis damping read); the file's writer thread evaluates the recorded
 //! quantities from them, beside the integration, to the same values bit for bit (a part the
-//! writer is behind with the integrating thread evaluates itself: [`Stream`]). Of the streamed
+//! writer is behind with the integrating thread evaluates itself: `Stream`). Of the streamed
 //! samples it keeps only those the run figures draw ([`crate::figures::run::drawn`]), and of
 //! those every `stride`-th: at most [`FIGURE_SAMPLES`] to `2 * FIGURE_SAMPLES` samples, the
 //! stride doubling whenever twice the bound is reached (sample `j` of the kept ones is sample

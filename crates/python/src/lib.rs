@@ -1,12 +1,12 @@
 //! jointplay for Python: the `jointplay._jointplay` extension module, built by maturin
 //! (`pip install ./crates/python`) and re-exported by the `jointplay` package.
 //!
-//! It calls the Rust crates directly: a [`Scene`] is a scene's TOML tree, read and edited by the
+//! It calls the Rust crates directly: a `Scene` is a scene's TOML tree, read and edited by the
 //! study paths of [`jointplay_analysis::study`] and checked against the scene format on every
-//! edit; [`Scene::run`] compiles and simulates it ([`jointplay_analysis::run::simulate_until`])
+//! edit; `Scene::run` compiles and simulates it (`jointplay_analysis::run::simulate_until`)
 //! and hands its recording over as numpy arrays that view the run's own memory (no copy);
-//! [`run_study`] runs a comparison, analysis (sweep) or work-precision study as `jointplay run`
-//! and `jointplay precision` do, writes the same files and loads the result ([`H5`]).
+//! `run_study` runs a comparison, analysis (sweep) or work-precision study as `jointplay run`
+//! and `jointplay precision` do, writes the same files and loads the result (`H5`).
 //!
 //! Long computations run on a thread of their own with the GIL released, while the calling
 //! thread draws the progress bar (`jointplay._progress`, tqdm when installed) and checks for

@@ -162,7 +162,7 @@ pub trait OdeSystem {
 
     /// [`OdeSystem::event_values`] at the state `y` of the last [`OdeSystem::rhs`]: the
     /// integrator calls it at the end of every accepted step, whose last right-hand side is
-    /// `f(t + h, y_new)` (every [`Stepper::step`] ends with it; `t` is the step's end time,
+    /// `f(t + h, y_new)` (every `Stepper::step` ends with it; `t` is the step's end time,
     /// which `t + h` may miss by a rounding). A system that keeps what its right-hand side
     /// computed may read the values from that instead of evaluating them afresh; they must be
     /// those of `event_values`, bit for bit. The default evaluates them.

@@ -6,14 +6,14 @@
 //! journal's header names the study text, the shard and the number of rows, so that a journal is
 //! never taken for another computation's.
 //!
-//! **The file.** When the sweep ends or stops, [`write_file`] writes the HDF5 file from the
+//! **The file.** When the sweep ends or stops, `write_file` writes the HDF5 file from the
 //! values kept: under `<file>.partial`, closed, read back and checked row by row against each
 //! value's checksum, forced to disk and renamed over `<file>` ([`super::durable::replace`]).
 //! Each row's checksum goes into `/sweep/checksum`, so that `--resume` and `merge` can check every
-//! value a file holds ([`read_values`]). A complete file ends the journal (it is removed); an
+//! value a file holds (`read_values`). A complete file ends the journal (it is removed); an
 //! incomplete one keeps it for `--resume`.
 //!
-//! **Resuming** ([`resume`]) keeps the values of the journal and those of the file that the
+//! **Resuming** (`resume`) keeps the values of the journal and those of the file that the
 //! journal lacks (a merged file, say), each checked; a value that does not check is computed
 //! again, and said so.
 
