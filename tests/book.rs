@@ -685,7 +685,10 @@ fn the_checks_read_markdown_as_mdbook_does() {
 fn the_front_page_is_short_and_its_links_resolve() {
     let readme = std::fs::read_to_string(root().join("README.md")).unwrap();
     let lines = readme.lines().count();
-    assert!(lines <= 200, "README.md has {lines} lines: the rest belongs in the book");
+    assert!(
+        lines <= 200,
+        "README.md has {lines} lines: the rest belongs in the book"
+    );
     let mut problems = Vec::new();
     for target in links(&strip_code(&readme)) {
         if target.contains("://") {

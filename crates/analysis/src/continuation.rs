@@ -1202,7 +1202,9 @@ fn start_state(
     // The drive is periodic: the settled state is taken back to the first strobe time, so that
     // when the parameter changes the period (a drive frequency) the strobe phase moves by
     // `t_strobe d(omega)`, not by `transient` periods' worth of it.
-    let t = state.t + transient as f64 * flow.period();
+    // From a fresh start (at the flow's start time) the run goes on to the strobe phase, so
+    // that the state labelled with the strobe time is the state at a strobe time.
+    let t = t_strobe + transient as f64 * flow.period();
     let method = flow.method();
     let (_, res) = ode::advance(
         &mut flow,

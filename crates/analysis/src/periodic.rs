@@ -199,7 +199,22 @@ pub(crate) fn evaluate<F: Tangent>(flow: &mut F, state: &HybridState, k: usize) 
             .collect(),
     };
     let start = state.for_new_run();
-    let (end, images, events) = tangent_map_counted(flow, &start, &vectors, t_end)?;
+    let (mut end, mut images, events) = tangent_map_counted(flow, &start, &vectors, t_end)?;
+    // A body that turned a whole number of turns comes back with its Euler parameters negated
+    // (the quaternion double cover): the same orientation. The image is taken with the sign of
+    // the argument's parameters, so that a crank's orbit is a fixed point (its residual would
+    // otherwise be 2 in those components whatever the motion), and its tangent images with it.
+    for o in flow.euler_parameters() {
+        let dot: f64 = (o..o + 4).map(|i| end.y[i] * state.y[i]).sum();
+        if dot < 0.0 {
+            for i in o..o + 4 {
+                end.y[i] = -end.y[i];
+                for v in images.iter_mut() {
+                    v[i] = -v[i];
+                }
+            }
+        }
+    }
     let m = vectors.len();
     let mut mb = DMatrix::zeros(n, m);
     for (c, v) in images.iter().enumerate() {

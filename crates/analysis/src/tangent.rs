@@ -56,6 +56,14 @@ use crate::systems::Builtin;
 
 /// What the Lyapunov analysis needs of a flow beyond [`Flow`].
 pub trait Tangent: Flow {
+    /// The offsets in the state of each body's four Euler parameters (none for a built-in
+    /// system). A unit quaternion and its negative are one orientation, and a body that turns a
+    /// whole turn comes back with its parameters negated: a map whose images are compared with
+    /// its arguments (shooting) compares these up to their sign.
+    fn euler_parameters(&self) -> Vec<usize> {
+        Vec::new()
+    }
+
     /// Length of the memory the tangent carries (contact slots), 0 for a smooth flow.
     fn memory_len(&self) -> usize {
         0
@@ -283,6 +291,10 @@ impl MechFlow<'_> {
 }
 
 impl Tangent for MechFlow<'_> {
+    fn euler_parameters(&self) -> Vec<usize> {
+        // Per body its centre of mass (3) and Euler parameters (4).
+        (0..self.mech.model.nb()).map(|k| 7 * k + 3).collect()
+    }
     fn memory_len(&self) -> usize {
         self.mech.ws.onset.len()
     }
@@ -518,6 +530,9 @@ impl Tangent for AnyFlow<'_> {
     }
     fn manifold_basis(&mut self, t: f64, y: &[f64]) -> crate::Result<Option<DMatrix<f64>>> {
         either!(self, f => f.manifold_basis(t, y))
+    }
+    fn euler_parameters(&self) -> Vec<usize> {
+        either!(self, f => f.euler_parameters())
     }
     fn phase_dim(&self) -> usize {
         either!(self, f => f.phase_dim())
