@@ -29,10 +29,10 @@ fn meta(model: &Model) -> Meta<'_> {
     }
 }
 
-/// Body positions of every sample at or after `t`, as bits.
-fn positions_from(run: &RunResult, t: f64) -> Vec<u64> {
+/// Body positions of every sample after `t`, as bits.
+fn positions_after(run: &RunResult, t: f64) -> Vec<u64> {
     let rec = &run.recording;
-    let first = rec.time.iter().position(|&s| s >= t).unwrap();
+    let first = rec.time.iter().position(|&s| s > t).unwrap();
     rec.members("bodies")
         .flat_map(|b| {
             let p = rec.channel(&format!("bodies/{b}/position")).unwrap();
@@ -81,11 +81,18 @@ fn a_run_split_through_its_file_is_the_same_run() {
     model.settings.end_time = t_end;
     let second = resume(&model, saved.clone(), &mut |_| {}).unwrap();
     assert_eq!(second.final_state, whole.final_state);
-    // Every sample of the continued run equals the uninterrupted run's (the split's own sample
-    // included), and the two halves together took the whole run's steps.
+    // The first half holds the split's own sample and the continued run the samples after it,
+    // each equal to the uninterrupted run's, and the two halves together took the whole run's
+    // steps.
+    assert_eq!(first.recording.time.last(), Some(&t_split));
+    assert!(second.recording.time[0] > t_split);
     assert_eq!(
-        positions_from(&second, t_split),
-        positions_from(&whole, t_split)
+        second.recording.time.len() + first.recording.time.len(),
+        whole.recording.time.len()
+    );
+    assert_eq!(
+        positions_after(&second, t_split),
+        positions_after(&whole, t_split)
     );
     assert_eq!(
         first.stats.accepted + second.stats.accepted,
