@@ -212,6 +212,13 @@ enum Command {
 }
 
 fn main() {
+    // Output piped into a reader that stops early (`jointplay check SCENE | head`) ends the
+    // program as it ends any Unix tool, by SIGPIPE, instead of a panic in `println!` (Rust
+    // ignores SIGPIPE by default). What a killed computation leaves is what any kill leaves.
+    // SAFETY: setting a signal's disposition to its default before any thread is started.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     let cli = Cli::parse();
     // SIGINT (Ctrl-C) and SIGTERM (a Slurm time limit, `scancel`, `kill`) stop the computation
     // cleanly: finished values are kept, the current one is abandoned, the file is left to

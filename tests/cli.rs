@@ -1389,7 +1389,7 @@ fn run_from_a_file_continues_the_run_bit_for_bit() {
         hdf5::File::open(dir.path().join(out).join("4ups-rpu-mixed.h5")).unwrap()
     };
     let a = run(&whole, "a", None);
-    let _b = run(&half, "b", None);
+    let b = run(&half, "b", None);
     let c = run(
         &whole,
         "c",
@@ -1402,10 +1402,14 @@ fn run_from_a_file_continues_the_run_bit_for_bit() {
     for name in ["final_state", "final_onset", "final_time", "final_stepper"] {
         assert_eq!(bits(&c, name), bits(&a, name), "{name}");
     }
-    // The continued file records from 0.25 s on: its samples are the tail of the whole run's.
+    // The continued file records after 0.25 s, where the first file's samples end: its samples
+    // are the tail of the whole run's, and the two files together are the whole run's.
     let (ta, tc) = (bits(&a, "time"), bits(&c, "time"));
-    assert_eq!(f64::from_bits(tc[0]), 0.25);
+    let tb = bits(&b, "time");
+    assert_eq!(f64::from_bits(*tb.last().unwrap()), 0.25);
+    assert!(f64::from_bits(tc[0]) > 0.25);
     assert_eq!(tc, ta[ta.len() - tc.len()..]);
+    assert_eq!(tb.len() + tc.len(), ta.len());
     let (pa, pc) = (
         bits(&a, "bodies/platform/position"),
         bits(&c, "bodies/platform/position"),

@@ -33,7 +33,8 @@
 //!
 //! **Streaming.** A run file can be written while the run goes ([`RunWriter`]): its datasets
 //! are created empty and extendable, and every [`STREAM_ROWS`] samples are appended as one chunk
-//! each and flushed, so a run's memory does not grow with its length; the attributes known only
+//! each (not flushed until the close: see `create_streamed`), so a run's memory does not grow
+//! with its length; the attributes known only
 //! at the end (statistics, `complete`, the final state) are written when it ends.
 
 use std::path::{Path, PathBuf};

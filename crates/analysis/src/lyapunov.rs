@@ -21,8 +21,9 @@
 //! Both are stored.
 //!
 //! **Two-trajectory estimate** (Benettin et al., Meccanica 15, 1980, the original method). A
-//! second copy of the flow starts at a distance `d0` along the first tangent vector and runs with
-//! its own steps and its own contact history; every interval its separation `d` from the first
+//! second copy of the flow starts at a distance `d0` along the first tangent vector and runs in
+//! the first's steps (a step sequence of its own would add its own integration error to a small
+//! separation) with its own contact history; every interval its separation `d` from the first
 //! (projected onto the manifold's tangent space for a mechanism) is measured, `ln(d / d0)` is
 //! accumulated, and the copy is pulled back to distance `d0` along the same direction (its onset
 //! memories likewise). It is independent of the tangent code: no Jacobian, no saltation.

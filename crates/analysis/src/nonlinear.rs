@@ -8,10 +8,11 @@
 //!
 //! **Sweeps.** Each value of the swept parameter is one job. Independent jobs run in parallel on
 //! rayon's pool; with `continuation = true` the jobs run in order up the list and back down, each
-//! starting from the previous job's final state. Every job's results are written into the file as
-//! soon as it finishes (the jobs run on the caller's rayon pool and send their results through a
-//! channel to one writer thread) and the file is flushed, so an interrupted sweep keeps every finished job: the file's
-//! `complete` attribute is 0 until all jobs are done, `/sweep/done` marks each job (0 not run,
+//! starting from the previous job's final state. Every job's results go into the sweep's journal
+//! as soon as it finishes (the jobs run on the caller's rayon pool and send their results through
+//! a channel to one writer thread, which forces each record to disk), and the file is written
+//! from the journal when the sweep ends or stops ([`crate::storage::sweep`]), so an interrupted
+//! sweep keeps every finished job: the file's `complete` attribute is 0 until all jobs are done, `/sweep/done` marks each job (0 not run,
 //! 1 done, 2 failed, its message in `/sweep/errors`), and `resume` runs only the jobs not done.
 //! Each job's result depends only on its inputs, so the datasets are bit-identical whatever the
 //! number of threads and whether the sweep was interrupted.

@@ -33,7 +33,10 @@
 //! nonlinearity lives at the scale of the penetration (micrometres). A forward difference, whose
 //! error is about e f''/f' ~ e / delta, was measured 6e-3 off the derivative of the flow map
 //! through an onset on the clearance slider-crank; the central one, (e / delta)^2, agrees within
-//! the finite-difference check's own resolution. It costs two right-hand sides per vector.
+//! the finite-difference check's own resolution. It costs two right-hand sides per vector. The
+//! forward quotient `(f(y + e v, m + e w) - f(y, m)) / e` costs one and is the default of
+//! `[lyapunov] difference` (the central one is `difference = "central"`); where each is enough,
+//! with the measurements: book/src/explanation/lyapunov.md.
 //!
 //! **The constraint manifold.** A mechanism's state `(positions with Euler parameters,
 //! velocities)` lives on the manifold `C(y) = 0` of its position constraints `Phi(q, t)`, its

@@ -249,9 +249,8 @@ fn pool(threads: Option<usize>) -> PyResult<Option<rayon::ThreadPool>> {
 /// ``del scene[path]`` removes a key as a study's ``remove`` does (removing a joint's
 /// ``clearance`` makes it ideal).
 ///
-/// A scene may be used from several threads and from a progress callback while it runs: it is
-/// a frozen class whose tree is behind a lock held only for the moment of a read or an edit
-/// (never while Python code or a simulation runs), so no call meets pyo3's "Already borrowed".
+/// A scene may be used from several threads, and read or edited from a progress callback while
+/// it runs: a run simulates the scene as it was when the run started.
 #[pyclass(module = "jointplay", frozen)]
 struct Scene {
     data: Mutex<SceneData>,

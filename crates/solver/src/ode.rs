@@ -14,7 +14,7 @@
 //! combines its two estimates in that scaling as Hairer's code does); a step is accepted when the
 //! norm is at most 1 and the next step follows the PI rule `h * 0.9 err^(-0.7/q) err_prev^(0.4/q)`
 //! (a PI controller of Gustafsson's form; Hairer's codes use other exponents), at most 10 times larger (not larger right after a
-//! rejection); a rejected step is retried with `h * 0.9 err^(-1/q)`, at least 5 times smaller.
+//! rejection); a rejected step is retried with `h * 0.9 err^(-1/q)`, at most 5 times smaller.
 //! Here the estimate is O(h^q), q the integrator's [`Adaptive::control_order`]: 3 for BS3, 5 for
 //! DOPRI5, 8 for DOP853, 3 for Rosenbrock23. The initial step follows Hairer's HINIT with the same q.
 //!

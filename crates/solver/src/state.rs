@@ -1,9 +1,9 @@
 //! The hybrid state of a run: everything the future of a run depends on.
 //!
 //! A run of a flow is not determined by its continuous state `(t, y)` alone. A contact law with
-//! hysteresis damping (Lankarani-Nikravesh, Flores, Hu-Guo, Gonthier) remembers the approach
-//! velocity at the onset of each contact, the step-size guard remembers which joints it has
-//! warned about, and the integrator remembers its step: the grid of a fixed-step method and the
+//! hysteresis damping (Lankarani-Nikravesh, Hunt-Crossley, Flores, Gonthier, Carvalho-Martins)
+//! remembers the approach velocity at the onset of each contact, the step-size guard remembers
+//! which joints it has warned about, and the integrator remembers its step: the grid of a fixed-step method and the
 //! controller's next step and last error of an adaptive one. [`HybridState`] holds all of it, so
 //! that a run stopped at T, saved (to HDF5, see the analysis crate's `hybrid` module), loaded and
 //! run on is the same run as one that never stopped: bit for bit for a fixed-step method whose
