@@ -190,10 +190,9 @@ fn links(md: &str) -> Vec<String> {
         if let Some(rest) = t.strip_prefix('[')
             && let Some(close) = rest.find("]:")
             && !rest[..close].contains('[')
+            && let Some(target) = rest[close + 2..].split_whitespace().next()
         {
-            if let Some(target) = rest[close + 2..].split_whitespace().next() {
-                out.push(target.to_string());
-            }
+            out.push(target.to_string());
         }
     }
     out

@@ -24,7 +24,7 @@ fn deterministic(md: &str) -> Vec<String> {
             continue;
         }
         let cells: Vec<&str> = line.trim_matches('|').split('|').map(str::trim).collect();
-        if cells.iter().any(|c| *c == "wall time (s)") {
+        if cells.contains(&"wall time (s)") {
             drop = cells
                 .iter()
                 .enumerate()
