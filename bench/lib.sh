@@ -13,3 +13,16 @@ scene() {
 
 # median: the median of the numbers on standard input, one a line
 median() { sort -g | awk '{ v[NR] = $1 } END { print v[int((NR + 1) / 2)] }'; }
+
+# program: sets $bin to the program the bench runs, $JOINTPLAY or the release build (built now),
+# and $work to a scratch directory removed when the script exits. Call it in the script itself,
+# not in a subshell, so that both stay set.
+program() {
+  if [[ -z "${JOINTPLAY:-}" ]]; then
+    cargo build --release --quiet
+    JOINTPLAY=target/release/jointplay
+  fi
+  bin=$(realpath "$JOINTPLAY")
+  work=$(mktemp -d)
+  trap 'rm -rf "$work"' EXIT
+}

@@ -15,14 +15,8 @@
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 cd "$root"
-if [[ -z "${JOINTPLAY:-}" ]]; then
-  cargo build --release --quiet
-  JOINTPLAY=target/release/jointplay
-fi
-bin=$(realpath "$JOINTPLAY")
-work=$(mktemp -d)
-trap 'rm -rf "$work"' EXIT
 . bench/lib.sh
+program
 scene 5 "$work/p5.toml"    # 10 s, DOPRI5 rtol 1e-6, atol 1e-9, 1 ms output
 scene 50 "$work/p50.toml"  # 100 s
 sed -e 's/^integrator = "dopri5"/integrator = "bs3"/' -e 's/^rtol = 1e-6/rtol = 1e-3/' \

@@ -13,13 +13,8 @@
 set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 cd "$root"
-if [[ -z "${JOINTPLAY:-}" ]]; then
-  cargo build --release --quiet
-  JOINTPLAY=target/release/jointplay
-fi
-bin=$(realpath "$JOINTPLAY")
-work=$(mktemp -d)
-trap 'rm -rf "$work"' EXIT
+. bench/lib.sh
+program
 # solver SCENE LINES...: SCENE with its [solver] table replaced by LINES (one key each)
 solver() {
   local scene=$1; shift

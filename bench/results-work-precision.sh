@@ -29,14 +29,8 @@ set -euo pipefail
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
 cd "$root"
 out=${OUT:-out/precision}
-if [[ -z "${JOINTPLAY:-}" ]]; then
-  cargo build --release --quiet
-  JOINTPLAY=target/release/jointplay
-fi
-bin=$(realpath "$JOINTPLAY")
-work=$(mktemp -d)
-trap 'rm -rf "$work"' EXIT
 . bench/lib.sh
+program
 parts=("$@")
 [[ ${#parts[@]} -gt 0 ]] || parts=(studies census runs benches diagram)
 

@@ -123,8 +123,17 @@ fn blocks(md: &str) -> Vec<Block> {
     out
 }
 
-/// The markdown without its fenced blocks and inline code, where links are not links.
-fn strip_code(md: &str) -> String {
+/// What to keep of inline code outside the fenced blocks.
+#[derive(Clone, Copy, PartialEq)]
+enum Inline {
+    /// Nothing: links in code are not links.
+    Drop,
+    /// Its text without the backticks: a heading's id includes it.
+    Text,
+}
+
+/// The markdown outside its fenced blocks, inline code dropped or kept as text.
+fn outside_fences(md: &str, inline: Inline) -> String {
     let mut out = String::new();
     let mut fence: Option<String> = None;
     for line in md.lines() {
@@ -142,15 +151,20 @@ fn strip_code(md: &str) -> String {
                 for c in line.chars() {
                     if c == '`' {
                         in_code = !in_code;
-                    } else if !in_code {
+                    } else if !in_code || inline == Inline::Text {
                         out.push(c);
                     }
                 }
+                out.push('\n');
             }
         }
-        out.push('\n');
     }
     out
+}
+
+/// The markdown without its fenced blocks and inline code, where links are not links.
+fn strip_code(md: &str) -> String {
+    outside_fences(md, Inline::Drop)
 }
 
 /// Link targets: inline `[text](target)` and `![alt](target)`, and reference definitions
@@ -273,7 +287,7 @@ fn expanded(page: &Path) -> String {
 fn heading_ids(page: &Path) -> BTreeSet<String> {
     let mut seen: BTreeMap<String, usize> = BTreeMap::new();
     let mut ids = BTreeSet::new();
-    for line in strip_code_keep_headings(&expanded(page)).lines() {
+    for line in outside_fences(&expanded(page), Inline::Text).lines() {
         let t = line.trim_start();
         if t.starts_with('#') {
             let text = t.trim_start_matches('#');
@@ -290,29 +304,6 @@ fn heading_ids(page: &Path) -> BTreeSet<String> {
         }
     }
     ids
-}
-
-/// Like `strip_code` but keeping inline code's text (headings' ids include it).
-fn strip_code_keep_headings(md: &str) -> String {
-    let mut out = String::new();
-    let mut fence: Option<String> = None;
-    for line in md.lines() {
-        let trimmed = line.trim_start();
-        let f: String = trimmed
-            .chars()
-            .take_while(|&c| c == '`' || c == '~')
-            .collect();
-        match &fence {
-            None if f.len() >= 3 => fence = Some(f),
-            Some(open) if f.len() >= open.len() && trimmed.trim() == f => fence = None,
-            Some(_) => {}
-            None => {
-                out.push_str(&line.replace('`', ""));
-                out.push('\n');
-            }
-        }
-    }
-    out
 }
 
 #[test]
