@@ -7,7 +7,9 @@
 //!   file of the checkout.
 //! - Every `{{#include}}` names an existing file, and every included scene or study is checked by
 //!   `jointplay check` as a user would run it.
-//! - Every ```` ```toml ```` block is valid TOML and every ```` ```python ```` block compiles.
+//! - Every ```` ```toml ```` block is valid TOML and every ```` ```python ```` block compiles;
+//!   every TOML example written in a page is laid over the scene or study it names and checked by
+//!   `jointplay check`.
 //! - The command-line reference (`reference/cli-help.md`) is the program's own `--help` text
 //!   (`JOINTPLAY_BLESS=1 cargo test --test book` rewrites it).
 //! - The tutorial's commands run, in order, page by page, and succeed.
@@ -81,12 +83,16 @@ struct Block {
     info: String,
     text: String,
     line: usize,
+    /// The last non-blank line before the fence (a `<!-- check: FILE -->` annotation).
+    before: String,
 }
 
 fn blocks(md: &str) -> Vec<Block> {
     let mut out = Vec::new();
     let mut open: Option<(String, usize, String, usize)> = None; // fence, line, info, indent
     let mut text = String::new();
+    let mut last = String::new();
+    let mut before = String::new();
     for (i, line) in md.lines().enumerate() {
         let trimmed = line.trim_start();
         let fence: String = trimmed
@@ -98,12 +104,14 @@ fn blocks(md: &str) -> Vec<Block> {
                 let info = trimmed[fence.len()..].trim().to_string();
                 open = Some((fence, i + 1, info, line.len() - trimmed.len()));
                 text.clear();
+                before.clone_from(&last);
             }
             Some((f, start, info, _)) if fence.len() >= f.len() && trimmed.trim() == fence => {
                 out.push(Block {
                     info: info.clone(),
                     text: std::mem::take(&mut text),
                     line: *start,
+                    before: std::mem::take(&mut before),
                 });
                 open = None;
             }
@@ -118,6 +126,9 @@ fn blocks(md: &str) -> Vec<Block> {
                 text.push('\n');
             }
             None => {}
+        }
+        if open.is_none() && !line.trim().is_empty() {
+            last = line.trim().to_string();
         }
     }
     out
@@ -258,6 +269,11 @@ fn includes(md: &str) -> Vec<(String, Option<String>)> {
     while let Some(open) = rest.find("{{#include ") {
         let after = &rest[open + "{{#include ".len()..];
         let Some(close) = after.find("}}") else { break };
+        // `\{{#include ...}}` is mdBook's escape: the text itself, shown.
+        if rest[..open].ends_with('\\') {
+            rest = &after[close..];
+            continue;
+        }
         let arg = after[..close].trim();
         let (path, range) = match arg.split_once(':') {
             Some((p, r)) => (p.to_string(), Some(r.to_string())),
@@ -660,6 +676,7 @@ fn the_checks_read_markdown_as_mdbook_does() {
         ("toml", "a = 1\n")
     );
     assert_eq!(b[1].text, "```\n");
+    assert!(includes("shown: \\{{#include z.toml}}").is_empty());
     assert_eq!(
         includes("{{#include ../x.toml:3:9}} and {{#include y.md}}"),
         [
@@ -693,5 +710,108 @@ fn the_front_page_is_short_and_its_links_resolve() {
     let ci = std::fs::read_to_string(root().join(".ci/run")).unwrap();
     let command = "scripts/setup && cargo test --workspace";
     assert!(readme.contains(command) && ci.contains(command));
+    assert!(problems.is_empty(), "{}", problems.join("\n"));
+}
+
+/// `base` with `fragment` laid over it: tables merged key by key, arrays of tables merged by
+/// their `name` (an element of the same name replaced, others appended), other values replaced.
+fn overlay(base: &mut toml::Table, fragment: &toml::Table) {
+    for (k, v) in fragment {
+        match (base.get_mut(k), v) {
+            (Some(toml::Value::Table(b)), toml::Value::Table(f)) => overlay(b, f),
+            (Some(toml::Value::Array(b)), toml::Value::Array(f))
+                if f.iter().all(|e| e.get("name").is_some()) =>
+            {
+                for e in f {
+                    match b.iter().position(|x| x.get("name") == e.get("name")) {
+                        Some(i) => b[i] = e.clone(),
+                        None => b.push(e.clone()),
+                    }
+                }
+            }
+            _ => {
+                base.insert(k.clone(), v.clone());
+            }
+        }
+    }
+}
+
+/// Every TOML example written in a page (not included from a file) is a part of a scene or a
+/// study, and says which: `<!-- check: FILE -->` on the line before it names a file it fits
+/// (relative to the page). Laid over that file (or, with `<!-- check: FILE, replacing -->`, its
+/// tables put in the place of the file's), it must be accepted by `jointplay check`. An example
+/// that is no file of the program says so: `<!-- not a jointplay file: WHAT -->`.
+#[test]
+fn every_toml_example_checks_in_the_file_it_belongs_to() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut problems = Vec::new();
+    let mut checked = 0;
+    for page in pages() {
+        let md = std::fs::read_to_string(src().join(&page)).unwrap();
+        for (n, b) in blocks(&md).into_iter().enumerate() {
+            if language(&b.info) != "toml" || b.text.contains("{{#include") {
+                continue;
+            }
+            let at = format!("{}:{}", page.display(), b.line);
+            if b.before.starts_with("<!-- not a jointplay file:") {
+                continue;
+            }
+            let Some(base) = b
+                .before
+                .strip_prefix("<!-- check:")
+                .and_then(|r| r.strip_suffix("-->"))
+                .map(str::trim)
+            else {
+                problems.push(format!(
+                    "{at}: a TOML example needs `<!-- check: FILE -->` on the line before it (the \
+                     scene or study it is a part of), or `<!-- not a jointplay file: WHAT -->`"
+                ));
+                continue;
+            };
+            // `FILE, replacing`: the example's tables take the place of the file's whole.
+            let (base, replacing) = match base.strip_suffix(", replacing") {
+                Some(b) => (b, true),
+                None => (base, false),
+            };
+            let base = normalize(&src().join(&page).parent().unwrap().join(base));
+            let (Ok(text), Ok(fragment)) = (
+                std::fs::read_to_string(&base),
+                b.text.parse::<toml::Table>(),
+            ) else {
+                problems.push(format!(
+                    "{at}: {} or the example does not read",
+                    base.display()
+                ));
+                continue;
+            };
+            let mut doc: toml::Table = text.parse().unwrap();
+            if replacing {
+                for (k, v) in &fragment {
+                    doc.insert(k.clone(), v.clone());
+                }
+            } else {
+                overlay(&mut doc, &fragment);
+            }
+            // A study names its scene relative to itself.
+            let here = base.parent().unwrap();
+            if let Some(toml::Value::Table(study)) = doc.get_mut("study")
+                && let Some(toml::Value::String(scene)) = study.get_mut("scene")
+            {
+                *scene = here.join(&*scene).display().to_string();
+            }
+            let file = dir.path().join(format!("example-{checked}-{n}.toml"));
+            std::fs::write(&file, toml::to_string(&doc).unwrap()).unwrap();
+            checked += 1;
+            let out = bin().arg("check").arg(&file).output().unwrap();
+            if !out.status.success() {
+                problems.push(format!(
+                    "{at}: laid over {}, `jointplay check` says: {}",
+                    base.display(),
+                    String::from_utf8_lossy(&out.stderr).trim()
+                ));
+            }
+        }
+    }
+    assert!(checked >= 10, "only {checked} TOML examples checked");
     assert!(problems.is_empty(), "{}", problems.join("\n"));
 }
