@@ -25,7 +25,7 @@ use jointplay_analysis::comparison::Comparison;
 use jointplay_analysis::figures::{overlay, redraw, run_figures};
 use jointplay_analysis::h5::Meta;
 use jointplay_analysis::hybrid::read_run_file;
-use jointplay_analysis::inputs::Input;
+use jointplay_analysis::inputs::{Input, Output};
 use jointplay_analysis::nonlinear::{Loaded, Options, execute};
 use jointplay_analysis::plot::{Format, figure};
 use jointplay_analysis::precision;
@@ -396,6 +396,41 @@ fn check_scene(path: &Path) -> Result<()> {
 }
 
 fn report_cmd(file: &Path, out: Option<&Path>) -> Result<()> {
+    // The table is a comparison study's: other files get the command that fits them.
+    let toml = file.extension().is_some_and(|e| e == "toml");
+    let other = match Output::read(file) {
+        _ if toml => Some(match Input::read(file) {
+            Ok((Input::Comparison, _)) => format!(
+                "a comparison study's TOML file: `jointplay report` reads the HDF5 file its run \
+                 wrote (`jointplay run {}` writes DIR/<study>.h5, and its table DIR/<study>.md)",
+                file.display()
+            ),
+            _ => "a TOML file: `jointplay report` reads the HDF5 file of a comparison study's \
+                  run (DIR/<study>.h5)"
+                .to_string(),
+        }),
+        Ok(Output::Comparison) => None,
+        Ok(Output::Analysis) => Some(
+            "an analysis study's file: `jointplay report` makes a comparison study's table; \
+             `jointplay plot FILE` redraws this file's figures, and its datasets are read as the \
+             book's HDF5 reference describes"
+                .to_string(),
+        ),
+        Ok(Output::Precision) => Some(
+            "a work-precision file: its table is DIR/<name>.md, written beside it by \
+             `jointplay precision`; `jointplay plot FILE` redraws its figure"
+                .to_string(),
+        ),
+        Ok(Output::Run) => Some(
+            "a scene's run file: `jointplay report` makes a comparison study's table; \
+             `jointplay compare` overlays a recorded quantity of several runs"
+                .to_string(),
+        ),
+        Err(e) => return Err(e.into()),
+    };
+    if let Some(why) = other {
+        anyhow::bail!("{}: {why}", file.display());
+    }
     let md = markdown(&report::compute(file)?);
     match out {
         Some(p) => {

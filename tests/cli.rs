@@ -1934,3 +1934,38 @@ fn errors_in_a_study_edited_scene_name_the_study_and_system_tolerances_are_finit
         assert!(se.contains("edited.toml") && se.contains(field), "{se}");
     }
 }
+
+/// `report` makes a comparison study's table: an analysis study's file, and a TOML file, get the
+/// command that fits them instead of a parse error of the stored study.
+#[test]
+fn report_names_the_command_that_fits_another_kind_of_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let study = dir.path().join("single.toml");
+    std::fs::write(
+        &study,
+        "[study]\nname = \"single\"\nsystem = { kind = \"duffing\", initial = [1.0, 0.0] }\n\
+         [analysis]\nperiods = 4\ntransient = 1\nsamples_per_period = 10\n\
+         [[observables]]\nname = \"x\"\npath = \"x\"\n",
+    )
+    .unwrap();
+    let o = bin()
+        .args(["run", "--no-plots", "-q"])
+        .arg(&study)
+        .arg("--out")
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{:?}", text(&o));
+    for (file, says) in [
+        (dir.path().join("single.h5"), "jointplay plot FILE"),
+        (study.clone(), "reads the HDF5 file of a comparison study"),
+    ] {
+        let o = bin().arg("report").arg(&file).output().unwrap();
+        assert_eq!(o.status.code(), Some(1), "{:?}", text(&o));
+        let (_, err) = text(&o);
+        assert!(
+            err.contains(says) && err.contains(&*file.to_string_lossy()),
+            "{err}"
+        );
+    }
+}
