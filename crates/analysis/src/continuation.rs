@@ -64,7 +64,7 @@ use nalgebra::{Complex, DMatrix, DVector};
 use crate::Result;
 use crate::flow::{Flow, Target};
 use crate::lyapunov::tangent_map;
-use crate::periodic::{MapEval, Newton, Orbit, evaluate, orbit_of, shoot};
+use crate::periodic::{MapEval, Newton, Orbit, evaluate, map_distance, orbit_of, shoot};
 use crate::sections::Observed;
 use crate::tangent::Tangent;
 
@@ -245,6 +245,52 @@ impl Ctx<'_> {
         let target = (self.make)(self.p(s))?;
         let mut flow = target.flow();
         evaluate(&mut flow, state, k)
+    }
+
+    /// The point at the scaled parameter `end` (0 or 1) on the way from `cur` to `past`, which
+    /// lies beyond it after a step `h`: the step shortened by secant steps on the arclength until
+    /// the corrected point is at `end` to 1e-9 of the range (at most 4 tries).
+    fn land(&self, k: usize, cur: &Point, end: f64, h: f64, past: &Point) -> Option<Point> {
+        let (ty, ts) = (cur.tangent_y.clone(), cur.tangent_s);
+        let (mut h0, mut s0) = (0.0, cur.s);
+        let (mut h1, mut s1) = (h, past.s);
+        for _ in 0..4 {
+            if s1 == s0 {
+                return None;
+            }
+            let trial = h0 + (end - s0) * (h1 - h0) / (s1 - s0);
+            let c = self.correct(k, cur, &ty, ts, trial).ok()?;
+            let tan = self.tangent(&c, &ty, ts)?;
+            let p = self.point(k, c, tan).ok()?;
+            if (p.s - end).abs() <= 1e-9 {
+                return Some(p);
+            }
+            (h0, s0, h1, s1) = (h1, s1, trial, p.s);
+        }
+        None
+    }
+
+    /// Whether `p` lies in the parameter range (to its rounding).
+    fn in_range(&self, p: f64) -> bool {
+        let (lo, hi) = (
+            self.set.from.min(self.set.to),
+            self.set.from.max(self.set.to),
+        );
+        let slack = 1e-12 * self.range();
+        (lo - slack..=hi + slack).contains(&p)
+    }
+
+    /// For a period-`k` orbit with `k` above the study's first period (a branch switched to at
+    /// a period doubling): `max |P^(k/2)(y) - y|` when it is within 10 times the Newton
+    /// tolerance, that is when the orbit is the period-`k/2` orbit it doubled from.
+    fn period_halved(&self, k: usize, point: &Point) -> Result<Option<f64>> {
+        if k <= self.set.k || !k.is_multiple_of(2) {
+            return Ok(None);
+        }
+        let target = (self.make)(point.parameter)?;
+        let mut flow = target.flow();
+        let d = map_distance(&mut flow, &point.orbit.state, k / 2)?;
+        Ok((d <= 10.0 * self.set.newton.tolerance).then_some(d))
     }
 
     fn onto(&self, s: f64, state: &mut HybridState) -> Result<()> {
@@ -632,8 +678,15 @@ fn follow(
                 branch.end = format!("{} points (continuation.max_points)", set.max_points);
                 break;
             }
-            if !(-1e-12..=1.0 + 1e-12).contains(&cur.s) {
+            if !(-1e-9..=1.0 + 1e-9).contains(&cur.s) {
                 branch.end = "left the parameter range".into();
+                break;
+            }
+            // A point landed on the range's end, heading out of it: the branch ends there.
+            if (cur.s >= 1.0 - 1e-9 && cur.tangent_s > 0.0)
+                || (cur.s <= 1e-9 && cur.tangent_s < 0.0)
+            {
+                branch.end = format!("reached the end of the parameter range ({})", cur.parameter);
                 break;
             }
             let (ty, ts) = (cur.tangent_y.clone(), cur.tangent_s);
@@ -684,6 +737,10 @@ fn follow(
                     strobe: at.strobe.clone(),
                 };
                 let parameter = grazing_parameter(kind, &cur, &at).unwrap_or(at.parameter);
+                // The step that passes `to` finds what lies beyond it too: not asked for.
+                if !ctx.in_range(parameter) {
+                    continue;
+                }
                 let special = Special {
                     parameter,
                     ..special
@@ -728,6 +785,36 @@ fn follow(
             }
             if graze {
                 branch.end = "grazing: the contact changes (the other side is a new branch)".into();
+                break;
+            }
+            // A point past `from` or `to` is not kept: the step is shortened to end at the
+            // range's end (secant steps on the arclength), and the branch ends there.
+            let next = if (-1e-9..=1.0 + 1e-9).contains(&next.s) {
+                next
+            } else {
+                let end = if next.s > 1.0 { 1.0 } else { 0.0 };
+                match ctx.land(k, &cur, end, h, &next) {
+                    Some(p) => p,
+                    None => {
+                        branch.end = format!(
+                            "the parameter range ends before the next point ({}), and no \
+                             shorter step landed on its end",
+                            next.parameter
+                        );
+                        break;
+                    }
+                }
+            };
+            // A branch switched to at a period doubling whose orbit closes after half its
+            // periods has fallen back onto the branch it left: no period-k orbit is there.
+            if let Some(d) = ctx.period_halved(k, &next)? {
+                branch.end = format!(
+                    "the period-{k} orbit fell back onto a period-{} orbit (max |P^{}(y) - y| = \
+                     {d:.3e}, within 10 times the tolerance): no period-{k} branch there",
+                    k / 2,
+                    k / 2
+                );
+                branch.failed = true;
                 break;
             }
             if next.iterations <= 3 {

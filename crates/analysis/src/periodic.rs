@@ -204,17 +204,7 @@ pub(crate) fn evaluate<F: Tangent>(flow: &mut F, state: &HybridState, k: usize) 
     // (the quaternion double cover): the same orientation. The image is taken with the sign of
     // the argument's parameters, so that a crank's orbit is a fixed point (its residual would
     // otherwise be 2 in those components whatever the motion), and its tangent images with it.
-    for o in flow.euler_parameters() {
-        let dot: f64 = (o..o + 4).map(|i| end.y[i] * state.y[i]).sum();
-        if dot < 0.0 {
-            for i in o..o + 4 {
-                end.y[i] = -end.y[i];
-                for v in images.iter_mut() {
-                    v[i] = -v[i];
-                }
-            }
-        }
-    }
+    same_sign_as(flow, &state.y, &mut end.y, &mut images);
     let m = vectors.len();
     let mut mb = DMatrix::zeros(n, m);
     for (c, v) in images.iter().enumerate() {
@@ -234,6 +224,35 @@ pub(crate) fn evaluate<F: Tangent>(flow: &mut F, state: &HybridState, k: usize) 
         basis,
         events,
     })
+}
+
+/// `max |P^k(y) - y|` at `state` (strobe time `state.t`), without the Jacobian; Euler
+/// parameters compared up to their sign, as [`evaluate`] does.
+pub(crate) fn map_distance<F: Tangent>(flow: &mut F, state: &HybridState, k: usize) -> Result<f64> {
+    let t_end = state.t + k as f64 * flow.period();
+    let (mut end, _) = crate::lyapunov::tangent_map(flow, &state.for_new_run(), &[], t_end)?;
+    same_sign_as(flow, &state.y, &mut end.y, &mut []);
+    Ok(end
+        .y
+        .iter()
+        .zip(&state.y)
+        .fold(0.0, |m: f64, (a, b)| m.max((a - b).abs())))
+}
+
+/// Turns the Euler parameters of `end` (and the same rows of `images`) to the sign of those of
+/// `start` where they differ in sign: one orientation either way (the quaternion double cover).
+fn same_sign_as<F: Tangent>(flow: &F, start: &[f64], end: &mut [f64], images: &mut [Vec<f64>]) {
+    for o in flow.euler_parameters() {
+        let dot: f64 = (o..o + 4).map(|i| end[i] * start[i]).sum();
+        if dot < 0.0 {
+            for i in o..o + 4 {
+                end[i] = -end[i];
+                for v in images.iter_mut() {
+                    v[i] = -v[i];
+                }
+            }
+        }
+    }
 }
 
 /// The multipliers of a reduced monodromy matrix, largest modulus first.
