@@ -8,8 +8,8 @@
 //!   kinematics of a leg whose platform end translates on an ellipse; with d = p - a, L = |d|:
 //!   s' = d.p'/L, s'' = (p'.p' + d.p'' - s'^2)/L.
 //!
-//! **Ramped start** (`ramp_time` T_r > 0, harmonic and leg-length profiles): the phase
-//! `theta = omega t` is replaced by one whose rate rises from rest to omega with the C1
+//! **Ramped start** (`ramp_time` T_r > 0, constant-rate, harmonic and leg-length profiles): the
+//! phase `theta = omega t` (for a constant rate `s - s0 = r t`, with omega = r) is replaced by one whose rate rises from rest to omega with the C1
 //! smoothstep r(u) = 3u^2 - 2u^3, u = t / T_r:
 //!
 //! ```text
@@ -30,6 +30,8 @@ pub enum Profile {
     ConstantRate {
         initial: f64,
         rate: f64,
+        /// Ramp time (s; 0: none).
+        ramp: f64,
     },
     Harmonic {
         mean: f64,
@@ -83,7 +85,16 @@ impl Profile {
     /// time serves them all. The results are those of [`Profile::eval`], bit for bit.
     pub fn eval_memo(&self, t: f64, memo: &mut SinCos) -> (f64, f64, f64) {
         match self {
-            Profile::ConstantRate { initial, rate } => (initial + rate * t, *rate, 0.0),
+            Profile::ConstantRate {
+                initial,
+                rate,
+                ramp,
+            } => {
+                // The rate is the phase rate: unramped this is initial + rate t, rate, 0 to the
+                // bit.
+                let (th, thd, thdd) = drive_phase(*rate, *ramp, t);
+                (initial + th, thd, thdd)
+            }
             Profile::Harmonic {
                 mean,
                 amplitude,
@@ -130,8 +141,12 @@ impl Profile {
     /// "harmonic 0 + 0.1 sin(2 t + 0)".
     pub fn describe(&self) -> String {
         match self {
-            Profile::ConstantRate { initial, rate } => {
-                format!("constant rate {rate} from {initial}")
+            Profile::ConstantRate {
+                initial,
+                rate,
+                ramp,
+            } => {
+                format!("constant rate {rate} from {initial}{}", ramp_words(*ramp))
             }
             Profile::Harmonic {
                 mean,
@@ -366,11 +381,52 @@ mod tests {
         );
     }
 
+    /// A crank ramped up at a constant rate r over T_r: the closed forms of the module overview,
+    /// s - s0 = r T_r u^3 (1 - u/2), s' = r (3u^2 - 2u^3), s'' = 6 r u (1 - u) / T_r before T_r,
+    /// and s0 + r (t - T_r/2) after; at rest at t = 0; unramped, the plain line to the bit.
+    #[test]
+    fn a_ramped_constant_rate_starts_at_rest_and_runs_half_the_ramp_behind() {
+        let (s0, r, tr) = (0.3, 251.327_412_287_183_45, 0.2); // 2400 rpm in rad/s
+        let ramped = Profile::ConstantRate {
+            initial: s0,
+            rate: r,
+            ramp: tr,
+        };
+        let plain = Profile::ConstantRate {
+            initial: s0,
+            rate: r,
+            ramp: 0.0,
+        };
+        assert_eq!(ramped.eval(0.0), (s0, 0.0, 0.0));
+        for t in [0.0, 0.013, 1.7] {
+            assert_eq!(plain.eval(t), (s0 + r * t, r, 0.0));
+        }
+        // Closed forms before the ramp's end; the tolerance is round-off on values of ~50 rad.
+        for t in [0.02, 0.1, 0.19] {
+            let u = t / tr;
+            let (a, b, c) = ramped.eval(t);
+            assert!((a - (s0 + r * tr * u.powi(3) * (1.0 - 0.5 * u))).abs() < 1e-12);
+            assert!((b - r * u * u * (3.0 - 2.0 * u)).abs() < 1e-11);
+            assert!((c - 6.0 * r * u * (1.0 - u) / tr).abs() < 1e-9);
+            check_derivatives(&ramped, t);
+        }
+        for t in [tr, 0.5, 3.0] {
+            let (a, b, c) = ramped.eval(t);
+            assert!((a - (s0 + r * (t - 0.5 * tr))).abs() < 1e-12 && b == r && c == 0.0);
+        }
+        assert_eq!(ramped.period(), plain.period());
+        assert_eq!(
+            ramped.describe(),
+            format!("constant rate {r} from {s0}, ramped up from rest over 0.2 s")
+        );
+    }
+
     #[test]
     fn describe_names_the_motion_and_its_parameters() {
         let rate = Profile::ConstantRate {
             initial: 0.5,
             rate: 2.0,
+            ramp: 0.0,
         };
         assert_eq!(rate.describe(), "constant rate 2 from 0.5");
         let harm = Profile::Harmonic {

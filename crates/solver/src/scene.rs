@@ -355,7 +355,14 @@ pub struct DriveSpec {
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum ProfileSpec {
     /// s = initial + rate t.
-    ConstantRate { initial: f64, rate: f64 },
+    ConstantRate {
+        initial: f64,
+        rate: f64,
+        /// Seconds over which the speed rises from rest to `rate` (0: none; see
+        /// [`crate::profile`]).
+        #[serde(default)]
+        ramp_time: f64,
+    },
     /// s = mean + amplitude sin(omega t + phase).
     Harmonic {
         mean: f64,

@@ -112,9 +112,14 @@ fn coordinate(d: &DriveSpec, kind: JointKind, f: &str, cx: &Ctx) -> Result<Drive
 /// The function of time a profile block declares; `field` is its path.
 fn profile(p: &ProfileSpec, field: &str, cx: &Ctx) -> Result<Profile> {
     Ok(match p {
-        ProfileSpec::ConstantRate { initial, rate } => Profile::ConstantRate {
+        ProfileSpec::ConstantRate {
+            initial,
+            rate,
+            ramp_time,
+        } => Profile::ConstantRate {
             initial: *initial,
             rate: *rate,
+            ramp: ramp(*ramp_time, field, cx)?,
         },
         ProfileSpec::Harmonic {
             mean,
