@@ -1463,6 +1463,12 @@ fn a_single_run_reports_its_lyapunov_exponents_k_and_class() {
         so.contains("lyapunov     0.") && so.contains("class        chaotic"),
         "{so}"
     );
+    // The summary says how long the estimate averaged, and its rate counts the Lyapunov run's
+    // evaluations, which share the wall time.
+    assert!(
+        so.contains("averaged     ") && so.contains("in the Lyapunov run"),
+        "{so}"
+    );
     assert!(dir.path().join("out/duffing-chaos-lyapunov.png").exists());
     let f = hdf5::File::open(dir.path().join("out/duffing-chaos.h5")).unwrap();
     let ex: Vec<f64> = f

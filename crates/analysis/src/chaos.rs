@@ -289,6 +289,16 @@ pub(crate) fn create_rows(g: &hdf5::Group, n: usize, spec: &ChaosSpec) -> hdf5::
     Ok(())
 }
 
+/// The right-hand-side evaluations of a single run's Lyapunov run in the analysis file `path`
+/// (None when it has none): the analysis run's own are the file's `rhs_evals`.
+pub fn lyapunov_rhs_evals(path: &std::path::Path) -> crate::Result<Option<u64>> {
+    let file = hdf5::File::open(path).map_err(crate::h5::h5err(path))?;
+    Ok(file
+        .group("chaos/lyapunov")
+        .ok()
+        .and_then(|l| crate::h5::read_attr::<u64>(&l, "rhs_evals").ok()))
+}
+
 /// Lines for the program's summary of the chaos measures in the analysis file `path` (none when
 /// it has none).
 pub fn summary(path: &std::path::Path) -> crate::Result<Vec<String>> {
@@ -321,6 +331,14 @@ pub fn summary(path: &std::path::Path) -> crate::Result<Vec<String>> {
                 list(&se, 4)
             ));
             out.push(format!("map          {} per period", list(&mu, 4)));
+            // How long the estimate averaged: the whole `periods`, or less when `until_stderr`
+            // stopped it.
+            if let (Ok(t), Ok(p)) = (
+                crate::h5::read_attr::<f64>(&l, "averaging_time"),
+                crate::h5::read_attr::<f64>(&l, "period"),
+            ) {
+                out.push(format!("averaged     {t:.6} s ({:.1} periods)", t / p));
+            }
             if let (Ok(v), Ok(s)) = (
                 crate::h5::read_attr::<f64>(&l, "two_trajectory"),
                 crate::h5::read_attr::<f64>(&l, "two_trajectory_stderr"),
