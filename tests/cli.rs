@@ -1975,3 +1975,27 @@ fn report_names_the_command_that_fits_another_kind_of_file() {
         );
     }
 }
+
+/// A figure's `values` pick sweep values to draw: one the sweep lacks is an error naming it, not
+/// a panel left out without a word.
+#[test]
+fn a_figure_value_not_in_the_sweep_is_an_error_naming_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let study = dir.path().join("fig.toml");
+    std::fs::write(
+        &study,
+        "[study]\nname = \"fig\"\nsystem = { kind = \"duffing\", initial = [1.0, 0.0] }\n\
+         [analysis]\nperiods = 4\ntransient = 1\nsamples_per_period = 10\n\
+         [[observables]]\nname = \"x\"\npath = \"x\"\n[[observables]]\nname = \"v\"\npath = \"v\"\n\
+         [sweep]\nparameter = \"gamma\"\nvalues = [0.2, 0.3]\n\
+         [[figures]]\nkind = \"phase\"\nx = \"x\"\ny = \"v\"\nvalues = [0.2, 0.25]\n",
+    )
+    .unwrap();
+    let o = bin().arg("check").arg(&study).output().unwrap();
+    assert_eq!(o.status.code(), Some(1), "{:?}", text(&o));
+    let (_, err) = text(&o);
+    assert!(
+        err.contains("figures[0].values[1]") && err.contains("0.25 is not a value of the sweep"),
+        "{err}"
+    );
+}

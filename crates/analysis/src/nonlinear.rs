@@ -582,6 +582,36 @@ impl Loaded {
         for (i, f) in loaded.spec.figures.iter().enumerate() {
             for (k, &v) in f.values.iter().enumerate() {
                 finite(&loaded.path, &format!("figures[{i}].values[{k}]"), v)?;
+                // A panel is drawn for each value the sweep has: one it lacks would be left out
+                // without a word.
+                if loaded.spec.sweep.is_none() {
+                    return Err(invalid(
+                        &loaded.path,
+                        format!("figures[{i}].values"),
+                        "the study has no [sweep] whose values it could pick",
+                    ));
+                }
+                if !loaded
+                    .jobs
+                    .iter()
+                    .any(|j| (j.0 - v).abs() <= 1e-9 * v.abs().max(1e-300))
+                {
+                    let shown: Vec<String> = loaded
+                        .jobs
+                        .iter()
+                        .take(8)
+                        .map(|j| j.0.to_string())
+                        .collect();
+                    return Err(invalid(
+                        &loaded.path,
+                        format!("figures[{i}].values[{k}]"),
+                        format!(
+                            "{v} is not a value of the sweep ({}{})",
+                            shown.join(", "),
+                            if loaded.jobs.len() > 8 { ", ..." } else { "" }
+                        ),
+                    ));
+                }
             }
             if let Some(c) = f.circle {
                 finite(&loaded.path, &format!("figures[{i}].circle"), c)?;
