@@ -72,8 +72,9 @@ enum Command {
     /// [[cases]]) writes DIR/<study>.h5 with every case, DIR/<study>.md (its comparison table) and
     /// the figures it asks for. An analysis study (a [study] and an [analysis] table) writes
     /// DIR/<study>.h5 (histories, sections, the sweep, Lyapunov exponents, periodic orbits, as it
-    /// asks) and its figures; while a sweep runs its finished values are in DIR/<study>.journal,
-    /// and a continuation's state in DIR/<study>.continuation.h5.
+    /// asks) and its figures, and a sweep its table DIR/<study>.md and .csv (a row per value);
+    /// while a sweep runs its finished values are in DIR/<study>.journal, and a continuation's
+    /// state in DIR/<study>.continuation.h5.
     Run {
         /// Scene or study file (TOML; a study has a [study] table).
         scene: PathBuf,
@@ -183,7 +184,7 @@ enum Command {
         #[arg(long, short)]
         quiet: bool,
     },
-    /// Compute a study's comparison table (markdown) from its HDF5 file.
+    /// Print the table of a comparison study or of a sweep (markdown) from its HDF5 file.
     Report {
         /// Study file written by `jointplay run STUDY`.
         file: PathBuf,
@@ -410,12 +411,18 @@ fn report_cmd(file: &Path, out: Option<&Path>) -> Result<()> {
                 .to_string(),
         }),
         Ok(Output::Comparison) => None,
-        Ok(Output::Analysis) => Some(
-            "an analysis study's file: `jointplay report` makes a comparison study's table; \
-             `jointplay plot FILE` redraws this file's figures, and its datasets are read as the \
-             book's HDF5 reference describes"
-                .to_string(),
-        ),
+        Ok(Output::Analysis) => match jointplay_analysis::sweep_table::of_file(file)? {
+            // A sweep's table: one row per value.
+            Some(t) => {
+                return emit(&t.markdown, out);
+            }
+            None => Some(
+                "a single analysis run's file: `jointplay report` makes the table of a sweep or a \
+                 comparison study; `jointplay plot FILE` redraws this file's figures, and its \
+                 datasets are read as the book's HDF5 reference describes"
+                    .to_string(),
+            ),
+        },
         Ok(Output::Precision) => Some(
             "a work-precision file: its table is DIR/<name>.md, written beside it by \
              `jointplay precision`; `jointplay plot FILE` redraws its figure"
@@ -431,10 +438,14 @@ fn report_cmd(file: &Path, out: Option<&Path>) -> Result<()> {
     if let Some(why) = other {
         anyhow::bail!("{}: {why}", file.display());
     }
-    let md = markdown(&report::compute(file)?);
+    emit(&markdown(&report::compute(file)?), out)
+}
+
+/// A table to `out` (whole or not at all) or to standard output.
+fn emit(md: &str, out: Option<&Path>) -> Result<()> {
     match out {
         Some(p) => {
-            std::fs::write(p, &md).with_context(|| format!("writing {}", p.display()))?;
+            jointplay_analysis::storage::durable::write_new(p, md.as_bytes())?;
             println!("wrote        {}", p.display());
         }
         None => print!("{md}"),
@@ -839,6 +850,9 @@ fn run_analysis(
         continuation_error = follow_orbits(&st, &o.file, begin, quiet, limit)?;
     }
     println!("wrote        {}", o.file.display());
+    for t in &o.tables {
+        println!("wrote        {}", t.display());
+    }
     if opts.shard.is_some() {
         // Shards may run side by side into one directory: the figures come from the merge.
         if plots {
@@ -1069,6 +1083,9 @@ fn merge_cmd(files: &[PathBuf], out: &Path, partial: bool, plots: bool) -> Resul
         );
     }
     println!("wrote        {}", m.file.display());
+    for t in &m.tables {
+        println!("wrote        {}", t.display());
+    }
     if plots {
         let dir = out
             .parent()

@@ -1999,3 +1999,49 @@ fn a_figure_value_not_in_the_sweep_is_an_error_naming_it() {
         "{err}"
     );
 }
+
+/// A sweep writes its table beside its file, in Markdown and CSV: one row per value with its
+/// status, period, class, lambda_1 and K, and the range of every observable's strobe points;
+/// `report` prints the same table from the file.
+#[test]
+fn a_sweep_writes_its_table_and_report_prints_it() {
+    let dir = tempfile::tempdir().unwrap();
+    let study = dir.path().join("table.toml");
+    std::fs::write(
+        &study,
+        "[study]\nname = \"table\"\nsystem = { kind = \"duffing\", initial = [1.0, 0.0], solver = { rtol = 1e-9 } }\n\
+         [analysis]\nperiods = 60\ntransient = 40\nsamples_per_period = 0\n\
+         [[observables]]\nname = \"x\"\npath = \"x\"\n\
+         [lyapunov]\nperiods = 300\n\
+         [sweep]\nparameter = \"gamma\"\nvalues = [0.2, 0.5]\n",
+    )
+    .unwrap();
+    let o = bin()
+        .args(["run", "--no-plots", "-q"])
+        .arg(&study)
+        .arg("--out")
+        .arg(dir.path())
+        .output()
+        .unwrap();
+    let (so, se) = text(&o);
+    assert!(o.status.success(), "{so}{se}");
+    assert!(so.contains("table.md") && so.contains("table.csv"), "{so}");
+    let md = std::fs::read_to_string(dir.path().join("table.md")).unwrap();
+    let csv = std::fs::read_to_string(dir.path().join("table.csv")).unwrap();
+    let lines: Vec<&str> = csv.lines().collect();
+    assert_eq!(lines.len(), 3, "{csv}");
+    assert_eq!(
+        lines[0],
+        "value (1),status,period,class,lambda_1 (1/s),lambda_1 stderr (1/s),x min (1),x max (1)"
+    );
+    // gamma = 0.2: the period-1 orbit, one strobe point; 0.5: the chaotic attractor.
+    assert!(lines[1].starts_with("0.2,done,1,periodic,-"), "{csv}");
+    assert!(lines[2].starts_with("0.5,done,,chaotic,0."), "{csv}");
+    let o = bin()
+        .arg("report")
+        .arg(dir.path().join("table.h5"))
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{:?}", text(&o));
+    assert_eq!(text(&o).0, md);
+}

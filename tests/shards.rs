@@ -258,6 +258,14 @@ fn shards_run_as_separate_processes_merge_into_the_single_process_file() {
             .exists()
     );
     assert_same(&single, &merged);
+    // The merge writes the sweep's table too, the single process's to the byte.
+    for ext in ["md", "csv"] {
+        assert_eq!(
+            std::fs::read(merged.with_extension(ext)).unwrap(),
+            std::fs::read(single.with_extension(ext)).unwrap(),
+            "{ext}"
+        );
+    }
 
     // The same split taken from Slurm's array variables (an array numbered from 10), with the
     // threads from SLURM_CPUS_PER_TASK.

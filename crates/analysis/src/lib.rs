@@ -59,6 +59,7 @@ pub mod slurm;
 pub mod storage;
 pub mod study;
 pub mod summary;
+pub mod sweep_table;
 pub mod systems;
 pub mod tangent;
 pub mod zero_one;

@@ -1183,6 +1183,9 @@ pub struct Outcome {
     pub busy: f64,
     /// Threads of the pool the jobs ran on (1 for a single run or a continuation).
     pub threads: usize,
+    /// The sweep's table beside its file, `<stem>.md` and `<stem>.csv` ([`crate::sweep_table`];
+    /// none for a single run or a shard).
+    pub tables: Vec<PathBuf>,
 }
 
 impl Outcome {
@@ -1344,6 +1347,7 @@ pub fn execute_until(
             rhs_evals: r.trace.stats.rhs_evals,
             busy: job_start.elapsed().as_secs_f64(),
             threads: 1,
+            tables: Vec::new(),
         });
     };
     // The jobs this file holds, by their index in the whole sweep; row r of every dataset is
@@ -1548,6 +1552,12 @@ pub fn execute_until(
         drop(store);
         crate::storage::durable::remove(&journal)?;
     }
+    // A shard's rows are part of a sweep: its table comes with the merge.
+    let tables = if opts.shard.is_none() {
+        crate::sweep_table::write_beside(&path)?
+    } else {
+        Vec::new()
+    };
     Ok(Outcome {
         file: path.clone(),
         jobs: n,
@@ -1560,6 +1570,7 @@ pub fn execute_until(
         rhs_evals: rhs,
         busy: busy.load(Ordering::Relaxed) as f64 * 1e-9,
         threads,
+        tables,
     })
 }
 

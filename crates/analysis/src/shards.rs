@@ -193,6 +193,8 @@ pub struct Merged {
     pub value_walls: Vec<f64>,
     /// Each shard given, with its file's `wall_time` (s): the time its last run took.
     pub shard_walls: Vec<(Shard, f64)>,
+    /// The sweep's table beside the merged file ([`crate::sweep_table`]).
+    pub tables: Vec<PathBuf>,
 }
 
 /// One shard file, read for the merge.
@@ -560,6 +562,7 @@ pub fn merge(inputs: &[PathBuf], out: &Path, version: &str, partial: bool) -> Re
         .filter(|w| w.is_finite())
         .sum();
     crate::storage::sweep::write_file(out, &shards_layout, version, &jobs, None, &by_row, total)?;
+    let tables = crate::sweep_table::write_beside(out)?;
     shard_walls.sort_by_key(|w| w.0.index);
     Ok(Merged {
         file: out.to_path_buf(),
@@ -568,6 +571,7 @@ pub fn merge(inputs: &[PathBuf], out: &Path, version: &str, partial: bool) -> Re
         not_done,
         value_walls,
         shard_walls,
+        tables,
     })
 }
 
