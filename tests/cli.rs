@@ -1941,26 +1941,37 @@ fn errors_in_a_study_edited_scene_name_the_study_and_system_tolerances_are_finit
     }
 }
 
+/// Writes the study `text` as `DIR/<name>.toml`.
+fn study_file(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let p = dir.join(format!("{name}.toml"));
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+/// `jointplay run --no-plots -q STUDY --out DIR`.
+fn run_quietly(study: &Path, out: &Path) -> Output {
+    bin()
+        .args(["run", "--no-plots", "-q"])
+        .arg(study)
+        .arg("--out")
+        .arg(out)
+        .output()
+        .unwrap()
+}
+
 /// `report` makes a comparison study's table: an analysis study's file, and a TOML file, get the
 /// command that fits them instead of a parse error of the stored study.
 #[test]
 fn report_names_the_command_that_fits_another_kind_of_file() {
     let dir = tempfile::tempdir().unwrap();
-    let study = dir.path().join("single.toml");
-    std::fs::write(
-        &study,
+    let study = study_file(
+        dir.path(),
+        "single",
         "[study]\nname = \"single\"\nsystem = { kind = \"duffing\", initial = [1.0, 0.0] }\n\
          [analysis]\nperiods = 4\ntransient = 1\nsamples_per_period = 10\n\
          [[observables]]\nname = \"x\"\npath = \"x\"\n",
-    )
-    .unwrap();
-    let o = bin()
-        .args(["run", "--no-plots", "-q"])
-        .arg(&study)
-        .arg("--out")
-        .arg(dir.path())
-        .output()
-        .unwrap();
+    );
+    let o = run_quietly(&study, dir.path());
     assert!(o.status.success(), "{:?}", text(&o));
     for (file, says) in [
         (dir.path().join("single.h5"), "jointplay plot FILE"),
@@ -1981,16 +1992,15 @@ fn report_names_the_command_that_fits_another_kind_of_file() {
 #[test]
 fn a_figure_value_not_in_the_sweep_is_an_error_naming_it() {
     let dir = tempfile::tempdir().unwrap();
-    let study = dir.path().join("fig.toml");
-    std::fs::write(
-        &study,
+    let study = study_file(
+        dir.path(),
+        "fig",
         "[study]\nname = \"fig\"\nsystem = { kind = \"duffing\", initial = [1.0, 0.0] }\n\
          [analysis]\nperiods = 4\ntransient = 1\nsamples_per_period = 10\n\
          [[observables]]\nname = \"x\"\npath = \"x\"\n[[observables]]\nname = \"v\"\npath = \"v\"\n\
          [sweep]\nparameter = \"gamma\"\nvalues = [0.2, 0.3]\n\
          [[figures]]\nkind = \"phase\"\nx = \"x\"\ny = \"v\"\nvalues = [0.2, 0.25]\n",
-    )
-    .unwrap();
+    );
     let o = bin().arg("check").arg(&study).output().unwrap();
     assert_eq!(o.status.code(), Some(1), "{:?}", text(&o));
     let (_, err) = text(&o);
@@ -2006,23 +2016,16 @@ fn a_figure_value_not_in_the_sweep_is_an_error_naming_it() {
 #[test]
 fn a_sweep_writes_its_table_and_report_prints_it() {
     let dir = tempfile::tempdir().unwrap();
-    let study = dir.path().join("table.toml");
-    std::fs::write(
-        &study,
+    let study = study_file(
+        dir.path(),
+        "table",
         "[study]\nname = \"table\"\nsystem = { kind = \"duffing\", initial = [1.0, 0.0], solver = { rtol = 1e-9 } }\n\
          [analysis]\nperiods = 60\ntransient = 40\nsamples_per_period = 0\n\
          [[observables]]\nname = \"x\"\npath = \"x\"\n\
          [lyapunov]\nperiods = 300\n\
          [sweep]\nparameter = \"gamma\"\nvalues = [0.2, 0.5]\n",
-    )
-    .unwrap();
-    let o = bin()
-        .args(["run", "--no-plots", "-q"])
-        .arg(&study)
-        .arg("--out")
-        .arg(dir.path())
-        .output()
-        .unwrap();
+    );
+    let o = run_quietly(&study, dir.path());
     let (so, se) = text(&o);
     assert!(o.status.success(), "{so}{se}");
     assert!(so.contains("table.md") && so.contains("table.csv"), "{so}");
