@@ -1308,6 +1308,15 @@ fn record(
         Ok(())
     };
     let mut sys = Mechanism::new(model);
+    // A fresh start with a journal inside its housing's wall meets that contact's force at once.
+    if !resumed {
+        for p in model.penetrations(&state.y, &mut sys.ws) {
+            sys.warnings.push(jointplay_solver::guard::Warning {
+                time: t0,
+                message: format!("at the start, t = {t0} s: {p}"),
+            });
+        }
+    }
     let checked = sys
         .load_memory(&state)
         .and_then(|()| sys.check_initial(t0, &state.y));

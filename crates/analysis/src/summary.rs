@@ -75,6 +75,8 @@ pub struct Summary {
     /// Ranks, degrees of freedom and redundancy at the assembled initial state.
     pub structure: Structure,
     pub assembly: AssemblyReport,
+    /// Clearance contacts that penetrate at the assembled start, deepest first.
+    pub penetrations: Vec<jointplay_solver::guard::StartPenetration>,
     /// The effects simulated, one line each; a line starting with four spaces continues the one
     /// before it.
     pub effects: Vec<String>,
@@ -107,6 +109,10 @@ impl Summary {
     pub fn new(file: &Path, model: &Model, state: &mut State) -> Result<Summary> {
         let assembly = model.assemble(state)?;
         let structure = model.structure(state.t, &state.y)?;
+        let penetrations = model.penetrations(
+            &state.y,
+            &mut jointplay_solver::workspace::Workspace::new(model),
+        );
         let s = &model.settings;
         let o = &model.outputs;
         Ok(Summary {
@@ -151,6 +157,7 @@ impl Summary {
                 .collect(),
             structure,
             assembly,
+            penetrations,
             effects: model.effects.describe(model),
             disabled: model.disabled.clone(),
             solver: s.method.describe(),
@@ -254,6 +261,9 @@ impl Summary {
             a.initial_velocity_residual,
             a.final_velocity_residual
         ));
+        for p in &self.penetrations {
+            out.push(format!("start        warning: {p}"));
+        }
         out.push("effects simulated".into());
         for e in &self.effects {
             if let Some(sub) = e.strip_prefix("    ") {

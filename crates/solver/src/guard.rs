@@ -57,6 +57,31 @@ pub struct Warning {
     pub message: String,
 }
 
+/// A clearance contact that penetrates at a run's start: its journal starts inside its
+/// housing's wall, and the contact law pushes it out with the force of that depth at once.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StartPenetration {
+    pub joint: String,
+    pub contact: String,
+    /// Penetration (m).
+    pub depth: f64,
+    /// The law's elastic normal force at that depth (N; at zero penetration rate).
+    pub force: f64,
+}
+
+impl std::fmt::Display for StartPenetration {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "clearance joint '{}', contact '{}': the journal starts {:.4e} m inside the housing's \
+             wall, where the contact law pushes with {:.4e} N; the assembly does not close loops \
+             through clearance joints, so give the bodies positions with the journal inside its \
+             clearance",
+            self.joint, self.contact, self.depth, self.force
+        )
+    }
+}
+
 /// Per-run state of the step-size guard: which joints have been warned about.
 #[derive(Debug, Clone, Default)]
 pub struct StepGuard {
@@ -116,6 +141,36 @@ fn fastest_mode((k, c): (f64, f64), inv_m: f64) -> Option<((f64, f64), f64)> {
 }
 
 impl Model {
+    /// The clearance contacts that penetrate at the state `y` by more than a nanometre, deepest
+    /// first: a start state whose journal lies inside its housing's wall.
+    pub fn penetrations(&self, y: &[f64], ws: &mut Workspace) -> Vec<StartPenetration> {
+        let mut out = Vec::new();
+        if !self.effects.clearance {
+            return out;
+        }
+        self.kinematics(y, ws);
+        for c in &self.clearances {
+            let slots = c.first..c.first + c.geometry.n_contacts();
+            let (kh, kj) = (*self.kin_of(c.housing, ws), *self.kin_of(c.journal, ws));
+            c.geometry(&kh, &kj, &mut ws.contacts[slots]);
+            for (k, name) in c.geometry.contact_names().iter().enumerate() {
+                let d = ws.contacts[c.first + k].delta;
+                if d > 1e-9 {
+                    out.push(StartPenetration {
+                        joint: c.name.clone(),
+                        contact: name.to_string(),
+                        depth: d,
+                        // At zero rate the damping of every law vanishes (its onset velocity
+                        // then does not matter).
+                        force: c.law.force(d, 0.0, 1.0),
+                    });
+                }
+            }
+        }
+        out.sort_by(|a, b| b.depth.total_cmp(&a.depth));
+        out
+    }
+
     /// The linearised normal mode of every penetrating contact (the step-size guard's, above) at
     /// the state of the last evaluation in `ws`: its kinematics, contact states, onset history
     /// and constraint factorisation. `out[s]` is the eigenvalue `(re, im)` (1/s) of contact slot
