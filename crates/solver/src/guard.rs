@@ -148,27 +148,39 @@ impl Model {
         if !self.effects.clearance {
             return out;
         }
+        self.each_penetration(y, ws, |c, name, d| {
+            if d > 1e-9 {
+                out.push(StartPenetration {
+                    joint: c.name.clone(),
+                    contact: name.to_string(),
+                    depth: d,
+                    // At zero rate the damping of every law vanishes (its onset velocity then
+                    // does not matter).
+                    force: c.law.force(d, 0.0, 1.0),
+                });
+            }
+        });
+        out.sort_by(|a, b| b.depth.total_cmp(&a.depth));
+        out
+    }
+
+    /// Calls `f(clearance, contact name, penetration in m)` for every contact of every clearance
+    /// joint at the state `y` (its geometry evaluated into `ws`).
+    fn each_penetration(
+        &self,
+        y: &[f64],
+        ws: &mut Workspace,
+        mut f: impl FnMut(&Clearance, &str, f64),
+    ) {
         self.kinematics(y, ws);
         for c in &self.clearances {
             let slots = c.first..c.first + c.geometry.n_contacts();
             let (kh, kj) = (*self.kin_of(c.housing, ws), *self.kin_of(c.journal, ws));
             c.geometry(&kh, &kj, &mut ws.contacts[slots]);
             for (k, name) in c.geometry.contact_names().iter().enumerate() {
-                let d = ws.contacts[c.first + k].delta;
-                if d > 1e-9 {
-                    out.push(StartPenetration {
-                        joint: c.name.clone(),
-                        contact: name.to_string(),
-                        depth: d,
-                        // At zero rate the damping of every law vanishes (its onset velocity
-                        // then does not matter).
-                        force: c.law.force(d, 0.0, 1.0),
-                    });
-                }
+                f(c, name, ws.contacts[c.first + k].delta);
             }
         }
-        out.sort_by(|a, b| b.depth.total_cmp(&a.depth));
-        out
     }
 
     /// The linearised normal mode of every penetrating contact (the step-size guard's, above) at
@@ -282,20 +294,12 @@ impl Model {
         };
         let mut msg = format!("the {what} became non-finite in the step after t = {t} s");
         if self.effects.clearance && y.iter().all(|v| v.is_finite()) {
-            self.kinematics(y, ws);
             let mut deepest: Option<(f64, String)> = None;
-            for c in &self.clearances {
-                let slots = c.first..c.first + c.geometry.n_contacts();
-                let (kh, kj) = (*self.kin_of(c.housing, ws), *self.kin_of(c.journal, ws));
-                c.geometry(&kh, &kj, &mut ws.contacts[slots.clone()]);
-                for (k, name) in c.geometry.contact_names().iter().enumerate() {
-                    let d = ws.contacts[c.first + k].delta;
-                    if deepest.as_ref().is_none_or(|(e, _)| d > *e) {
-                        deepest =
-                            Some((d, format!("clearance joint '{}', contact '{name}'", c.name)));
-                    }
+            self.each_penetration(y, ws, |c, name, d| {
+                if deepest.as_ref().is_none_or(|(e, _)| d > *e) {
+                    deepest = Some((d, format!("clearance joint '{}', contact '{name}'", c.name)));
                 }
-            }
+            });
             if let Some((d, which)) = deepest {
                 msg += &format!(
                     "; at that last finite state the deepest contact was {which}, penetration \
