@@ -1,5 +1,5 @@
 """Forced Duffing oscillator x'' + delta x' + alpha x + beta x^3 = gamma cos(omega t), the
-equation of jointplay's built-in system `duffing` (crates/analysis/src/systems.rs), integrated with
+equation of jointplay's built-in system `duffing` (crates/analysis/src/flow/systems.rs), integrated with
 `scipy.integrate.solve_ivp`. Defaults as jointplay's: delta = 0.3, alpha = -1, beta = 1,
 omega = 1.2; the benchmark starts at (x, x') = (1, 0) and sets gamma.
 """

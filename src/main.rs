@@ -21,21 +21,22 @@ use std::time::Instant;
 use anyhow::{Context, Result};
 use clap::{Parser, Subcommand};
 use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
-use jointplay_analysis::comparison::Comparison;
+use jointplay_analysis::figures::plot::{Format, figure};
 use jointplay_analysis::figures::{overlay, redraw, run_figures};
-use jointplay_analysis::h5::Meta;
-use jointplay_analysis::hybrid::read_run_file;
-use jointplay_analysis::inputs::{Input, Output};
-use jointplay_analysis::nonlinear::{Loaded, Options, execute};
-use jointplay_analysis::plot::{Format, figure};
-use jointplay_analysis::precision;
+use jointplay_analysis::flow::summary::Summary;
 use jointplay_analysis::progress::{Progress, Tally};
-use jointplay_analysis::report::{self, markdown};
-use jointplay_analysis::run::{resume_to_file, simulate_to_file};
-use jointplay_analysis::shards::{Shard, merge};
-use jointplay_analysis::slurm::Batch;
-use jointplay_analysis::study::Study;
-use jointplay_analysis::summary::Summary;
+use jointplay_analysis::storage::analysis_file::Shard;
+use jointplay_analysis::storage::hybrid::read_run_file;
+use jointplay_analysis::storage::inputs::{Input, Output};
+use jointplay_analysis::storage::run_file::Meta;
+use jointplay_analysis::study::analysis::{Loaded, Options, execute};
+use jointplay_analysis::study::comparison::Comparison;
+use jointplay_analysis::study::precision;
+use jointplay_analysis::study::report::{self, markdown};
+use jointplay_analysis::study::run::{resume_to_file, simulate_to_file};
+use jointplay_analysis::study::shards::merge;
+use jointplay_analysis::study::slurm::Batch;
+use jointplay_analysis::study::spec::Study;
 use jointplay_solver::model::Model;
 use jointplay_solver::scene::SceneSpec;
 
@@ -52,7 +53,7 @@ struct Cli {
     /// The oldest HDF5 library the files written must open in: 1.10 (default; smaller files:
     /// chunk indexes and object headers of the 1.10 format) or 1.8 (the oldest format).
     #[arg(long, global = true, value_name = "VERSION", default_value = "1.10")]
-    hdf5_format: jointplay_analysis::h5::Format,
+    hdf5_format: jointplay_analysis::storage::h5::Format,
     #[command(subcommand)]
     command: Command,
 }
@@ -234,7 +235,7 @@ fn main() {
         );
         jointplay_analysis::progress::request_process_stop();
     });
-    jointplay_analysis::h5::set_format(cli.hdf5_format);
+    jointplay_analysis::storage::h5::set_format(cli.hdf5_format);
     if let Err(e) = threads_from_slurm() {
         eprintln!("error: {e:#}");
         std::process::exit(1);
@@ -411,7 +412,7 @@ fn report_cmd(file: &Path, out: Option<&Path>) -> Result<()> {
                 .to_string(),
         }),
         Ok(Output::Comparison) => None,
-        Ok(Output::Analysis) => match jointplay_analysis::sweep_table::of_file(file)? {
+        Ok(Output::Analysis) => match jointplay_analysis::storage::table::of_file(file)? {
             // A sweep's table: one row per value.
             Some(t) => {
                 return emit(&t.markdown, out);
@@ -731,11 +732,11 @@ fn run_analysis(
     }
     // A continuation's start state, read before the analysis rewrites the output file (it may
     // be the file named by `continuation.start`).
-    let start_state = jointplay_analysis::continuation::start_of(&st)?;
+    let start_state = st.continuation_start()?;
     // A continuation goes on from its file; with none begun (stopped before its first point),
     // it starts afresh, as a sweep with nothing kept does.
     let file = out.join(format!("{}.h5", st.spec.study.name));
-    if continuation_only && opts.resume && jointplay_analysis::continuation::begun(&file) {
+    if continuation_only && opts.resume && jointplay_analysis::study::continuation::begun(&file) {
         return resume_continuation(&st, path, out, plots, quiet, opts.max_jobs);
     }
     // In a Slurm job array, a sweep is sharded by the task's id unless --shard says otherwise.
@@ -811,7 +812,7 @@ fn run_analysis(
         st.spec.analysis.periods, st.spec.analysis.transient, st.spec.analysis.samples_per_period
     );
     // A single run's Lyapunov run evaluates the right-hand side too, within the same wall time.
-    match jointplay_analysis::chaos::lyapunov_rhs_evals(&o.file)? {
+    match jointplay_analysis::storage::chaos::lyapunov_rhs_evals(&o.file)? {
         Some(ly) => println!(
             "RHS          {} evaluations in the analysis run and {ly} in the Lyapunov run, {:.0} \
              per second of wall time",
@@ -835,7 +836,7 @@ fn run_analysis(
             o.wall
         );
     }
-    for line in jointplay_analysis::chaos::summary(&o.file)? {
+    for line in jointplay_analysis::storage::chaos::summary(&o.file)? {
         println!("{line}");
     }
     // Periodic orbits: followed once the analysis file is written, into the same file (not by a
@@ -845,7 +846,7 @@ fn run_analysis(
         && opts.shard.is_none()
         && !jointplay_analysis::progress::process_stop_requested()
     {
-        let begin = jointplay_analysis::continuation::Begin::Fresh(start_state);
+        let begin = jointplay_analysis::study::continuation::Begin::Fresh(start_state);
         let limit = opts.max_jobs.filter(|_| continuation_only);
         continuation_error = follow_orbits(&st, &o.file, begin, quiet, limit)?;
     }
@@ -912,11 +913,11 @@ fn run_analysis(
 fn follow_orbits(
     st: &Loaded,
     file: &Path,
-    begin: jointplay_analysis::continuation::Begin,
+    begin: jointplay_analysis::study::continuation::Begin,
     quiet: bool,
     limit: Option<usize>,
 ) -> Result<Option<jointplay_analysis::Error>> {
-    use jointplay_analysis::continuation;
+    use jointplay_analysis::study::continuation;
     let bar = progress_bar(
         1000,
         "{spinner} [{elapsed_precise}] {bar:40} continuation (eta {eta})",
@@ -969,8 +970,8 @@ fn resume_continuation(
             file.display()
         );
     }
-    let Some(prior) = jointplay_analysis::continuation::read_unfinished(&file, st)? else {
-        if jointplay_analysis::continuation::is_finished(&file)? {
+    let Some(prior) = jointplay_analysis::study::continuation::read_unfinished(&file, st)? else {
+        if jointplay_analysis::study::continuation::is_finished(&file)? {
             println!(
                 "finished     the continuation in {} is finished: nothing to resume",
                 file.display()
@@ -989,7 +990,7 @@ fn resume_continuation(
         prior.branches.len(),
         prior.specials.len()
     );
-    let begin = jointplay_analysis::continuation::Begin::Resume(prior);
+    let begin = jointplay_analysis::study::continuation::Begin::Resume(prior);
     if let Some(e) = follow_orbits(st, &file, begin, quiet, limit)? {
         anyhow::bail!("{}: the continuation could not go on: {e}", path.display());
     }
@@ -1155,7 +1156,7 @@ fn slurm_cmd(study: &Path, out: &Path, o: SlurmOptions, submit: bool) -> Result<
     // The same refusals as the shards would meet (continuation, too many shards), before
     // anything is written.
     let sh = Shard::new(0, o.shards).map_err(|m| anyhow::anyhow!("--shards: {m}"))?;
-    jointplay_analysis::shards::check(&st, sh)?;
+    jointplay_analysis::study::shards::check(&st, sh)?;
     let program = std::env::current_exe()
         .and_then(|p| p.canonicalize())
         .context("cannot find the path of this program for the batch script")?;
@@ -1173,7 +1174,7 @@ fn slurm_cmd(study: &Path, out: &Path, o: SlurmOptions, submit: bool) -> Result<
         mem: o.mem,
         max_running: o.max_running,
         version: VERSION.into(),
-        hdf5_format: jointplay_analysis::h5::format(),
+        hdf5_format: jointplay_analysis::storage::h5::format(),
     };
     b.check().map_err(|m| anyhow::anyhow!("{m}"))?;
     std::fs::create_dir_all(out).with_context(|| format!("creating {}", out.display()))?;

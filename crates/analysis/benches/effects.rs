@@ -11,7 +11,7 @@
 
 use std::path::PathBuf;
 
-use jointplay_analysis::study::edit;
+use jointplay_analysis::study::spec::edit;
 use jointplay_solver::dynamics::Mechanism;
 use jointplay_solver::model::Model;
 use jointplay_solver::ode::{Flow, OdeSystem, integrate};

@@ -31,8 +31,8 @@
 
 use std::path::PathBuf;
 
-use jointplay_analysis::h5::Meta;
-use jointplay_analysis::run::simulate_to_file;
+use jointplay_analysis::storage::run_file::Meta;
+use jointplay_analysis::study::run::simulate_to_file;
 use jointplay_solver::dynamics::Mechanism;
 use jointplay_solver::model::{Model, State};
 use jointplay_solver::ode::{Flow, OdeSystem, integrate};

@@ -1,68 +1,50 @@
 //! # jointplay-analysis
 //!
-//! Runs of a compiled model and what comes out of them: [`run`] integrates a model and records the
-//! requested outputs, observables of [`observe`], at exact sample times; [`h5`] writes a
-//! recording to HDF5 (layout in book/src/reference/hdf5.md) and holds the helpers every file kind is written and
-//! read with; [`study`] reads study files (several cases of a scene, edited by path) and
-//! [`report`] computes their comparison table from the written file; [`figures`] draws every
-//! figure (runs, studies, analysis files, work-precision) over [`plot`], which draws PNG and SVG
-//! with an embedded font (no system fonts needed).
+//! Runs of a compiled model and what comes out of them, in layers that point one way (a module
+//! uses its own layer and the layers below it, never above; `tests/module_graph.rs` holds the
+//! crate to it and to having no import cycle):
 //!
-//! Nonlinear analysis works on any flow: [`sections`] runs N periods of an ODE and keeps the
-//! stroboscopic and hyperplane Poincare sections; [`observe`] addresses a mechanism's quantities
-//! by path; [`systems`] holds the built-in reference ODEs (Duffing, pendulum, Lorenz); and
-//! [`nonlinear`] reads analysis studies, runs their sweeps in parallel and streams them to HDF5;
-//! [`storage`] keeps what is finished through kills, full disks and second writers (a journal of
-//! checksummed values, files replaced atomically, one lock per output);
-//! [`shards`] splits a sweep over processes or machines and merges the shard files exactly, and
-//! [`slurm`] writes the batch scripts that run the shards as a Slurm job array;
-//! [`hybrid`] saves and loads the hybrid state of a run (continue a run as if it never stopped);
-//! [`tangent`], [`lyapunov`], [`zero_one`] and [`chaos`] say whether a motion is chaotic: Lyapunov
-//! spectra through contacts and impacts, the 0-1 test, and a classification of each run or sweep
-//! value;
-//! [`precision`] measures what accuracy costs: every integrator against a tight reference.
+//! ```text
+//! figures    drawn from written files and the outcomes studies return, over figures::plot
+//! study      what a user asks for in a file: specs, loading, one run, the sweep executor,
+//!            continuation, work-precision, comparison studies, shards and Slurm
+//! storage    every file kind (runs, analysis and sweep files, shards, checkpoints, tables)
+//!            and the crash-safe writes and verified reads they share
+//! measures   sections, Lyapunov spectra, the 0-1 test, chaos classes, periodic orbits
+//! flow       flows of mechanisms and built-in systems, tangents, observables, the summary
+//! progress   progress reports and stop requests, shared by every layer
+//! ```
 //!
-//! Around them: [`summary`] is the compiled summary of a scene (what `jointplay check` prints);
-//! [`inputs`] tells what kind of TOML input or written HDF5 file a path is; [`comparison`] runs a
-//! comparison study end to end (its file, its table, its figures); [`progress`] is the one type in
-//! which every long computation reports its progress.
+//! * [`flow`]: one flow interface ([`flow::Flow`]) for mechanisms and the built-in reference
+//!   systems ([`flow::systems`]: Duffing, pendulum, Lorenz, ...), their tangent dynamics
+//!   ([`flow::tangent`]), quantities addressed by path ([`flow::observe`]), and the compiled
+//!   summary of a scene ([`flow::summary`], what `jointplay check` prints).
+//! * [`measures`]: what a motion is, over any flow: Poincare sections
+//!   ([`measures::sections`]), Lyapunov spectra through contacts and impacts
+//!   ([`measures::lyapunov`]), the 0-1 test ([`measures::zero_one`]), a classification
+//!   ([`measures::chaos`]) and periodic orbits by shooting ([`measures::periodic`]).
+//! * [`storage`]: every file kind and what keeps finished work through kills, full disks and
+//!   second writers (a journal of checksummed values, files replaced atomically, one lock per
+//!   output); the HDF5 helpers ([`storage::h5`], layout in book/src/reference/hdf5.md).
+//! * [`study`]: comparison studies ([`study::spec`], [`study::comparison`], [`study::report`]),
+//!   single runs ([`study::run`]), analysis studies and their sweeps ([`study::analysis`]),
+//!   continuation ([`study::continuation`]), work-precision ([`study::precision`]), shards
+//!   ([`study::shards`]) and Slurm batch scripts ([`study::slurm`]).
+//! * [`figures`]: every figure (runs, studies, analysis files, work-precision) as PNG and SVG
+//!   over [`figures::plot`], with an embedded font (no system fonts needed).
 //!
-//! Every analysis is written against one flow interface ([`flow::Flow`]: mechanisms and built-in
-//! systems alike) and one hybrid state ([`jointplay_solver::state::HybridState`], saved and loaded
-//! by [`hybrid`]). Kept on purpose: sections generic over any flow; atomic and bit-reproducible
-//! HDF5 output (a file is complete or absent, and the same run writes the same bits); errors that
-//! name the file and the field.
+//! Every analysis is written against one flow interface and one hybrid state
+//! ([`jointplay_solver::state::HybridState`], saved and loaded by [`storage::hybrid`]). Kept on
+//! purpose: sections generic over any flow; atomic and bit-reproducible HDF5 output (a file is
+//! complete or absent, and the same run writes the same bits); errors that name the file and
+//! the field.
 
-pub mod bitround;
-pub mod chaos;
-mod chunk;
-pub mod comparison;
-pub mod continuation;
 pub mod figures;
 pub mod flow;
-pub mod h5;
-pub mod hybrid;
-pub mod inputs;
-pub mod lyapunov;
-pub mod nonlinear;
-pub mod observe;
-pub mod periodic;
-pub mod plot;
-pub mod precision;
+pub mod measures;
 pub mod progress;
-pub mod report;
-pub mod run;
-pub mod schedule;
-pub mod sections;
-pub mod shards;
-pub mod slurm;
 pub mod storage;
 pub mod study;
-pub mod summary;
-pub mod sweep_table;
-pub mod systems;
-pub mod tangent;
-pub mod zero_one;
 
 use std::path::PathBuf;
 

@@ -8,7 +8,7 @@
 //!
 //! Computations that run jobs in parallel take `&(dyn Fn(Progress) + Sync)`; sequential ones take
 //! `&mut dyn FnMut(Progress)`. A single integration reports only the fraction of its span done, as
-//! a plain `f64` ([`crate::run::simulate`]). [`Tally`] turns the reports of a computation made of
+//! a plain `f64` ([`crate::study::run::simulate`]). [`Tally`] turns the reports of a computation made of
 //! jobs into the fraction done and the jobs finished, for a progress bar.
 //!
 //! A [`Stop`] asks a running computation to end early (an interrupt from the keyboard, seen by
@@ -125,7 +125,8 @@ mod tests {
     use std::sync::Mutex;
 
     use super::*;
-    use crate::nonlinear::{Loaded, Options, execute, execute_until};
+    use crate::study::analysis::load::Loaded;
+    use crate::study::analysis::sweep::{Options, execute, execute_until};
 
     const SWEEP: &str = r#"
 [study]

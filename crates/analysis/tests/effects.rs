@@ -3,7 +3,7 @@
 
 mod common;
 
-use jointplay_analysis::run::{Recording, RunResult};
+use jointplay_analysis::storage::run::{Recording, RunResult};
 
 fn run(cases: &str) -> Vec<RunResult> {
     common::run_study(&format!(

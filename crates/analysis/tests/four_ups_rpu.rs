@@ -5,7 +5,7 @@
 mod common;
 
 use common::scenes;
-use jointplay_analysis::run::simulate;
+use jointplay_analysis::study::run::simulate;
 use jointplay_solver::model::Model;
 use jointplay_solver::scene::SceneSpec;
 

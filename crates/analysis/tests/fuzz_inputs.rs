@@ -17,8 +17,8 @@
 use std::panic::{AssertUnwindSafe, catch_unwind};
 use std::path::{Path, PathBuf};
 
-use jointplay_analysis::nonlinear::{Loaded, is_analysis};
-use jointplay_analysis::study::Study;
+use jointplay_analysis::study::analysis::{Loaded, is_analysis};
+use jointplay_analysis::study::spec::Study;
 use jointplay_solver::dynamics::Mechanism;
 use jointplay_solver::model::Model;
 use jointplay_solver::ode::{Flow, Step, integrate_steps};

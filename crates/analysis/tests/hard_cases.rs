@@ -9,7 +9,8 @@
 
 use std::path::Path;
 
-use jointplay_analysis::run::{Channel, Recording, RunResult, simulate};
+use jointplay_analysis::storage::run::{Channel, Recording, RunResult};
+use jointplay_analysis::study::run::simulate;
 use jointplay_solver::contact::{Damping, hunt_crossley_restitution};
 use jointplay_solver::model::Model;
 use jointplay_solver::scene::{SceneFile, SceneSpec};

@@ -5,9 +5,10 @@
 
 use std::path::PathBuf;
 
-use jointplay_analysis::h5::{Meta, write_run};
-use jointplay_analysis::hybrid::read_state;
-use jointplay_analysis::run::{RunResult, resume, simulate};
+use jointplay_analysis::storage::hybrid::read_state;
+use jointplay_analysis::storage::run::RunResult;
+use jointplay_analysis::storage::run_file::{Meta, write_run};
+use jointplay_analysis::study::run::{resume, simulate};
 use jointplay_solver::model::Model;
 use jointplay_solver::scene::SceneSpec;
 
@@ -134,8 +135,8 @@ continuation = true
 
 #[test]
 fn a_continuation_sweep_hands_over_the_onset_history() {
-    use jointplay_analysis::hybrid::read_row;
-    use jointplay_analysis::nonlinear::{Loaded, Options, execute};
+    use jointplay_analysis::storage::hybrid::read_row;
+    use jointplay_analysis::study::analysis::{Loaded, Options, execute};
 
     let st = Loaded::parse(CONTINUATION, &scenes().join("continuation-onset.toml")).unwrap();
     let dir = std::env::temp_dir().join(format!("jointplay-continuation-{}", std::process::id()));
@@ -163,7 +164,7 @@ fn a_continuation_sweep_hands_over_the_onset_history() {
 #[test]
 fn a_study_sets_any_parameter_by_path() {
     use jointplay_analysis::flow::Target;
-    use jointplay_analysis::nonlinear::Loaded;
+    use jointplay_analysis::study::analysis::Loaded;
 
     let st = Loaded::parse(CONTINUATION, &scenes().join("continuation-onset.toml")).unwrap();
     let clearance = |t: &Target, name: &str| match t {

@@ -4,10 +4,10 @@
 
 use std::path::Path;
 
+use jointplay_analysis::flow::tangent::{Difference, Tangent};
 use jointplay_analysis::flow::{AnyFlow, Flow, Target};
-use jointplay_analysis::lyapunov::{LyapunovSpec, Spectrum, spectrum, tangent_map};
-use jointplay_analysis::nonlinear::Loaded;
-use jointplay_analysis::tangent::{Difference, Tangent};
+use jointplay_analysis::measures::lyapunov::{LyapunovSpec, Spectrum, spectrum, tangent_map};
+use jointplay_analysis::study::analysis::Loaded;
 use jointplay_solver::ode::{Flow as Step, OdeSystem, Step as OdeStep, advance};
 use jointplay_solver::state::HybridState;
 

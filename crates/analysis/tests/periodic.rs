@@ -3,10 +3,10 @@
 
 use std::path::Path;
 
-use jointplay_analysis::continuation::{Begin, Continuation, Kind, Settings, continuation};
 use jointplay_analysis::flow::{Flow, Target};
-use jointplay_analysis::nonlinear::Loaded;
-use jointplay_analysis::periodic::{Newton, shoot};
+use jointplay_analysis::measures::periodic::{Newton, shoot};
+use jointplay_analysis::study::analysis::Loaded;
+use jointplay_analysis::study::continuation::{Begin, Continuation, Kind, Settings, continuation};
 use jointplay_solver::ode::{Flow as Step, advance};
 use jointplay_solver::state::HybridState;
 
@@ -390,7 +390,7 @@ fn hardening_duffing_folds_bound_the_hysteresis_of_sweeps() {
     }
     // The sweep up starts on the upper branch (the branch's orbit nearest 2.15), the sweep down
     // on the lower one (past the second fold, nearest 1.70).
-    let near = |pts: &[jointplay_analysis::continuation::Point], w: f64| {
+    let near = |pts: &[jointplay_analysis::study::continuation::Point], w: f64| {
         let p = pts
             .iter()
             .min_by(|p, q| (p.parameter - w).abs().total_cmp(&(q.parameter - w).abs()))
@@ -479,7 +479,7 @@ fn continuation_is_written_to_the_analysis_file() {
     );
     let st = Loaded::parse(&text, Path::new("t.toml")).unwrap();
     let dir = tempfile::tempdir().unwrap();
-    let o = jointplay_analysis::nonlinear::execute(
+    let o = jointplay_analysis::study::analysis::execute(
         &st,
         dir.path(),
         Default::default(),
@@ -487,11 +487,12 @@ fn continuation_is_written_to_the_analysis_file() {
         &|_| {},
     )
     .unwrap();
-    let c = jointplay_analysis::continuation::run_study(&st, Begin::Fresh(None), &mut |_| true)
-        .unwrap();
-    jointplay_analysis::continuation::write(&o.file, &st, Ok(&c)).unwrap();
+    let c =
+        jointplay_analysis::study::continuation::run_study(&st, Begin::Fresh(None), &mut |_| true)
+            .unwrap();
+    jointplay_analysis::study::continuation::write(&o.file, &st, Ok(&c)).unwrap();
     // Written twice: the second replaces the first.
-    jointplay_analysis::continuation::write(&o.file, &st, Ok(&c)).unwrap();
+    jointplay_analysis::study::continuation::write(&o.file, &st, Ok(&c)).unwrap();
     let f = hdf5::File::open(&o.file).unwrap();
     let g = f.group("continuation").unwrap();
     let b = g.group("branch_0").unwrap();
@@ -709,9 +710,14 @@ fn van_der_pol_loses_its_forced_response_to_a_torus_where_the_mean_of_x_squared_
 /// The study's analysis run, written into a new temporary directory (kept alive by the first).
 fn analysis_file(st: &Loaded) -> (tempfile::TempDir, std::path::PathBuf) {
     let dir = tempfile::tempdir().unwrap();
-    let o =
-        jointplay_analysis::nonlinear::execute(st, dir.path(), Default::default(), "test", &|_| {})
-            .unwrap();
+    let o = jointplay_analysis::study::analysis::execute(
+        st,
+        dir.path(),
+        Default::default(),
+        "test",
+        &|_| {},
+    )
+    .unwrap();
     (dir, o.file)
 }
 
@@ -746,7 +752,7 @@ fn same_points(a: &Continuation, b: &Continuation) {
 /// waits in the file), and on the period-2 branch.
 #[test]
 fn a_stopped_continuation_resumes_to_the_points_of_one_never_stopped() {
-    use jointplay_analysis::continuation::{read_unfinished, run_study, write};
+    use jointplay_analysis::study::continuation::{read_unfinished, run_study, write};
     let st = duffing_continuation_study();
     let full = run_study(&st, Begin::Fresh(None), &mut |_| true).unwrap();
     assert_eq!(full.branches.len(), 2);
@@ -797,7 +803,7 @@ fn a_stopped_continuation_resumes_to_the_points_of_one_never_stopped() {
 /// missing file and a state at another phase are refused naming the field.
 #[test]
 fn a_continuation_starts_from_a_branch_point_of_a_file() {
-    use jointplay_analysis::continuation::{run_study, write};
+    use jointplay_analysis::study::continuation::{run_study, write};
     let st = duffing_continuation_study();
     let (_dir, file) = analysis_file(&st);
     let full = run_study(&st, Begin::Fresh(None), &mut |_| true).unwrap();
@@ -816,7 +822,7 @@ fn a_continuation_starts_from_a_branch_point_of_a_file() {
     let st2 = Loaded::parse(&text, Path::new("t.toml")).unwrap();
     let c = run_study(
         &st2,
-        Begin::Fresh(jointplay_analysis::continuation::start_of(&st2).unwrap()),
+        Begin::Fresh(st2.continuation_start().unwrap()),
         &mut |_| true,
     )
     .unwrap();

@@ -3,7 +3,8 @@
 
 use std::path::{Path, PathBuf};
 
-use jointplay_analysis::nonlinear::{JobResult, Loaded, Options, execute};
+use jointplay_analysis::storage::analysis_file::JobResult;
+use jointplay_analysis::study::analysis::{Loaded, Options, execute};
 
 /// `text` (a sweep study) as a continuation when `continuation`, as it is otherwise.
 fn sweep_text(text: &str, continuation: bool) -> String {
@@ -81,7 +82,8 @@ fn without_sweep(text: &str) -> Loaded {
 
 /// The sweep `st` run as two shards into `dir`, merged into `dir/merged.h5`.
 fn two_shards_merged(st: &Loaded, dir: &Path) -> PathBuf {
-    use jointplay_analysis::shards::{Shard, merge};
+    use jointplay_analysis::storage::analysis_file::Shard;
+    use jointplay_analysis::study::shards::merge;
     let shards: Vec<_> = (0..2)
         .map(|index| {
             let o = Options {
@@ -433,12 +435,12 @@ fn an_interrupted_sweep_resumed_equals_an_uninterrupted_one() {
 
 /// `[analysis] significant_bits` rounds the values of the time histories in the file (the
 /// single run's and every sweep row's, written block by block, and those a merge copies) to
-/// exactly `jointplay_analysis::bitround::round` of the run's own; the sample times, strobe points
+/// exactly `jointplay_analysis::storage::bitround::round` of the run's own; the sample times, strobe points
 /// and final states are written exactly, and the file and each rounded dataset say how many bits
 /// were kept.
 #[test]
 fn histories_keep_the_significant_bits_asked_for_and_nothing_else_is_rounded() {
-    use jointplay_analysis::bitround::round;
+    use jointplay_analysis::storage::bitround::round;
     let text = DUFFING
         .replace("periods = 264", "periods = 120")
         .replace("transient = 200", "transient = 0")
@@ -519,14 +521,14 @@ fn histories_keep_the_significant_bits_asked_for_and_nothing_else_is_rounded() {
 #[test]
 fn histories_written_block_by_block_equal_those_of_a_run_kept_in_memory() {
     // 200 periods of 100 samples: 20 001 samples, more than two blocks of the file's writer
-    // (jointplay_analysis::sections::HISTORY_BLOCK), so every row is written in pieces while its
+    // (jointplay_analysis::measures::sections::HISTORY_BLOCK), so every row is written in pieces while its
     // job runs. The file's rows must be the run's own histories, bit for bit.
     let text = DUFFING
         .replace("periods = 264", "periods = 200")
         .replace("transient = 200", "transient = 0")
         .replace("samples_per_period = 0", "samples_per_period = 100")
         .replace("values = [0.20, 0.28, 0.29, 0.50]", "values = [0.28, 0.5]");
-    const { assert!(200 * 100 > 2 * jointplay_analysis::sections::HISTORY_BLOCK) };
+    const { assert!(200 * 100 > 2 * jointplay_analysis::measures::sections::HISTORY_BLOCK) };
     let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
     for continuation in [false, true] {
         let st = study(&sweep_text(&text, continuation));

@@ -4,8 +4,8 @@
 
 use std::path::PathBuf;
 
-use jointplay_analysis::nonlinear::Loaded;
-use jointplay_analysis::study::Study;
+use jointplay_analysis::study::analysis::Loaded;
+use jointplay_analysis::study::spec::Study;
 
 /// The bundled scenes, against which the studies' scene paths resolve.
 fn scenes() -> PathBuf {

@@ -2,8 +2,8 @@
 //! (`pip install ./crates/python`) and re-exported by the `jointplay` package.
 //!
 //! It calls the Rust crates directly: a `Scene` is a scene's TOML tree, read and edited by the
-//! study paths of [`jointplay_analysis::study`] and checked against the scene format on every
-//! edit; `Scene::run` compiles and simulates it (`jointplay_analysis::run::simulate_until`)
+//! study paths of [`jointplay_analysis::study::spec`] and checked against the scene format on every
+//! edit; `Scene::run` compiles and simulates it (`jointplay_analysis::study::run::simulate_until`)
 //! and hands its recording over as numpy arrays that view the run's own memory (no copy);
 //! `run_study` runs a comparison, analysis (sweep) or work-precision study as `jointplay run`
 //! and `jointplay precision` do, writes the same files and loads the result (`H5`).
@@ -22,17 +22,18 @@ use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
 use hdf5::types::{TypeDescriptor, VarLenUnicode};
-use jointplay_analysis::comparison::Comparison;
+use jointplay_analysis::figures::plot::Format;
 use jointplay_analysis::figures::redraw;
-use jointplay_analysis::h5::{Meta, write_run};
-use jointplay_analysis::inputs::Input;
-use jointplay_analysis::nonlinear::{Loaded, Options, execute_until};
-use jointplay_analysis::plot::Format;
-use jointplay_analysis::precision;
+use jointplay_analysis::flow::summary::Summary;
 use jointplay_analysis::progress::{Progress, Stop, Tally};
-use jointplay_analysis::run::{RunResult, simulate_until};
-use jointplay_analysis::study::{Study, edit, lookup};
-use jointplay_analysis::summary::Summary;
+use jointplay_analysis::storage::inputs::Input;
+use jointplay_analysis::storage::run::RunResult;
+use jointplay_analysis::storage::run_file::{Meta, write_run};
+use jointplay_analysis::study::analysis::{Loaded, Options, execute_until};
+use jointplay_analysis::study::comparison::Comparison;
+use jointplay_analysis::study::precision;
+use jointplay_analysis::study::run::simulate_until;
+use jointplay_analysis::study::spec::{Study, edit, lookup};
 use jointplay_solver::model::Model;
 use jointplay_solver::scene::{SceneFile, SceneSpec};
 use numpy::PyArray;
@@ -581,7 +582,7 @@ struct Run {
 }
 
 impl Run {
-    fn channel(&self, dataset: &str) -> PyResult<&jointplay_analysis::run::Channel> {
+    fn channel(&self, dataset: &str) -> PyResult<&jointplay_analysis::storage::run::Channel> {
         self.result.recording.channel(dataset).ok_or_else(|| {
             PyKeyError::new_err(format!(
                 "{dataset}: not a dataset of this run (see Run.datasets)"
@@ -1045,7 +1046,7 @@ fn analysis(
     progress: &(dyn Fn(Progress) + Sync),
     stop: &Stop,
 ) -> AnyResult<Done> {
-    use jointplay_analysis::continuation::{self, Begin};
+    use jointplay_analysis::study::continuation::{self, Begin};
     let st = Loaded::parse(text, path).map_err(|e| e.to_string())?;
     // Without a sweep, resume and max_jobs apply to a continuation (its points).
     let continuation_only = st.spec.sweep.is_none() && st.spec.continuation.is_some();
@@ -1056,7 +1057,7 @@ fn analysis(
         ));
     }
     // The continuation's start state is read before the analysis rewrites the output file.
-    let start = continuation::start_of(&st).map_err(|e| e.to_string())?;
+    let start = st.continuation_start().map_err(|e| e.to_string())?;
     let (file, begin, mut done) = if continuation_only && opts.resume {
         let file = out.join(format!("{}.h5", st.spec.study.name));
         let prior = continuation::read_unfinished(&file, &st)
@@ -1351,7 +1352,7 @@ fn run_study(
 /// readers built on HDF5 1.8), as the program's ``--hdf5-format``. The values are the same.
 #[pyfunction]
 fn set_hdf5_format(version: &str) -> PyResult<()> {
-    jointplay_analysis::h5::set_format(version.parse().map_err(err)?);
+    jointplay_analysis::storage::h5::set_format(version.parse().map_err(err)?);
     Ok(())
 }
 

@@ -384,7 +384,7 @@ impl Model {
     /// Penetration and its rate of every contact at `y` into `ws.contacts` (m, m/s), with
     /// `out[s] = (delta, delta_dot)` per contact slot and whether the slot keeps an onset
     /// history (its law reads the approach velocity). The tangent dynamics
-    /// (`jointplay_analysis::lyapunov`) differentiate the onset bookkeeping of
+    /// (`jointplay_analysis::measures::lyapunov`) differentiate the onset bookkeeping of
     /// [`Model::update_onsets`] with it.
     pub fn contact_rates(&self, y: &[f64], ws: &mut Workspace, out: &mut Vec<(f64, f64, bool)>) {
         if self.effects.clearance {

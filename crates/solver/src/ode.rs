@@ -80,7 +80,7 @@ pub trait OdeSystem {
     /// How many leading components of the state the adaptive error control (and the initial
     /// step estimate) measures; the rest are carried along in the same steps without steering
     /// them. The default is all of them. A state extended by its tangent vectors
-    /// (`jointplay_analysis::lyapunov`) sets this to the length of the physical state, so that
+    /// (`jointplay_analysis::measures::lyapunov`) sets this to the length of the physical state, so that
     /// the extended run takes exactly the steps of the plain run.
     fn error_dim(&self) -> usize {
         self.dim()

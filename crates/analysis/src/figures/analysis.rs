@@ -1,7 +1,7 @@
 //! Figures of a nonlinear-analysis file, drawn from the HDF5 file alone (so `jointplay plot`
 //! redraws exactly what `jointplay run` drew, without simulating again).
 //!
-//! Kinds (the `[[figures]]` of the study; see [`crate::nonlinear::FigureKind`]): time histories,
+//! Kinds (the `[[figures]]` of the study; see [`crate::study::analysis::spec::FigureKind`]): time histories,
 //! phase portraits with the stroboscopic points, Poincare maps (section points over the faint
 //! trajectory, with a zoomed inset when the points cluster within a tenth of the trajectory's
 //! extent), orbits inside a clearance circle, and bifurcation diagrams (section points against
@@ -14,7 +14,7 @@
 //! each run, read from the file as such: a long run's figures cost no more memory than a short
 //! one's (the file keeps every sample).
 //!
-//! When the study computed the chaos measures ([`crate::chaos`]), a bifurcation diagram gets
+//! When the study computed the chaos measures ([`crate::measures::chaos`]), a bifurcation diagram gets
 //! panels below it on the same parameter axis: lambda_1 with its 3-standard-error band (and the
 //! two-trajectory estimate), and the 0-1 test's K; a single run gets a convergence figure of the
 //! running exponent estimates (`<study>-lyapunov.png`).
@@ -22,10 +22,10 @@
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
-use super::write;
-use crate::h5::{h5err, read_rows, read_str};
-use crate::nonlinear::{AnalysisStudy, FigureKind, FigureSpec};
-use crate::plot::{Format, Panel, Series};
+use crate::figures::plot::write;
+use crate::figures::plot::{Format, Panel, Series};
+use crate::storage::h5::{h5err, read_rows, read_str};
+use crate::study::analysis::spec::{AnalysisStudy, FigureKind, FigureSpec};
 use crate::{Error, Result};
 
 /// The recorded data of one run (or one sweep job).
@@ -75,7 +75,7 @@ struct ContData {
 }
 
 fn read_continuation(g: &hdf5::Group, spec: &AnalysisStudy) -> hdf5::Result<ContData> {
-    let n: u64 = crate::h5::read_attr(g, "branches").unwrap_or(0);
+    let n: u64 = crate::storage::h5::read_attr(g, "branches").unwrap_or(0);
     let mut branches = Vec::new();
     for i in 0..n {
         let b = g.group(&format!("branch_{i}"))?;
@@ -92,7 +92,7 @@ fn read_continuation(g: &hdf5::Group, spec: &AnalysisStudy) -> hdf5::Result<Cont
     }
     let mut specials = Vec::new();
     if let Ok(sp) = g.group("special") {
-        let kinds = crate::h5::read_strings(&sp, "kind")?;
+        let kinds = crate::storage::h5::read_strings(&sp, "kind")?;
         let params: Vec<f64> = sp.dataset("parameter")?.read_raw()?;
         let sg = sp.group("strobe")?;
         let mut vals = BTreeMap::new();
@@ -248,9 +248,9 @@ fn read(path: &Path) -> Result<Data> {
                     short(&pname),
                     // In the unit the parameter axis is drawn in (mm for a clearance).
                     match display_scale(&punit, params.iter().copied()) {
-                        Some((k, u)) => format!("{} {u}", crate::report::num(*p * k)),
-                        None if punit.is_empty() => crate::report::num(*p),
-                        None => format!("{} {punit}", crate::report::num(*p)),
+                        Some((k, u)) => format!("{} {u}", crate::study::report::num(*p * k)),
+                        None if punit.is_empty() => crate::study::report::num(*p),
+                        None => format!("{} {punit}", crate::study::report::num(*p)),
                     },
                     if dirs[j] < 0 { " (down)" } else { "" }
                 ),
@@ -495,7 +495,7 @@ fn branches_panel(d: &Data, f: &FigureSpec, y: &str, scale: f64, y_label: String
                     x: b.parameter[start..=stop].iter().map(|v| v * px).collect(),
                     y: rows[start..=stop].iter().map(|r| r[j] * scale).collect(),
                 });
-                p.styles.push(crate::plot::LineStyle {
+                p.styles.push(crate::figures::plot::LineStyle {
                     color: if stable { 0 } else { 1 },
                     dashed: !stable,
                 });
@@ -842,7 +842,7 @@ fn panels_for(d: &Data, f: &FigureSpec) -> Result<Vec<Panel>> {
                 if let Some(r) = r {
                     let a = (0..=360).map(|k| (k as f64).to_radians());
                     series.push(Series {
-                        label: format!("clearance {}", crate::report::num(r)),
+                        label: format!("clearance {}", crate::study::report::num(r)),
                         x: a.clone().map(|t| r * t.cos()).collect(),
                         y: a.map(|t| r * t.sin()).collect(),
                     });

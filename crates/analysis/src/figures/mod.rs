@@ -1,4 +1,4 @@
-//! Every figure the program draws, as PNG and SVG over [`crate::plot`], one file per kind of
+//! Every figure the program draws, as PNG and SVG over [`crate::figures::plot`], one file per kind of
 //! figure, and the redrawing of a written file's figures.
 //!
 //! * [`run_figures`] (file `run.rs`) draws one run: body positions, actuator forces, constraint
@@ -20,6 +20,7 @@
 //! several run files in one panel.
 
 pub mod analysis;
+pub mod plot;
 pub mod precision;
 pub mod run;
 mod study;
@@ -30,47 +31,10 @@ pub use run::run_figures;
 pub use study::study_figures;
 
 use crate::Result;
-use crate::h5::read_series;
-use crate::inputs::Output;
-use crate::plot::{Format, Panel, Series, figure};
-use crate::precision::Outcome;
-
-/// The formats of the figures `run` draws.
-const PNG_AND_SVG: [Format; 2] = [Format::Png, Format::Svg];
-
-/// Metres to millimetres.
-fn mm(v: &[f64]) -> Vec<f64> {
-    v.iter().map(|x| x * 1e3).collect()
-}
-
-/// The clearance circle of radius `r_mm` (mm), for orbit panels drawn in mm.
-pub fn circle(r_mm: f64) -> Series {
-    let angles = (0..=360).map(|k| (k as f64).to_radians());
-    Series {
-        label: format!("clearance {r_mm:.3} mm"),
-        x: angles.clone().map(|a| r_mm * a.cos()).collect(),
-        y: angles.map(|a| r_mm * a.sin()).collect(),
-    }
-}
-
-/// Draws `panels` in `cols` columns as `out/<stem>.<format>` in each format; nothing when there
-/// is no panel. Returns the files written.
-fn write(
-    out: &Path,
-    stem: &str,
-    panels: &[Panel],
-    cols: usize,
-    formats: &[Format],
-) -> Result<Vec<PathBuf>> {
-    let mut files = Vec::new();
-    if panels.is_empty() {
-        return Ok(files);
-    }
-    for fmt in formats {
-        files.push(figure(&out.join(stem), *fmt, panels, cols)?);
-    }
-    Ok(files)
-}
+use crate::figures::plot::{Format, Panel, Series};
+use crate::storage::h5::read_series;
+use crate::storage::inputs::Output;
+use crate::study::precision::outcome::Outcome;
 
 /// Draws every figure of a written file again, from the file alone, into `dir` in the given
 /// formats, and returns the files written: those of a work-precision file ([`precision::draw`],
@@ -133,9 +97,11 @@ mod tests {
     use jointplay_solver::scene::SceneSpec;
 
     use super::*;
-    use crate::h5::{Meta, write_run};
-    use crate::nonlinear::{Loaded, Options, execute};
-    use crate::run::{RunResult, simulate};
+    use crate::storage::run::RunResult;
+    use crate::storage::run_file::{Meta, write_run};
+    use crate::study::analysis::load::Loaded;
+    use crate::study::analysis::sweep::{Options, execute};
+    use crate::study::run::simulate;
 
     fn tmp(tag: &str) -> PathBuf {
         let d =

@@ -1,9 +1,9 @@
-//! The work-precision figure (see [`crate::precision`]).
+//! The work-precision figure (see [`crate::study::precision`]).
 
 use std::path::{Path, PathBuf};
 
-use crate::plot::{Format, Panel, Series, figure};
-use crate::precision::{Errors, Outcome};
+use crate::figures::plot::{Format, Panel, Series, figure};
+use crate::study::precision::outcome::{Errors, Outcome};
 use crate::{Error, Result};
 
 /// Reads one error measure.

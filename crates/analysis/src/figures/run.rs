@@ -2,27 +2,10 @@
 
 use std::path::{Path, PathBuf};
 
-use super::{PNG_AND_SVG, circle, mm, write};
 use crate::Result;
-use crate::plot::{Panel, Series};
-use crate::run::{Channel, RunResult};
-
-/// True for the datasets of a run (its [`Channel::dataset`]) that [`run_figures`] draws: the
-/// bodies' positions, the drives' forces, the diagnostics, and each clearance joint's orbit and
-/// normal forces. A run written to its file while it goes keeps only these in memory.
-pub fn drawn(dataset: &str) -> bool {
-    let (kind, quantity) = (
-        dataset.split('/').next().unwrap_or(""),
-        dataset.rsplit('/').next().unwrap_or(""),
-    );
-    match kind {
-        "bodies" => quantity == "position",
-        "drives" => quantity == "force",
-        "diagnostics" => true,
-        "joints" => matches!(quantity, "radial_eccentricity" | "normal_force"),
-        _ => false,
-    }
-}
+use crate::figures::plot::{PNG_AND_SVG, circle, mm, write};
+use crate::figures::plot::{Panel, Series};
+use crate::storage::run::{Channel, RunResult};
 
 /// Draws the figures of one run into `out` as PNG and SVG and returns the files written:
 ///

@@ -2,12 +2,13 @@
 
 use std::path::{Path, PathBuf};
 
-use super::{PNG_AND_SVG, circle, mm, write};
 use crate::Result;
-use crate::plot::{Panel, Series};
-use crate::report::norm;
-use crate::run::{Channel, Recording};
-use crate::study::ReportSpec;
+use crate::figures::plot::{PNG_AND_SVG, circle, mm, write};
+use crate::figures::plot::{Panel, Series};
+use crate::storage::run::{Channel, Recording};
+use crate::study::comparison::Comparison;
+use crate::study::report::norm;
+use crate::study::spec::ReportSpec;
 
 /// The global plane (two axis indices, 0 = X) in which a spherical joint's orbit is drawn: the
 /// first two report axes; with one report axis, that axis and the first other one, in index
@@ -183,6 +184,37 @@ pub fn study_figures<'a>(
         &PNG_AND_SVG,
     )?);
     Ok(files)
+}
+
+/// The figures of a comparison study, drawn here so that studies never call figures.
+impl Comparison<'_> {
+    /// Draws the study figures of the finished cases into `dir`: one set of every case, or one
+    /// per group of `report.figures` with the finished cases it names; returns the files written.
+    pub fn figures(&self, dir: &Path) -> Result<Vec<PathBuf>> {
+        let recs: Vec<(&str, &Recording)> = self
+            .runs
+            .iter()
+            .map(|(r, _)| (r.label.as_str(), &r.result.recording))
+            .collect();
+        let spec = &self.study.spec;
+        if spec.report.figures.is_empty() {
+            return study_figures(dir, &spec.study.name, &spec.report, &recs);
+        }
+        let mut files = Vec::new();
+        for g in &spec.report.figures {
+            let some: Vec<(&str, &Recording)> = g
+                .cases
+                .iter()
+                .filter_map(|c| recs.iter().find(|(l, _)| l == c).copied())
+                .collect();
+            if some.is_empty() {
+                continue;
+            }
+            let name = format!("{}-{}", spec.study.name, g.name);
+            files.extend(study_figures(dir, &name, &spec.report, &some)?);
+        }
+        Ok(files)
+    }
 }
 
 #[cfg(test)]

@@ -22,8 +22,18 @@
 //!   (`<study>.continuation.h5`), replaced atomically, and the study file once at the end.
 //! * A **single run** is written under `<name>.h5.partial` and moved into place once complete.
 
+pub mod analysis_file;
+pub mod bitround;
+pub mod chaos;
+pub(crate) mod chunk;
 pub mod durable;
+pub mod h5;
+pub mod hybrid;
+pub mod inputs;
 pub mod journal;
 pub mod lock;
 pub mod rows;
+pub mod run;
+pub mod run_file;
 pub mod sweep;
+pub mod table;

@@ -24,9 +24,10 @@ use ndarray::Array1;
 use super::durable::{self, with_suffix};
 use super::journal::{self, Journal};
 use super::rows::{Cells, Kind, Outcome, Row, Section, Value, read_cells};
-use crate::h5::{f64_attr_set, h5err, read_attr, read_str, str_attr, u8_attr_set};
-use crate::nonlinear::{JobResult, SweepLayout, create_sweep_file, write_crossings};
-use crate::shards::Shard;
+use crate::storage::analysis_file::{
+    JobResult, Shard, SweepLayout, create_sweep_file, write_crossings,
+};
+use crate::storage::h5::{f64_attr_set, h5err, read_attr, read_str, str_attr, u8_attr_set};
 use crate::{Error, Result};
 
 /// The journal of the sweep file `path` (`x.h5` -> `x.journal`, `x.shard-0-of-4.h5` ->
@@ -110,7 +111,9 @@ pub(crate) fn job_row(l: &SweepLayout, r: &JobResult) -> Row {
                     let v: Vec<u8> = s.warned.iter().map(|&x| u8::from(x)).collect();
                     Cells::U8(fit(&v, w, 0))
                 }
-                "final_stepper" => Cells::F64(crate::hybrid::stepper_row(&s.stepper).to_vec()),
+                "final_stepper" => {
+                    Cells::F64(crate::storage::hybrid::stepper_row(&s.stepper).to_vec())
+                }
                 "rhs_evals" => Cells::U64(vec![t.stats.rhs_evals]),
                 "wall_time" => Cells::F64(vec![r.wall]),
                 "chaos/class" => Cells::U8(vec![r.chaos.as_ref().map_or(0, |c| c.class as u8)]),
@@ -141,7 +144,7 @@ pub(crate) fn job_row(l: &SweepLayout, r: &JobResult) -> Row {
                 other => match other.strip_prefix("history/") {
                     Some(o) => {
                         let v = obs(o).map_or(&[][..], |i| &t.history[i][..]);
-                        Cells::F64(fit(&crate::bitround::rounded(v, l.bits), w, nan))
+                        Cells::F64(fit(&crate::storage::bitround::rounded(v, l.bits), w, nan))
                     }
                     None => {
                         let v = obs(other).map_or(&[][..], |i| &t.strobe[i][..]);
@@ -182,7 +185,7 @@ pub(crate) fn row_state(
         y: row.f64s("final_state").to_vec(),
         onset: row.f64s("final_onset").to_vec(),
         warned,
-        stepper: crate::hybrid::stepper_from(row.f64s("final_stepper"))
+        stepper: crate::storage::hybrid::stepper_from(row.f64s("final_stepper"))
             .map_err(|e| e.to_string())?,
     })
 }
@@ -511,7 +514,7 @@ pub(crate) fn write_file(
     })()
     .map_err(&e)?;
     let complete: u8 = read_attr(&file, "complete").map_err(&e)?;
-    let bytes = crate::h5::image(&file).map_err(&e)?;
+    let bytes = crate::storage::h5::image(&file).map_err(&e)?;
     file.close().map_err(&e)?;
     durable::write_new(path, &bytes)?;
     Ok(complete == 1)

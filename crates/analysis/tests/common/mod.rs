@@ -2,8 +2,8 @@
 
 use std::path::PathBuf;
 
-use jointplay_analysis::run::RunResult;
-use jointplay_analysis::study::Study;
+use jointplay_analysis::storage::run::RunResult;
+use jointplay_analysis::study::spec::Study;
 
 /// The bundled scenes, `data/scenes`.
 pub fn scenes() -> PathBuf {

@@ -1,0 +1,919 @@
+//! Figures as PNG and SVG (plotters), drawn with an embedded DejaVu Sans so that no system font or
+//! fontconfig is needed (font licence: `crates/analysis/fonts/LICENSE-DejaVu.txt`).
+
+use std::path::Path;
+use std::sync::Once;
+
+use plotters::coord::Shift;
+use plotters::coord::cartesian::Cartesian2d;
+use plotters::coord::ranged1d::{Ranged, ValueFormatter};
+use plotters::prelude::*;
+
+use crate::{Error, Result};
+
+static FONT: &[u8] = include_bytes!("../../fonts/DejaVuSans.ttf");
+static REGISTER: Once = Once::new();
+
+fn register_font() {
+    REGISTER.call_once(|| {
+        // The embedded font is a valid TrueType file; failure would be a build defect.
+        let _ = plotters::style::register_font("sans-serif", FontStyle::Normal, FONT);
+    });
+}
+
+/// One line of a panel.
+#[derive(Debug, Clone)]
+pub struct Series {
+    pub label: String,
+    pub x: Vec<f64>,
+    pub y: Vec<f64>,
+}
+
+/// How one line of a panel is drawn: its colour (an index into the palette) and whether it is
+/// dashed.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct LineStyle {
+    pub color: usize,
+    pub dashed: bool,
+}
+
+/// One chart: title, axis labels (with units) and lines.
+#[derive(Debug, Clone)]
+pub struct Panel {
+    pub title: String,
+    pub x_label: String,
+    pub y_label: String,
+    pub series: Vec<Series>,
+    /// Logarithmic y axis (non-positive values are left out).
+    pub log_y: bool,
+    /// Logarithmic x axis (non-positive values are left out).
+    pub log_x: bool,
+    /// Fixed axis ranges (default: fitted to the data).
+    pub x_range: Option<(f64, f64)>,
+    pub y_range: Option<(f64, f64)>,
+    /// Series drawn as dots (radius 1.5 px; section points, bifurcation diagrams) over the lines.
+    pub points: Vec<Series>,
+    /// A zoomed panel drawn in a quarter of this one ...
+    pub inset: Option<Box<Panel>>,
+    /// ... the (right, top) quarter when (true, true).
+    pub inset_corner: (bool, bool),
+    /// Line width and dot radius (px).
+    pub line_width: u32,
+    pub point_size: u32,
+    /// One unit of x as long on the page as one unit of y (orbits: a circle stays a circle).
+    /// The plotting area is narrowed or shortened, centred in the panel's area, to fit.
+    pub equal_aspect: bool,
+    /// Styles of the lines, by index (default: the palette in order, solid). A line with an
+    /// empty label gets no legend entry.
+    pub styles: Vec<LineStyle>,
+    /// Dot radii of the point series, by index (default `point_size`).
+    pub point_radii: Vec<u32>,
+    /// Dot colours of the point series, by index into the dot palette (default in order).
+    pub point_colors: Vec<usize>,
+}
+
+impl Default for Panel {
+    /// Untitled, linear fitted axes, 2 px lines and dots, an inset at the upper right.
+    fn default() -> Panel {
+        Panel {
+            title: String::new(),
+            x_label: String::new(),
+            y_label: String::new(),
+            series: Vec::new(),
+            log_y: false,
+            log_x: false,
+            x_range: None,
+            y_range: None,
+            points: Vec::new(),
+            inset: None,
+            inset_corner: (true, true),
+            line_width: 2,
+            point_size: 2,
+            equal_aspect: false,
+            styles: Vec::new(),
+            point_radii: Vec::new(),
+            point_colors: Vec::new(),
+        }
+    }
+}
+
+impl Panel {
+    /// A panel with fitted linear axes.
+    pub fn new(
+        title: impl Into<String>,
+        x_label: impl Into<String>,
+        y_label: impl Into<String>,
+        series: Vec<Series>,
+    ) -> Panel {
+        Panel {
+            title: title.into(),
+            x_label: x_label.into(),
+            y_label: y_label.into(),
+            series,
+            ..Panel::default()
+        }
+    }
+}
+
+/// Output formats of a figure.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Format {
+    Png,
+    Svg,
+}
+
+impl Format {
+    /// The formats named by `name`: `png`, `svg` or `both` (PNG then SVG); None for any other
+    /// name.
+    pub fn list(name: &str) -> Option<Vec<Format>> {
+        match name {
+            "png" => Some(vec![Format::Png]),
+            "svg" => Some(vec![Format::Svg]),
+            "both" => Some(vec![Format::Png, Format::Svg]),
+            _ => None,
+        }
+    }
+}
+
+/// Dot colours: red first, so section points stand out over a blue trajectory; the last three
+/// (grey, black, orange) are only chosen by [`Panel::point_colors`].
+const POINT_COLORS: [RGBColor; 7] = [
+    RGBColor(214, 39, 40),
+    RGBColor(31, 119, 180),
+    RGBColor(44, 160, 44),
+    RGBColor(148, 103, 189),
+    RGBColor(170, 170, 170),
+    RGBColor(0, 0, 0),
+    RGBColor(255, 127, 14),
+];
+
+const COLORS: [RGBColor; 6] = [
+    RGBColor(31, 119, 180),
+    RGBColor(214, 39, 40),
+    RGBColor(44, 160, 44),
+    RGBColor(255, 127, 14),
+    RGBColor(148, 103, 189),
+    RGBColor(23, 190, 207),
+];
+
+fn range(vals: impl Iterator<Item = f64>) -> (f64, f64) {
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    for v in vals.filter(|v| v.is_finite()) {
+        lo = lo.min(v);
+        hi = hi.max(v);
+    }
+    if !lo.is_finite() {
+        return (0.0, 1.0);
+    }
+    let pad = if hi > lo {
+        0.05 * (hi - lo)
+    } else {
+        0.5 * lo.abs().max(1e-12)
+    };
+    (lo - pad, hi + pad)
+}
+
+/// Tick label with as many digits as the axis span needs; scientific notation for very small or
+/// large magnitudes.
+fn tick(v: f64, span: f64) -> String {
+    let mag = v.abs().max(span.abs());
+    if v == 0.0 || v.abs() < 1e-9 * span.abs() {
+        "0".into()
+    } else if !(1e-3..1e5).contains(&mag) {
+        // Enough mantissa digits that ticks a span apart differ (a zoomed inset).
+        let digits = ((mag / span.abs().max(1e-300)).log10().ceil() + 1.0).clamp(2.0, 8.0) as usize;
+        format!("{v:.digits$e}")
+    } else {
+        let digits = (-(span.abs().max(1e-300)).log10().floor() + 1.0).clamp(0.0, 8.0) as usize;
+        format!("{v:.digits$}")
+    }
+}
+
+/// Mesh, axis labels, lines and legend of one panel, for linear and logarithmic y axes alike.
+/// Points with y outside `keep` are left out (non-positive values on a log axis).
+fn fill_chart<'a, DB, X, Y>(
+    chart: &mut ChartContext<'a, DB, Cartesian2d<X, Y>>,
+    panel: &Panel,
+    x_fmt: &dyn Fn(&f64) -> String,
+    y_fmt: &dyn Fn(&f64) -> String,
+    keep: fn(f64) -> bool,
+    small: bool,
+) -> Result<Drawn, String>
+where
+    DB: DrawingBackend + 'a,
+    DB::ErrorType: 'static,
+    X: Ranged<ValueType = f64> + ValueFormatter<f64>,
+    Y: Ranged<ValueType = f64> + ValueFormatter<f64>,
+{
+    chart
+        .configure_mesh()
+        .x_desc(&panel.x_label)
+        .y_desc(&panel.y_label)
+        .x_label_formatter(x_fmt)
+        .y_label_formatter(y_fmt)
+        .x_labels(if small { 3 } else { 10 })
+        .y_labels(if small { 4 } else { 10 })
+        .label_style(("sans-serif", if small { 10 } else { 13 }))
+        .axis_desc_style(("sans-serif", if small { 11 } else { 15 }))
+        .draw()
+        .map_err(|e| e.to_string())?;
+    let (xr, yr) = (chart.x_range(), chart.y_range());
+    let frame = (xr.start, xr.end, yr.start, yr.end);
+    for (i, s) in panel.series.iter().enumerate() {
+        let style = panel.styles.get(i).copied().unwrap_or(LineStyle {
+            color: i,
+            dashed: false,
+        });
+        let c = COLORS[style.color % COLORS.len()];
+        let kept: Vec<(f64, f64)> =
+            s.x.iter()
+                .zip(&s.y)
+                .filter(|(x, y)| keep(**y) && (!panel.log_x || **x > 0.0))
+                .map(|(x, y)| (*x, *y))
+                .collect();
+        // Lines end at the frame: each piece inside it is drawn on its own.
+        let pieces: Vec<Vec<(f64, f64)>> = clip_polyline(&kept, frame, panel.log_x, panel.log_y)
+            .into_iter()
+            .flat_map(|p| split_sharp(p, |q| chart.backend_coord(q)))
+            .collect();
+        let stroke = c.stroke_width(panel.line_width);
+        let mut legend_done = s.label.is_empty();
+        for piece in pieces {
+            let drawn = if style.dashed {
+                chart
+                    .draw_series(DashedLineSeries::new(piece, 6, 4, stroke))
+                    .map_err(|e| e.to_string())?
+            } else {
+                chart
+                    .draw_series(LineSeries::new(piece, stroke))
+                    .map_err(|e| e.to_string())?
+            };
+            if !legend_done {
+                drawn.label(&s.label).legend(move |(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2))
+                });
+                legend_done = true;
+            }
+        }
+    }
+    for (i, s) in panel.points.iter().enumerate() {
+        let c =
+            POINT_COLORS[panel.point_colors.get(i).copied().unwrap_or(i % 4) % POINT_COLORS.len()];
+        let r = if small {
+            1
+        } else {
+            panel
+                .point_radii
+                .get(i)
+                .copied()
+                .unwrap_or(panel.point_size) as i32
+        };
+        let anno = chart
+            .draw_series(
+                s.x.iter()
+                    .zip(&s.y)
+                    .filter(|(x, y)| keep(**y) && (!panel.log_x || **x > 0.0))
+                    .filter(|(x, y)| inside(**x, **y, frame))
+                    .map(move |(x, y)| Circle::new((*x, *y), r, c.filled())),
+            )
+            .map_err(|e| e.to_string())?;
+        if !s.label.is_empty() {
+            anno.label(&s.label)
+                .legend(move |(x, y)| Circle::new((x + 10, y), 3, c.filled()));
+        }
+    }
+    if panel.series.len() + panel.points.len() > 1 && !small {
+        let labels: Vec<&str> = panel
+            .series
+            .iter()
+            .chain(&panel.points)
+            .map(|s| s.label.as_str())
+            .collect();
+        chart
+            .configure_series_labels()
+            .position(legend_corner(panel, frame, &labels))
+            .background_style(WHITE.mix(0.8))
+            .border_style(BLACK)
+            .label_font(("sans-serif", 13))
+            .draw()
+            .map_err(|e| e.to_string())?;
+    }
+    let (w, h) = chart.plotting_area().dim_in_pixel();
+    Ok(Drawn {
+        x: (frame.0, frame.1),
+        y: (frame.2, frame.3),
+        pixels: (w, h),
+    })
+}
+
+/// Whether (x, y) lies in the frame (x0, x1, y0, y1) (either bound order).
+fn inside(x: f64, y: f64, (x0, x1, y0, y1): (f64, f64, f64, f64)) -> bool {
+    let within = |v: f64, a: f64, b: f64| v >= a.min(b) && v <= a.max(b);
+    within(x, x0, x1) && within(y, y0, y1)
+}
+
+/// The pieces of the polyline `pts` inside the frame (x0, x1, y0, y1): a segment that leaves the
+/// frame ends on its edge, one that comes back starts a new piece there (Liang-Barsky clipping,
+/// in the axes' own scale: logarithmic axes clip in log coordinates). Non-finite points break
+/// the line.
+pub fn clip_polyline(
+    pts: &[(f64, f64)],
+    frame: (f64, f64, f64, f64),
+    log_x: bool,
+    log_y: bool,
+) -> Vec<Vec<(f64, f64)>> {
+    let fx = |v: f64| if log_x { v.ln() } else { v };
+    let fy = |v: f64| if log_y { v.ln() } else { v };
+    let gx = |v: f64| if log_x { v.exp() } else { v };
+    let gy = |v: f64| if log_y { v.exp() } else { v };
+    let (x0, x1) = (fx(frame.0.min(frame.1)), fx(frame.0.max(frame.1)));
+    let (y0, y1) = (fy(frame.2.min(frame.3)), fy(frame.2.max(frame.3)));
+    let mut out: Vec<Vec<(f64, f64)>> = Vec::new();
+    let mut cur: Vec<(f64, f64)> = Vec::new();
+    let flush = |cur: &mut Vec<(f64, f64)>, out: &mut Vec<Vec<(f64, f64)>>| {
+        if !cur.is_empty() {
+            out.push(std::mem::take(cur));
+        }
+    };
+    let tx = |p: (f64, f64)| (fx(p.0), fy(p.1));
+    for (k, &p) in pts.iter().enumerate() {
+        let (ax, ay) = tx(p);
+        if !(ax.is_finite() && ay.is_finite()) {
+            flush(&mut cur, &mut out);
+            continue;
+        }
+        let prev = if k > 0 { Some(tx(pts[k - 1])) } else { None };
+        let Some((bx, by)) = prev.filter(|(a, b)| a.is_finite() && b.is_finite()) else {
+            // First point of a line: kept when inside.
+            if ax >= x0 && ax <= x1 && ay >= y0 && ay <= y1 {
+                cur.push(p);
+            }
+            continue;
+        };
+        // Segment from (bx, by) to (ax, ay), clipped: t in [t0, t1].
+        let (dx, dy) = (ax - bx, ay - by);
+        let (mut t0, mut t1) = (0.0f64, 1.0f64);
+        let mut visible = true;
+        for (q, r) in [(-dx, bx - x0), (dx, x1 - bx), (-dy, by - y0), (dy, y1 - by)] {
+            if q == 0.0 {
+                if r < 0.0 {
+                    visible = false;
+                }
+            } else {
+                let t = r / q;
+                if q < 0.0 {
+                    t0 = t0.max(t);
+                } else {
+                    t1 = t1.min(t);
+                }
+            }
+        }
+        if !visible || t0 >= t1 {
+            flush(&mut cur, &mut out);
+            continue;
+        }
+        let at = |t: f64| (gx(bx + t * dx), gy(by + t * dy));
+        if t0 > 0.0 {
+            // Entering the frame: a new piece starts on its edge.
+            flush(&mut cur, &mut out);
+            cur.push(at(t0));
+        } else if cur.is_empty() {
+            cur.push(pts[k - 1]);
+        }
+        if t1 < 1.0 {
+            cur.push(at(t1));
+            flush(&mut cur, &mut out);
+        } else {
+            cur.push(p);
+        }
+    }
+    flush(&mut cur, &mut out);
+    out
+}
+
+/// A piece of a line as drawn: points that fall on the pixel of the point before are dropped,
+/// and the piece is cut where it turns back on itself on the page (the two segments at a point
+/// closer than 30 degrees). plotters draws a line wider than one pixel as a polygon whose corner
+/// at such a turn lies far outside the turn (its mitre is not capped on the inner side), so a
+/// force spike one pixel wide drew a stroke through the frame's bottom and out of the panel; cut
+/// there, each part ends with a square end instead.
+pub fn split_sharp(
+    piece: Vec<(f64, f64)>,
+    px: impl Fn(&(f64, f64)) -> (i32, i32),
+) -> Vec<Vec<(f64, f64)>> {
+    let mut out = Vec::new();
+    let mut cur: Vec<(f64, f64)> = Vec::new();
+    let mut cur_px: Vec<(i32, i32)> = Vec::new();
+    for p in piece {
+        let q = px(&p);
+        if cur_px.last() == Some(&q) {
+            continue;
+        }
+        if let [.., a, b] = cur_px[..] {
+            let u = ((a.0 - b.0) as f64, (a.1 - b.1) as f64);
+            let v = ((q.0 - b.0) as f64, (q.1 - b.1) as f64);
+            let cos = (u.0 * v.0 + u.1 * v.1) / (u.0.hypot(u.1) * v.0.hypot(v.1));
+            if cos > 30f64.to_radians().cos() {
+                let last = *cur.last().expect("two points");
+                out.push(std::mem::take(&mut cur));
+                cur.push(last);
+                cur_px = vec![b];
+            }
+        }
+        cur.push(p);
+        cur_px.push(q);
+    }
+    if cur.len() > 1 || (out.is_empty() && !cur.is_empty()) {
+        out.push(cur);
+    }
+    out
+}
+
+/// The corner of the plotting area for the legend that covers the fewest data points: the
+/// legend box (about 11 px of text per character of the longest label, 20 px per entry, as
+/// fractions of a 470 x 300 px plotting area) is tried at each corner and on the right
+/// middle, and the emptiest wins (ties: upper right, upper left, lower right, lower left, middle
+/// right). Fractions are taken in the axes' own scale.
+fn legend_corner(
+    panel: &Panel,
+    frame: (f64, f64, f64, f64),
+    labels: &[&str],
+) -> SeriesLabelPosition {
+    let longest = labels.iter().map(|l| l.chars().count()).max().unwrap_or(0);
+    let w = ((40.0 + 7.5 * longest as f64) / 470.0).min(0.9);
+    let h = ((10.0 + 20.0 * labels.len() as f64) / 300.0).min(0.9);
+    let frac = |v: f64, a: f64, b: f64, log: bool| {
+        if log {
+            if v <= 0.0 || a <= 0.0 || b <= 0.0 {
+                return f64::NAN;
+            }
+            (v.ln() - a.ln()) / (b.ln() - a.ln())
+        } else {
+            (v - a) / (b - a)
+        }
+    };
+    let (x0, x1, y0, y1) = frame;
+    let mut counts = [0usize; 5];
+    let boxes = [
+        (1.0 - w, 1.0, 1.0 - h, 1.0),
+        (0.0, w, 1.0 - h, 1.0),
+        (1.0 - w, 1.0, 0.0, h),
+        (0.0, w, 0.0, h),
+        (1.0 - w, 1.0, 0.5 - h / 2.0, 0.5 + h / 2.0),
+    ];
+    for s in panel.series.iter().chain(&panel.points) {
+        for (x, y) in s.x.iter().zip(&s.y) {
+            let (u, v) = (frac(*x, x0, x1, panel.log_x), frac(*y, y0, y1, panel.log_y));
+            for (k, b) in boxes.iter().enumerate() {
+                if u >= b.0 && u <= b.1 && v >= b.2 && v <= b.3 {
+                    counts[k] += 1;
+                }
+            }
+        }
+    }
+    let best = (0..5).min_by_key(|k| (counts[*k], *k)).unwrap_or(0);
+    [
+        SeriesLabelPosition::UpperRight,
+        SeriesLabelPosition::UpperLeft,
+        SeriesLabelPosition::LowerRight,
+        SeriesLabelPosition::LowerLeft,
+        SeriesLabelPosition::MiddleRight,
+    ][best]
+        .clone()
+}
+
+/// A logarithmic axis range from `lo` to `hi` (positive data): widened to whole decades, at least
+/// one, so that the ticks fall on round values and do not crowd a partial decade.
+fn decades(lo: f64, hi: f64) -> (f64, f64) {
+    if !(lo.is_finite() && hi.is_finite() && hi > 0.0) {
+        // No positive data: an empty decade (an infinite range would never end its ticks).
+        return (1.0, 10.0);
+    }
+    let lo = lo.max(1e-300);
+    let hi = hi.max(lo);
+    let a = lo.log10().floor();
+    let b = hi.log10().ceil().max(a + 1.0);
+    (10f64.powf(a), 10f64.powf(b))
+}
+
+/// Widens the x or the y range, about its middle, so that one unit takes as many pixels along
+/// x as along y in a plotting area of `pixels` (width, height).
+pub fn equal_aspect_ranges(
+    x: (f64, f64),
+    y: (f64, f64),
+    pixels: (u32, u32),
+) -> ((f64, f64), (f64, f64)) {
+    let (pw, ph) = (pixels.0.max(1) as f64, pixels.1.max(1) as f64);
+    let (ux, uy) = ((x.1 - x.0) / pw, (y.1 - y.0) / ph);
+    let widen = |r: (f64, f64), span: f64| {
+        let m = 0.5 * (r.0 + r.1);
+        (m - 0.5 * span, m + 0.5 * span)
+    };
+    if ux > uy {
+        (x, widen(y, ux * ph))
+    } else {
+        (widen(x, uy * pw), y)
+    }
+}
+
+/// What a drawn panel shows: its axis ranges and the plotting area in pixels.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Drawn {
+    pub x: (f64, f64),
+    pub y: (f64, f64),
+    pub pixels: (u32, u32),
+}
+
+/// One panel in `area`; `small` for an inset (smaller fonts, no legend).
+pub fn draw_panel<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    panel: &Panel,
+    small: bool,
+) -> Result<Drawn, String>
+where
+    DB::ErrorType: 'static,
+{
+    register_font();
+    let all = || panel.series.iter().chain(&panel.points);
+    let (mut x0, mut x1) = panel
+        .x_range
+        .unwrap_or_else(|| range(all().flat_map(|s| s.x.iter().copied())));
+    let ys = || {
+        all()
+            .flat_map(|s| s.y.iter().copied())
+            .filter(|v| !panel.log_y || *v > 0.0)
+    };
+    let (mut y0, mut y1) = panel.y_range.unwrap_or_else(|| range(ys()));
+    // The caption is drawn first, so that the plotting area's size is known before the axes are
+    // chosen (an equal-aspect panel needs it).
+    let area = if panel.title.is_empty() {
+        area.clone()
+    } else {
+        area.titled(&panel.title, ("sans-serif", if small { 12 } else { 20 }))
+            .map_err(|e| e.to_string())?
+    };
+    let (margin, x_lab, y_lab) = if small { (4, 22, 55) } else { (10, 40, 80) };
+    if panel.equal_aspect && !panel.log_x && !panel.log_y {
+        let (w, h) = area.dim_in_pixel();
+        let pixels = (
+            w.saturating_sub(2 * margin + y_lab),
+            h.saturating_sub(2 * margin + x_lab),
+        );
+        ((x0, x1), (y0, y1)) = equal_aspect_ranges((x0, x1), (y0, y1), pixels);
+    }
+    let mut builder = ChartBuilder::on(&area);
+    builder
+        .margin(margin)
+        .x_label_area_size(x_lab)
+        .y_label_area_size(y_lab);
+    let xs = x1 - x0;
+    let x_fmt = |v: &f64| tick(*v, xs);
+    let log_fmt = |v: &f64| format!("{v:.0e}");
+    let (lx0, lx1) = {
+        let pos = || {
+            all()
+                .flat_map(|s| s.x.iter().copied())
+                .filter(|v| *v > 0.0 && v.is_finite())
+        };
+        decades(
+            pos().fold(f64::INFINITY, f64::min),
+            pos().fold(0.0, f64::max),
+        )
+    };
+    let y_lin = y0..y1;
+    let yspan = y1 - y0;
+    let y_fmt = |v: &f64| tick(*v, yspan);
+    let err = |e: plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
+    if panel.log_y {
+        let (lo, hi) = decades(ys().fold(f64::INFINITY, f64::min), ys().fold(0.0, f64::max));
+        let y_log = (lo..hi).log_scale();
+        if panel.log_x {
+            let mut chart = builder
+                .build_cartesian_2d((lx0..lx1).log_scale(), y_log)
+                .map_err(err)?;
+            fill_chart(&mut chart, panel, &log_fmt, &log_fmt, |y| y > 0.0, small)
+        } else {
+            let mut chart = builder.build_cartesian_2d(x0..x1, y_log).map_err(err)?;
+            fill_chart(&mut chart, panel, &x_fmt, &log_fmt, |y| y > 0.0, small)
+        }
+    } else if panel.log_x {
+        let mut chart = builder
+            .build_cartesian_2d((lx0..lx1).log_scale(), y_lin)
+            .map_err(err)?;
+        fill_chart(&mut chart, panel, &log_fmt, &y_fmt, |_| true, small)
+    } else {
+        let mut chart = builder.build_cartesian_2d(x0..x1, y_lin).map_err(err)?;
+        fill_chart(&mut chart, panel, &x_fmt, &y_fmt, |_| true, small)
+    }
+}
+
+fn draw<DB: DrawingBackend>(
+    root: DrawingArea<DB, Shift>,
+    panels: &[Panel],
+    cols: usize,
+) -> Result<(), String>
+where
+    DB::ErrorType: 'static,
+{
+    root.fill(&WHITE).map_err(|e| e.to_string())?;
+    let rows = panels.len().div_ceil(cols);
+    let areas = root.split_evenly((rows, cols));
+    for (panel, area) in panels.iter().zip(areas) {
+        draw_panel(&area, panel, false)?;
+        if let Some(inset) = &panel.inset {
+            // A quarter of the plotting area, on white with a frame.
+            let (w, h) = area.dim_in_pixel();
+            let (w, h) = (w as i32, h as i32);
+            let (right, top) = panel.inset_corner;
+            let x0 = if right { w * 52 / 100 } else { w * 17 / 100 };
+            let y0 = if top { h * 10 / 100 } else { h * 42 / 100 };
+            let sub = area.shrink((x0, y0), (w * 45 / 100, h * 42 / 100));
+            sub.fill(&WHITE).map_err(|e| e.to_string())?;
+            let (sw, sh) = sub.dim_in_pixel();
+            sub.draw(&Rectangle::new(
+                [(0, 0), (sw as i32 - 1, sh as i32 - 1)],
+                BLACK.stroke_width(1),
+            ))
+            .map_err(|e| e.to_string())?;
+            draw_panel(&sub, inset, true)?;
+        }
+    }
+    root.present().map_err(|e| e.to_string())?;
+    Ok(())
+}
+
+/// The file of a figure: the extension of `format` appended to `stem`. A stem may hold a dot of
+/// its own (a study named "section3-ensemble-0.3"), which `with_extension` would take for an
+/// extension; a stem that already ends in .png or .svg has it replaced.
+fn file_of(stem: &Path, format: Format) -> std::path::PathBuf {
+    let ext = match format {
+        Format::Png => "png",
+        Format::Svg => "svg",
+    };
+    match stem.extension().and_then(|e| e.to_str()) {
+        Some("png" | "svg") => stem.with_extension(ext),
+        _ => {
+            let mut name = stem.as_os_str().to_owned();
+            name.push(".");
+            name.push(ext);
+            std::path::PathBuf::from(name)
+        }
+    }
+}
+
+/// Draws `panels` in a grid of `cols` columns to `path` (extension added from `format`).
+pub fn figure(
+    path_stem: &Path,
+    format: Format,
+    panels: &[Panel],
+    cols: usize,
+) -> Result<std::path::PathBuf> {
+    register_font();
+    let cols = cols.max(1).min(panels.len().max(1));
+    let rows = panels.len().div_ceil(cols).max(1);
+    let size = (560 * cols as u32, 380 * rows as u32);
+    let path = file_of(path_stem, format);
+    let res = match format {
+        Format::Png => draw(
+            BitMapBackend::new(&path, size).into_drawing_area(),
+            panels,
+            cols,
+        ),
+        Format::Svg => draw(
+            SVGBackend::new(&path, size).into_drawing_area(),
+            panels,
+            cols,
+        ),
+    };
+    res.map_err(|message| Error::Plot {
+        file: path.clone(),
+        message,
+    })?;
+    Ok(path)
+}
+
+/// The formats of the figures `run` draws.
+pub(crate) const PNG_AND_SVG: [Format; 2] = [Format::Png, Format::Svg];
+
+/// Metres to millimetres.
+pub(crate) fn mm(v: &[f64]) -> Vec<f64> {
+    v.iter().map(|x| x * 1e3).collect()
+}
+
+/// The clearance circle of radius `r_mm` (mm), for orbit panels drawn in mm.
+pub fn circle(r_mm: f64) -> Series {
+    let angles = (0..=360).map(|k| (k as f64).to_radians());
+    Series {
+        label: format!("clearance {r_mm:.3} mm"),
+        x: angles.clone().map(|a| r_mm * a.cos()).collect(),
+        y: angles.map(|a| r_mm * a.sin()).collect(),
+    }
+}
+
+/// Draws `panels` in `cols` columns as `out/<stem>.<format>` in each format; nothing when there
+/// is no panel. Returns the files written.
+pub(crate) fn write(
+    out: &Path,
+    stem: &str,
+    panels: &[Panel],
+    cols: usize,
+    formats: &[Format],
+) -> Result<Vec<std::path::PathBuf>> {
+    let mut files = Vec::new();
+    if panels.is_empty() {
+        return Ok(files);
+    }
+    for fmt in formats {
+        files.push(figure(&out.join(stem), *fmt, panels, cols)?);
+    }
+    Ok(files)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_dot_in_a_figure_name_is_kept() {
+        let f = |s: &str, fmt| file_of(Path::new(s), fmt);
+        assert_eq!(
+            f("out/ens-0.3-bifurcation-S2_vy", Format::Png),
+            Path::new("out/ens-0.3-bifurcation-S2_vy.png")
+        );
+        assert_eq!(f("out/cmp.png", Format::Svg), Path::new("out/cmp.svg"));
+        assert_eq!(f("out/cmp", Format::Svg), Path::new("out/cmp.svg"));
+    }
+
+    #[test]
+    fn format_names_give_their_formats_in_order() {
+        assert_eq!(Format::list("png"), Some(vec![Format::Png]));
+        assert_eq!(Format::list("svg"), Some(vec![Format::Svg]));
+        assert_eq!(Format::list("both"), Some(vec![Format::Png, Format::Svg]));
+        assert_eq!(Format::list("pdf"), None);
+        assert_eq!(Format::list("PNG"), None);
+    }
+
+    #[test]
+    fn lines_are_cut_at_the_frame() {
+        let frame = (0.0, 1.0, 0.0, 1.0);
+        // Inside, out through the right edge, back in through the top: two pieces, each ending
+        // on the edge it crosses.
+        let pts = [(0.5, 0.5), (1.5, 0.5), (0.5, 1.8), (0.5, 0.8)];
+        let pieces = clip_polyline(&pts, frame, false, false);
+        assert_eq!(pieces.len(), 2, "{pieces:?}");
+        assert_eq!(pieces[0], vec![(0.5, 0.5), (1.0, 0.5)]);
+        assert_eq!(pieces[1], vec![(0.5, 1.0), (0.5, 0.8)]);
+        // A segment that only passes through the frame is drawn between its two crossings.
+        let through = clip_polyline(&[(-1.0, 0.5), (2.0, 0.5)], frame, false, false);
+        assert_eq!(through, vec![vec![(0.0, 0.5), (1.0, 0.5)]]);
+        // Every kept point lies in the frame; a segment outside it leaves nothing.
+        assert!(clip_polyline(&[(2.0, 2.0), (3.0, 2.0)], frame, false, false).is_empty());
+        let wave: Vec<(f64, f64)> = (0..200)
+            .map(|k| (k as f64 / 199.0, 1.5 * (k as f64 * 0.2).sin()))
+            .collect();
+        let pieces = clip_polyline(&wave, frame, false, false);
+        assert!(pieces.len() > 1);
+        for p in pieces.iter().flatten() {
+            assert!(inside(p.0, p.1, frame), "{p:?}");
+        }
+        // A non-finite point breaks the line.
+        let broken = clip_polyline(
+            &[(0.1, 0.1), (f64::NAN, 0.2), (0.3, 0.3), (0.4, 0.4)],
+            frame,
+            false,
+            false,
+        );
+        assert_eq!(broken, vec![vec![(0.1, 0.1)], vec![(0.3, 0.3), (0.4, 0.4)]]);
+        // A logarithmic axis clips in log coordinates: the crossing of y = 10 on the way from
+        // 1 to 100 is halfway in x.
+        let log = clip_polyline(
+            &[(0.0, 1.0), (1.0, 100.0)],
+            (0.0, 1.0, 1.0, 10.0),
+            false,
+            true,
+        );
+        assert!(
+            (log[0][1].0 - 0.5).abs() < 1e-12 && (log[0][1].1 - 10.0).abs() < 1e-9,
+            "{log:?}"
+        );
+    }
+
+    #[test]
+    fn an_equal_aspect_panel_draws_a_circle_round() {
+        // A unit circle on +-1.25 in a panel of the usual 560 x 380 px: the drawn ranges give
+        // one unit the same number of pixels along x as along y.
+        let n = 361;
+        let circle = Series {
+            label: "circle".into(),
+            x: (0..n).map(|k| (k as f64).to_radians().cos()).collect(),
+            y: (0..n).map(|k| (k as f64).to_radians().sin()).collect(),
+        };
+        let mut panel = Panel::new("orbit", "x (mm)", "y (mm)", vec![circle]);
+        panel.x_range = Some((-1.25, 1.25));
+        panel.y_range = Some((-1.25, 1.25));
+        let draw = |panel: &Panel| {
+            let mut buf = vec![0u8; 560 * 380 * 3];
+            let area = BitMapBackend::with_buffer(&mut buf, (560, 380)).into_drawing_area();
+            draw_panel(&area, panel, false).unwrap()
+        };
+        let per_px = |d: &Drawn| {
+            (
+                (d.x.1 - d.x.0) / d.pixels.0 as f64,
+                (d.y.1 - d.y.0) / d.pixels.1 as f64,
+            )
+        };
+        let plain = draw(&panel);
+        let (ux, uy) = per_px(&plain);
+        assert!(
+            ux < 0.8 * uy,
+            "without it the panel is wider than tall: {ux} {uy}"
+        );
+        panel.equal_aspect = true;
+        let round = draw(&panel);
+        let (ux, uy) = per_px(&round);
+        assert!((ux / uy - 1.0).abs() < 0.01, "{ux} {uy} ({round:?})");
+        // The requested range stays in view: only the other axis was widened.
+        assert!(round.x.0 <= -1.25 && round.x.1 >= 1.25 && round.y.0 <= -1.25 && round.y.1 >= 1.25);
+        assert_eq!(round.y, (-1.25, 1.25));
+    }
+
+    #[test]
+    fn the_legend_goes_where_the_data_are_not() {
+        // A line along the top of the frame: the legend moves to the bottom.
+        let top = Series {
+            label: "top".into(),
+            x: (0..100).map(|k| k as f64 / 99.0).collect(),
+            y: vec![0.95; 100],
+        };
+        let rising = Series {
+            label: "second".into(),
+            x: vec![0.0, 0.1],
+            y: vec![0.5, 0.5],
+        };
+        let panel = Panel::new("", "", "", vec![top.clone(), rising.clone()]);
+        let frame = (0.0, 1.0, 0.0, 1.0);
+        let pos = legend_corner(&panel, frame, &["top", "second"]);
+        assert!(matches!(pos, SeriesLabelPosition::LowerRight), "{pos:?}");
+        // Data in the lower right and the upper right: the upper left is free.
+        let corner = Series {
+            label: "c".into(),
+            x: vec![0.95, 0.9, 0.95, 0.9],
+            y: vec![0.05, 0.1, 0.95, 0.9],
+        };
+        let panel = Panel::new("", "", "", vec![corner, rising]);
+        let pos = legend_corner(&panel, frame, &["c", "second"]);
+        assert!(matches!(pos, SeriesLabelPosition::UpperLeft), "{pos:?}");
+    }
+
+    #[test]
+    fn scientific_ticks_of_a_narrow_axis_differ() {
+        // An inset 1e-9 wide about -2.56e-5: five ticks, five different labels.
+        let span = 1e-9;
+        let labels: Vec<String> = (0..5)
+            .map(|k| tick(-2.56e-5 + k as f64 * 0.25 * span, span))
+            .collect();
+        let mut unique = labels.clone();
+        unique.dedup();
+        assert_eq!(unique.len(), 5, "{labels:?}");
+        // A wide axis keeps two decimals.
+        assert_eq!(tick(2.0e-5, 4.0e-5), "2.00e-5");
+    }
+
+    #[test]
+    fn equal_aspect_ranges_widen_the_shorter_unit() {
+        // 400 x 200 px for a 1 x 1 range: x is widened to 2.
+        let (x, y) = equal_aspect_ranges((0.0, 1.0), (0.0, 1.0), (400, 200));
+        assert_eq!((x, y), ((-0.5, 1.5), (0.0, 1.0)));
+        let (x, y) = equal_aspect_ranges((0.0, 1.0), (0.0, 1.0), (200, 400));
+        assert_eq!((x, y), ((0.0, 1.0), (-0.5, 1.5)));
+    }
+
+    #[test]
+    fn a_line_is_cut_where_it_turns_back_on_the_page() {
+        let px = |p: &(f64, f64)| (p.0.round() as i32, p.1.round() as i32);
+        // A spike one pixel wide: up 300 px and straight back down.
+        let spike = vec![
+            (0.0, 0.0),
+            (10.0, 0.0),
+            (11.0, -300.0),
+            (12.0, 0.0),
+            (20.0, 0.0),
+        ];
+        let parts = split_sharp(spike, px);
+        assert_eq!(
+            parts,
+            [
+                vec![(0.0, 0.0), (10.0, 0.0), (11.0, -300.0)],
+                vec![(11.0, -300.0), (12.0, 0.0), (20.0, 0.0)]
+            ]
+        );
+        // Points on the pixel of the one before are dropped; a right angle is kept whole.
+        let corner = vec![(0.0, 0.0), (0.2, 0.1), (5.0, 0.0), (5.0, 5.0)];
+        assert_eq!(
+            split_sharp(corner, px),
+            [vec![(0.0, 0.0), (5.0, 0.0), (5.0, 5.0)]]
+        );
+        // A single point stays a piece (drawn as nothing, as before).
+        assert_eq!(split_sharp(vec![(1.0, 1.0)], px), [vec![(1.0, 1.0)]]);
+    }
+}

@@ -1,0 +1,211 @@
+//! Is it chaos? The chaos measures of an analysis study: the Lyapunov spectrum
+//! ([`crate::measures::lyapunov`]) and the 0-1 test ([`crate::measures::zero_one`]) of a run or of every sweep value,
+//! and a classification (their HDF5 layout: [`crate::storage::chaos`]).
+//!
+//! A study asks for them with a `[lyapunov]` table (its fields: [`LyapunovSpec`]) and a
+//! `[zero_one]` table (`observable`, the name of one of the study's observables, and `section`,
+//! `"strobe"` by default or a hyperplane section's name). The Lyapunov run starts from the
+//! analysis run's final hybrid state, so the analysis's periods serve as its transient.
+//!
+//! **Classification** (thresholds chosen here, documented in book/src/explanation/lyapunov.md). The strobe series of
+//! the first observable (of the 0-1 test's observable when it runs) is first searched for a
+//! period p <= 64: over its last half, `|x_(j+p) - x_j| <= 1e-6` of its spread plus 1e-9 of its
+//! size.
+//! - *chaotic*: `lambda_1 > 3 s` and `lambda_1 > 1e-3 / T` (s its standard error, T the period),
+//!   K > 0.8 when the 0-1 test ran, and no period found;
+//! - *periodic*: a period found and `lambda_1` not chaotic by the rule above; or
+//!   `lambda_1 < -3 s` and `lambda_1 < -1e-3 / T` (every direction contracts: for a forced flow
+//!   the time direction is not a state, so a periodic orbit has no zero exponent) with K < 0.2
+//!   when the test ran; or, with no Lyapunov run, K < 0.2;
+//! - *quasi-periodic*: no period found, `|lambda_1| <= 3 s + 1e-3 / T` and K < 0.2 (the 0-1 test
+//!   must have run);
+//! - *undetermined* otherwise (the measures disagree, or the run is too short to tell): say so
+//!   rather than guess.
+
+use serde::Deserialize;
+
+use crate::measures::lyapunov::{LyapunovSpec, Spectrum};
+use crate::measures::zero_one::ZeroOne;
+
+/// The `[zero_one]` table.
+#[derive(Debug, Clone, PartialEq, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ZeroOneSpec {
+    /// Name of the observable the test runs on.
+    pub observable: String,
+    /// The section whose samples it uses: "strobe" (default) or a hyperplane's name.
+    #[serde(default = "strobe")]
+    pub section: String,
+}
+
+fn strobe() -> String {
+    "strobe".into()
+}
+
+/// What the measures say.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Class {
+    Undetermined = 0,
+    Periodic = 1,
+    QuasiPeriodic = 2,
+    Chaotic = 3,
+}
+
+/// The class names in the order of their codes (the HDF5 `class` attribute `names`).
+pub const CLASS_NAMES: [&str; 4] = ["undetermined", "periodic", "quasi-periodic", "chaotic"];
+
+impl Class {
+    pub fn name(self) -> &'static str {
+        CLASS_NAMES[self as usize]
+    }
+}
+
+/// The chaos measures of one run.
+#[derive(Debug, Clone)]
+pub struct Chaos {
+    pub spectrum: Option<Spectrum>,
+    pub zero_one: Option<ZeroOne>,
+    pub class: Class,
+}
+
+/// The least period p <= 64 of a strobe series over its last half (the rule of the module
+/// overview), None when it has none (or fewer than 2 p samples).
+pub fn strobe_period(series: &[f64]) -> Option<usize> {
+    let tail = &series[series.len() / 2..];
+    if tail.is_empty() || tail.iter().any(|x| !x.is_finite()) {
+        return None;
+    }
+    let (lo, hi) = tail
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
+            (a.min(*x), b.max(*x))
+        });
+    let size = lo.abs().max(hi.abs());
+    let tol = 1e-6 * (hi - lo) + 1e-9 * size;
+    (1..=64)
+        .filter(|p| tail.len() >= 2 * p)
+        .find(|&p| tail.windows(p + 1).all(|w| (w[p] - w[0]).abs() <= tol))
+}
+
+/// Classifies by the rules of the module overview; `period` is the strobe series' period found
+/// by [`strobe_period`].
+pub fn classify(
+    spectrum: Option<&Spectrum>,
+    zero_one: Option<&ZeroOne>,
+    period: Option<usize>,
+) -> Class {
+    let k = zero_one.and_then(|z| z.k);
+    let constant = zero_one.is_some_and(|z| z.constant);
+    if let Some(s) = spectrum {
+        let (l, e) = (s.exponents[0], s.stderr[0]);
+        let e = if e.is_finite() { e } else { f64::INFINITY };
+        if period.is_some() && !(l > 3.0 * e && l > 1e-3 / s.period) {
+            return Class::Periodic;
+        }
+    } else if period.is_some() {
+        return Class::Periodic;
+    }
+    match spectrum {
+        Some(s) => {
+            let (l, e) = (s.exponents[0], s.stderr[0]);
+            let e = if e.is_finite() { e } else { f64::INFINITY };
+            let floor = 1e-3 / s.period;
+            if l > 3.0 * e && l > floor {
+                if k.is_none_or(|k| k > 0.8) && !constant && period.is_none() {
+                    Class::Chaotic
+                } else {
+                    Class::Undetermined
+                }
+            } else if l < -3.0 * e && l < -floor {
+                if k.is_none_or(|k| k < 0.2) {
+                    Class::Periodic
+                } else {
+                    Class::Undetermined
+                }
+            } else if l.abs() <= 3.0 * e + floor && k.is_some_and(|k| k < 0.2) && !constant {
+                Class::QuasiPeriodic
+            } else {
+                Class::Undetermined
+            }
+        }
+        None => {
+            if constant || k.is_some_and(|k| k < 0.2) {
+                Class::Periodic
+            } else if k.is_some_and(|k| k > 0.8) {
+                Class::Chaotic
+            } else {
+                Class::Undetermined
+            }
+        }
+    }
+}
+
+/// The settings of both measures, as a study gives them.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct ChaosSpec {
+    pub lyapunov: Option<LyapunovSpec>,
+    pub zero_one: Option<ZeroOneSpec>,
+}
+
+impl ChaosSpec {
+    pub fn any(&self) -> bool {
+        self.lyapunov.is_some() || self.zero_one.is_some()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use jointplay_solver::state::HybridState;
+
+    fn spectrum(l: f64, e: f64) -> Spectrum {
+        Spectrum {
+            exponents: vec![l],
+            stderr: vec![e],
+            period: 1.0,
+            time: 1.0,
+            phase_dim: 2,
+            history_t: vec![],
+            history: vec![],
+            two_trajectory: None,
+            mean_divergence: None,
+            jvp: "analytic",
+            rhs_evals: 0,
+            stopped_early: false,
+            events: 0,
+            end: HybridState::new(0.0, vec![]),
+        }
+    }
+    fn k(v: f64) -> ZeroOne {
+        ZeroOne {
+            k: Some(v),
+            constant: false,
+            oversampled: false,
+            samples: 1000,
+        }
+    }
+
+    #[test]
+    fn the_classes_follow_the_documented_thresholds() {
+        let c = |l: f64, e: f64, z: Option<&ZeroOne>| classify(Some(&spectrum(l, e)), z, None);
+        assert_eq!(c(0.15, 0.002, Some(&k(0.98))), Class::Chaotic);
+        assert_eq!(c(0.15, 0.002, Some(&k(0.1))), Class::Undetermined);
+        assert_eq!(c(-0.3, 0.01, Some(&k(0.01))), Class::Periodic);
+        assert_eq!(c(1e-4, 0.01, Some(&k(0.05))), Class::QuasiPeriodic);
+        assert_eq!(c(1e-4, 0.01, None), Class::Undetermined);
+        // A strobe series that repeats makes it periodic unless lambda_1 is clearly positive.
+        let p = classify(Some(&spectrum(1e-4, 0.01)), Some(&k(0.05)), Some(2));
+        assert_eq!(p, Class::Periodic);
+        let series: Vec<f64> = (0..100).map(|j| [0.3, -0.7, 0.1][j % 3]).collect();
+        assert_eq!(strobe_period(&series), Some(3));
+        let drifting: Vec<f64> = (0..100).map(|j| (j as f64).sin()).collect();
+        assert_eq!(strobe_period(&drifting), None);
+        let constant = ZeroOne {
+            k: None,
+            constant: true,
+            oversampled: false,
+            samples: 1000,
+        };
+        assert_eq!(classify(None, Some(&constant), None), Class::Periodic);
+    }
+}

@@ -1,0 +1,585 @@
+//! What a run records, as data: one [`Channel`] per dataset of the run file, whose columns are
+//! observables of [`crate::flow::observe`] (`bodies.B.position.x`, `.y`, `.z` for
+//! `/bodies/B/position`), declared once from the model ([`Recording::of`]); the finished or
+//! stopped run ([`RunResult`], [`Stopped`]); and which datasets a run written while it goes
+//! keeps in memory for its figures ([`drawn`]). The run file is written from them by
+//! [`crate::storage::run_file`]; runs are made by [`crate::study::run`].
+
+use jointplay_solver::clearance::Geometry;
+use jointplay_solver::dynamics::{AssemblyReport, Workspace};
+use jointplay_solver::guard::Warning;
+use jointplay_solver::model::Model;
+use jointplay_solver::ode::Stats;
+use jointplay_solver::state::HybridState;
+
+use crate::Result;
+use crate::flow::observe::Observable;
+
+/// One recorded dataset: the observables of one path (see [`crate::flow::observe`]), one per column,
+/// evaluated at every sample.
+#[derive(Debug, Clone)]
+pub struct Channel {
+    /// Where it is written in the run's group: the columns' observable path without the
+    /// component, `/` for `.` (`bodies.B.position.x`, `.y`, `.z`: `bodies/B/position`).
+    pub dataset: String,
+    /// The columns' common unit.
+    pub unit: String,
+    pub description: String,
+    pub columns: Vec<Observable>,
+    /// Written as a one-dimensional dataset: one column whose path has no component.
+    pub scalar: bool,
+    /// Written as u8: 1 or 0.
+    pub flag: bool,
+    /// The quantity named when one of its values is not finite; `None`: not checked (a state
+    /// component, which the integrator checks, or a quantity of it).
+    pub checked: Option<String>,
+    /// The values, `columns.len()` per sample, sample by sample.
+    pub values: Vec<f64>,
+    /// Mantissa bits its values keep in the file (`output.significant_bits` of its quantity, see
+    /// [`crate::storage::bitround`]); `None`: all (and always for a flag). The values held here are never
+    /// rounded.
+    pub bits: Option<u32>,
+    /// When its values are evaluated (and checked) in a sample: bodies, ideal joints, drives,
+    /// clearance joints, diagnostics (which evaluate in the workspace again, so last).
+    pub(crate) stage: u8,
+}
+
+impl Channel {
+    /// Values per sample.
+    pub fn width(&self) -> usize {
+        self.columns.len()
+    }
+
+    /// The samples' rows.
+    pub fn rows(&self) -> std::slice::ChunksExact<'_, f64> {
+        self.values.chunks_exact(self.width())
+    }
+
+    /// Column `k` over the samples.
+    pub fn column(&self, k: usize) -> Vec<f64> {
+        self.rows().map(|r| r[k]).collect()
+    }
+
+    /// The rows of a three-column dataset (a vector in global or housing axes).
+    pub fn vectors(&self) -> Vec<[f64; 3]> {
+        self.rows().map(|r| [r[0], r[1], r[2]]).collect()
+    }
+}
+
+/// An attribute value of a group.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Attr {
+    Str(String),
+    F64(f64),
+}
+
+/// A group of the run file, written even when it holds no dataset.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Group {
+    /// Relative to the run's group, e.g. `joints/R1`.
+    pub path: String,
+    pub attrs: Vec<(String, Attr)>,
+}
+
+/// A recorded joint with clearance.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Clearance {
+    pub name: String,
+    /// Contact names, in column order: "radial" (spherical, planar) or P, Q (rims), M, N (faces).
+    pub contacts: Vec<String>,
+    /// The clearance (m): radial clearance for the orbit figure.
+    pub radial_clearance: f64,
+    /// A spherical joint: its orbit is three-dimensional (the eccentricity), not a plane one.
+    pub spherical: bool,
+}
+
+/// Everything one run recorded: the sample times and one [`Channel`] per dataset of the run file
+/// (layout in book/src/reference/hdf5.md), in the order they are written.
+#[derive(Debug, Clone, Default)]
+pub struct Recording {
+    /// s.
+    pub time: Vec<f64>,
+    pub channels: Vec<Channel>,
+    /// The groups, parents first, in the order they are written.
+    pub groups: Vec<Group>,
+    /// The recorded joints with clearance.
+    pub clearances: Vec<Clearance>,
+}
+
+/// Declares the channels of a recording, group by group.
+struct Declare<'m> {
+    model: &'m Model,
+    rec: Recording,
+    pub(crate) stage: u8,
+}
+
+impl Declare<'_> {
+    fn group(&mut self, path: String, attrs: Vec<(String, Attr)>) {
+        self.rec.groups.push(Group { path, attrs });
+    }
+
+    /// A dataset of the observables `path.c` for each component `c` (`path` itself, as a
+    /// one-dimensional dataset, when `comps` is empty).
+    fn channel(
+        &mut self,
+        path: &str,
+        comps: &[&str],
+        description: &str,
+        checked: Option<String>,
+    ) -> Result<()> {
+        let paths: Vec<String> = if comps.is_empty() {
+            vec![path.to_string()]
+        } else {
+            comps.iter().map(|c| format!("{path}.{c}")).collect()
+        };
+        let columns = paths
+            .iter()
+            .map(|p| Observable::for_run(self.model, p))
+            .collect::<std::result::Result<Vec<_>, _>>()
+            .map_err(|message| jointplay_solver::Error::Invalid {
+                file: self.model.file.clone(),
+                field: "outputs".into(),
+                message,
+            })?;
+        let unit = columns[0].unit.clone();
+        debug_assert!(columns.iter().all(|o| o.unit == unit), "{path}");
+        // The dataset is the path of a group member: kind, name, quantity (the name may hold dots).
+        let name = &self
+            .rec
+            .groups
+            .last()
+            .map(|g| g.path.clone())
+            .unwrap_or_default();
+        let quantity = path.rsplit('.').next().unwrap_or(path);
+        let flag = quantity == "contact_state";
+        self.rec.channels.push(Channel {
+            dataset: format!("{name}/{quantity}"),
+            unit,
+            description: description.to_string(),
+            flag,
+            bits: match flag {
+                true => None,
+                false => self.model.outputs.significant_bits.of(quantity),
+            },
+            scalar: comps.is_empty(),
+            checked,
+            values: Vec::new(),
+            columns,
+            stage: self.stage,
+        });
+        Ok(())
+    }
+}
+
+const XYZ: [&str; 3] = ["x", "y", "z"];
+
+impl Recording {
+    /// The channels of `model`'s outputs (which bodies, joints and drives, whether accelerations,
+    /// diagnostics and energy), with no sample yet.
+    pub fn of(model: &Model) -> Result<Recording> {
+        let out = &model.outputs;
+        let mut d = Declare {
+            model,
+            rec: Recording::default(),
+            stage: 0,
+        };
+        d.group("bodies".into(), Vec::new());
+        for &b in &out.bodies {
+            let name = &model.bodies[b].name;
+            let p = |q: &str| format!("bodies.{name}.{q}");
+            d.group(format!("bodies/{name}"), Vec::new());
+            d.channel(&p("position"), &XYZ, "centre of mass, global axes", None)?;
+            d.channel(
+                &p("orientation"),
+                &["w", "x", "y", "z"],
+                "Euler parameters (w, x, y, z) of the rotation body -> global",
+                None,
+            )?;
+            d.channel(
+                &p("velocity"),
+                &XYZ,
+                "centre-of-mass velocity, global axes",
+                None,
+            )?;
+            d.channel(&p("angular_velocity"), &XYZ, "global axes", None)?;
+            if out.accelerations {
+                d.channel(
+                    &p("acceleration"),
+                    &XYZ,
+                    "centre-of-mass acceleration, global axes",
+                    Some(format!("acceleration of body '{name}'")),
+                )?;
+                d.channel(
+                    &p("angular_acceleration"),
+                    &XYZ,
+                    "global axes",
+                    Some(format!("angular acceleration of body '{name}'")),
+                )?;
+            }
+        }
+        d.group("joints".into(), Vec::new());
+        d.stage = 1;
+        for &j in out
+            .joints
+            .iter()
+            .filter(|&&j| !model.joints[j].rows.is_empty())
+        {
+            let name = &model.joints[j].name;
+            let p = |q: &str| format!("joints.{name}.{q}");
+            d.group(format!("joints/{name}"), Vec::new());
+            d.channel(
+                &p("reaction_force"),
+                &XYZ,
+                "force of the joint on its body_b, global axes",
+                Some(format!("reaction force of joint '{name}'")),
+            )?;
+            d.channel(
+                &p("reaction_torque"),
+                &XYZ,
+                "torque of the joint on its body_b about the joint point on body_b, global axes",
+                Some(format!("reaction torque of joint '{name}'")),
+            )?;
+        }
+        d.stage = 3;
+        for c in out.joints.iter().filter_map(|&j| model.joints[j].clearance) {
+            let cl = &model.clearances[c];
+            let name = &cl.name;
+            let contacts: Vec<&str> = cl.geometry.contact_names().to_vec();
+            let attrs = vec![
+                ("contacts".to_string(), Attr::Str(contacts.join(","))),
+                (
+                    "radial_clearance".to_string(),
+                    Attr::F64(cl.geometry.radial_clearance()),
+                ),
+                ("radial_clearance_unit".to_string(), Attr::Str("m".into())),
+            ];
+            // A joint that keeps rows (a planar bearing's out-of-plane rows) has its group already.
+            let path = format!("joints/{name}");
+            match d.rec.groups.iter().position(|g| g.path == path) {
+                Some(i) => {
+                    let g = d.rec.groups.remove(i);
+                    d.rec.groups.push(Group {
+                        attrs: [g.attrs, attrs].concat(),
+                        ..g
+                    });
+                }
+                None => d.group(path, attrs),
+            }
+            d.rec.clearances.push(Clearance {
+                name: name.clone(),
+                contacts: contacts.iter().map(|s| s.to_string()).collect(),
+                radial_clearance: cl.geometry.radial_clearance(),
+                spherical: matches!(cl.geometry, Geometry::Spherical { .. }),
+            });
+            let p = |q: &str| format!("joints.{name}.{q}");
+            d.channel(
+                &p("eccentricity"),
+                &XYZ,
+                "journal centre relative to the housing centre, housing axes",
+                None,
+            )?;
+            d.channel(
+                &p("eccentricity_global"),
+                &XYZ,
+                "journal centre relative to the housing centre, global axes",
+                None,
+            )?;
+            d.channel(
+                &p("radial_eccentricity"),
+                &["u", "w"],
+                "eccentricity along the two housing directions normal to its axis (u, w): the journal-centre orbit",
+                None,
+            )?;
+            if matches!(cl.geometry, Geometry::Revolute { .. }) {
+                d.channel(
+                    &p("end_eccentricity"),
+                    &["P_u", "P_w", "Q_u", "Q_w"],
+                    "journal axis at the rim planes s = +L_B/2 (u, w) and s = -L_B/2 (u, w): the orbits of both journal ends",
+                    None,
+                )?;
+            }
+            let per =
+                |what: &str| format!("{what}, one column per contact ({})", contacts.join(", "));
+            for (q, what) in [
+                ("penetration", "penetration, negative while apart"),
+                ("penetration_rate", "penetration rate, approach positive"),
+                ("normal_force", "normal contact force"),
+                ("friction_force", "magnitude of the friction force"),
+                ("contact_state", "1 in contact, 0 free"),
+            ] {
+                d.channel(&p(q), &contacts, &per(what), None)?;
+            }
+            for (q, what, desc) in [
+                (
+                    "force_on_journal",
+                    "force",
+                    "resultant contact force on the journal body (body_b), global axes",
+                ),
+                (
+                    "moment_on_journal",
+                    "moment",
+                    "resultant contact moment on the journal body about its centre of mass, global axes",
+                ),
+                (
+                    "force_on_housing",
+                    "force",
+                    "resultant contact force on the housing body (body_a), global axes",
+                ),
+                (
+                    "moment_on_housing",
+                    "moment",
+                    "resultant contact moment on the housing body about its centre of mass, global axes",
+                ),
+            ] {
+                d.channel(
+                    &p(q),
+                    &XYZ,
+                    desc,
+                    Some(format!("contact {what} of clearance joint '{name}'")),
+                )?;
+            }
+        }
+        d.group("drives".into(), Vec::new());
+        d.stage = 2;
+        for &dr in &out.drives {
+            let name = &model.drives[dr].name;
+            let p = |q: &str| format!("drives.{name}.{q}");
+            let checked = Some(format!("force of drive '{name}'"));
+            d.group(format!("drives/{name}"), Vec::new());
+            d.channel(&p("coordinate"), &[], "joint coordinate", checked.clone())?;
+            d.channel(
+                &p("force"),
+                &[],
+                "actuator force (torque) on body_b in the direction of increasing coordinate",
+                checked,
+            )?;
+        }
+        if out.diagnostics {
+            d.stage = 4;
+            let checked = Some("constraint drift or energy".to_string());
+            d.group("diagnostics".into(), Vec::new());
+            d.channel(
+                "diagnostics.constraint_drift",
+                &[],
+                "2-norm of the position constraint residuals",
+                checked.clone(),
+            )?;
+            d.channel(
+                "diagnostics.velocity_drift",
+                &[],
+                "2-norm of the velocity constraint residuals",
+                checked.clone(),
+            )?;
+            if out.energy {
+                d.channel(
+                    "diagnostics.energy",
+                    &[],
+                    "kinetic + gravitational + spring energy",
+                    checked,
+                )?;
+            }
+        }
+        Ok(d.rec)
+    }
+
+    /// The fewest mantissa bits any channel keeps in the file ([`Channel::bits`]), marked on the
+    /// run's group; `None`: every value exact.
+    pub fn significant_bits(&self) -> Option<u32> {
+        self.channels.iter().filter_map(|c| c.bits).min()
+    }
+
+    /// The channel written to `dataset` (e.g. `bodies/bob/position`), if recorded.
+    pub fn channel(&self, dataset: &str) -> Option<&Channel> {
+        self.channels.iter().find(|c| c.dataset == dataset)
+    }
+
+    /// The names of the recorded members of `kind` (`bodies`, `joints` or `drives`), in order.
+    pub fn members<'a>(&'a self, kind: &'a str) -> impl Iterator<Item = &'a str> + 'a {
+        self.groups
+            .iter()
+            .filter_map(move |g| g.path.strip_prefix(kind).and_then(|p| p.strip_prefix('/')))
+    }
+
+    /// The channels in evaluation order: stage by stage, those of a stage in the order they are
+    /// written.
+    pub(crate) fn order(&self) -> Vec<usize> {
+        let mut order: Vec<usize> = (0..self.channels.len()).collect();
+        order.sort_by_key(|&i| self.channels[i].stage);
+        order
+    }
+
+    /// Evaluates every channel at one sample: in stage order, each value checked as it comes, so
+    /// a non-finite value stops at the first quantity the stages reach. Values of a sample that
+    /// fails may be partly pushed; [`Recording::truncate`] drops them.
+    pub(crate) fn sample(
+        &mut self,
+        order: &[usize],
+        model: &Model,
+        ws: &mut Workspace,
+        t: f64,
+        y: &[f64],
+    ) -> Result<()> {
+        self.time.push(t);
+        for &i in order {
+            let ch = &mut self.channels[i];
+            for o in &ch.columns {
+                let v = o.eval_run(model, ws, t, y);
+                if !v.is_finite()
+                    && let Some(what) = &ch.checked
+                {
+                    return Err(jointplay_solver::Error::Diverged {
+                        time: t,
+                        message: format!("{what} became non-finite"),
+                    }
+                    .into());
+                }
+                ch.values.push(v);
+            }
+        }
+        Ok(())
+    }
+
+    /// Evaluates the model's accelerations and multipliers at `(t, y)` in `ws` (which holds the
+    /// contacts' onset history), then every channel ([`Recording::sample`]); a sample that fails
+    /// is dropped whole.
+    pub(crate) fn sample_at(
+        &mut self,
+        order: &[usize],
+        model: &Model,
+        ws: &mut Workspace,
+        t: f64,
+        y: &[f64],
+    ) -> Result<()> {
+        model.accelerations(t, y, ws);
+        let n = self.time.len();
+        let sampled = self.sample(order, model, ws, t, y);
+        if sampled.is_err() {
+            self.truncate(n);
+        }
+        sampled
+    }
+
+    /// Appends the samples of `other`, a recording of the same channels.
+    pub(crate) fn extend(&mut self, other: &Recording) {
+        self.time.extend_from_slice(&other.time);
+        for (c, o) in self.channels.iter_mut().zip(&other.channels) {
+            c.values.extend_from_slice(&o.values);
+        }
+    }
+
+    /// Keeps the first `n` samples of every channel.
+    pub(crate) fn truncate(&mut self, n: usize) {
+        self.time.truncate(n);
+        for c in &mut self.channels {
+            c.values.truncate(n * c.columns.len());
+        }
+    }
+}
+
+/// Where and why a run stopped before its end time.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Stopped {
+    /// Simulated time of the failure (s).
+    pub time: f64,
+    /// What failed (the joint or quantity, and its value).
+    pub message: String,
+}
+
+impl std::fmt::Display for Stopped {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "integration stopped at t = {} s: {}",
+            self.time, self.message
+        )
+    }
+}
+
+impl Stopped {
+    /// Where and why `e` stopped the run; `fallback_time` when it names no time.
+    pub(crate) fn of(e: &crate::Error, fallback_time: f64) -> Stopped {
+        match e {
+            crate::Error::Solver(se) => Stopped::from_error(se, fallback_time),
+            other => Stopped {
+                time: fallback_time,
+                message: other.to_string(),
+            },
+        }
+    }
+
+    pub(crate) fn from_error(e: &jointplay_solver::Error, fallback_time: f64) -> Stopped {
+        match e {
+            jointplay_solver::Error::Diverged { time, message } => Stopped {
+                time: *time,
+                message: message.clone(),
+            },
+            other => Stopped {
+                time: fallback_time,
+                message: other.to_string(),
+            },
+        }
+    }
+}
+
+/// A run, finished or stopped by a failure after the initial assembly.
+#[derive(Debug, Clone)]
+pub struct RunResult {
+    /// Every sample recorded (up to the failure, when the run stopped).
+    pub recording: Recording,
+    pub stats: Stats,
+    pub assembly: AssemblyReport,
+    /// The hybrid state at the end time; for a run that stopped, the last accepted state at or
+    /// before the failure (with its own time, which [`RunResult::stopped`] may exceed). A run
+    /// written as it goes whose recorded values stopped it (a value not finite where the state
+    /// is) ends with the state the integration had reached when it learnt of it, at most two
+    /// blocks of samples after the one that failed: a file marked incomplete is not continued
+    /// from.
+    pub final_state: HybridState,
+    /// Warnings of the step-size guard.
+    pub warnings: Vec<Warning>,
+    /// Set when the run stopped before its end time.
+    pub stopped: Option<Stopped>,
+}
+
+/// The message of a run stopped on request.
+pub(crate) const INTERRUPTED: &str = "interrupted on request; the samples before it are kept";
+
+impl RunResult {
+    /// True when the run was stopped on request ([`simulate_until`]) rather than by a failure.
+    pub fn interrupted(&self) -> bool {
+        self.stopped
+            .as_ref()
+            .is_some_and(|s| s.message == INTERRUPTED)
+    }
+
+    /// The run as a `Result`: an error when it stopped before its end time
+    /// ([`crate::Error::Interrupted`] when it was stopped on request).
+    pub fn finished(self) -> Result<RunResult> {
+        match &self.stopped {
+            None => Ok(self),
+            Some(s) if self.interrupted() => Err(crate::Error::Interrupted { time: Some(s.time) }),
+            Some(s) => Err(jointplay_solver::Error::Diverged {
+                time: s.time,
+                message: s.message.clone(),
+            }
+            .into()),
+        }
+    }
+}
+
+/// True for the datasets of a run (its [`Channel::dataset`]) that [`run_figures`] draws: the
+/// bodies' positions, the drives' forces, the diagnostics, and each clearance joint's orbit and
+/// normal forces. A run written to its file while it goes keeps only these in memory.
+pub fn drawn(dataset: &str) -> bool {
+    let (kind, quantity) = (
+        dataset.split('/').next().unwrap_or(""),
+        dataset.rsplit('/').next().unwrap_or(""),
+    );
+    match kind {
+        "bodies" => quantity == "position",
+        "drives" => quantity == "force",
+        "diagnostics" => true,
+        "joints" => matches!(quantity, "radial_eccentricity" | "normal_force"),
+        _ => false,
+    }
+}

@@ -1,0 +1,591 @@
+//! The sweep executor of an analysis study ([`execute_until`]): the file set up or resumed, the
+//! jobs run (in parallel, or in order for a continuation sweep) and their results written
+//! through the sweep's journal ([`crate::storage::sweep`]); a single run written while it goes.
+
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::mpsc;
+use std::time::Instant;
+
+use jointplay_solver::state::HybridState;
+use rayon::prelude::*;
+
+use crate::flow::Flow;
+use crate::measures::sections::HistorySink;
+use crate::progress::{Progress, Stop};
+use crate::storage::analysis_file::{
+    JobResult, Root, SingleHistory, SweepLayout, obs_datasets, write_crossings,
+};
+use crate::storage::h5::{
+    PartialFile, describe, f64_attr, h5err, mark_bits, read_str, str_attr, u64_attr, write1,
+};
+use crate::storage::hybrid;
+use crate::storage::rows::Outcome as Kept;
+use crate::storage::sweep as storage;
+use crate::study::spec::invalid;
+use crate::{Error, Result};
+use jointplay_solver::ode::OdeSystem;
+
+use crate::storage::analysis_file::Shard;
+use crate::study::analysis::job::throttled;
+use crate::study::analysis::load::{Base, Loaded};
+use crate::study::analysis::spec::*;
+
+/// Summary of an executed study.
+#[derive(Debug, Clone)]
+pub struct Outcome {
+    pub file: PathBuf,
+    /// Jobs in the file: every value of the sweep, or a shard's values.
+    pub jobs: usize,
+    pub ran: usize,
+    /// Every job of the file done (or failed); false when stopped by `max_jobs` or on request.
+    pub complete: bool,
+    /// Stopped on request ([`execute_until`]): a single run written incomplete, or a sweep with
+    /// values left to run.
+    pub interrupted: bool,
+    /// Failed jobs: their index in the whole sweep and the message.
+    pub failed: Vec<(usize, String)>,
+    /// Warnings of a single run (the scene's and the step-size guard's).
+    pub warnings: Vec<String>,
+    pub wall: f64,
+    pub rhs_evals: u64,
+    /// Wall time the jobs of this call took, summed over the threads that ran them (s).
+    pub busy: f64,
+    /// Threads of the pool the jobs ran on (1 for a single run or a continuation).
+    pub threads: usize,
+    /// The sweep's table beside its file, `<stem>.md` and `<stem>.csv` ([`crate::storage::table`];
+    /// none for a single run or a shard).
+    pub tables: Vec<PathBuf>,
+}
+
+impl Outcome {
+    /// Parallel efficiency: the jobs' summed wall time over the threads' wall time,
+    /// `busy / (threads * wall)`; 1 when every thread ran a job from start to end. What it misses
+    /// is the time threads waited (the last jobs of a sweep running alone) and the time outside
+    /// the jobs (reading the study, writing the file).
+    pub fn efficiency(&self) -> f64 {
+        self.busy / (self.threads.max(1) as f64 * self.wall.max(1e-9))
+    }
+}
+
+/// How [`execute`] treats an existing file and how much it runs.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Options {
+    /// Keep the finished jobs of an existing file and run only the rest.
+    pub resume: bool,
+    /// Stop after this many jobs have finished (the file stays incomplete; resume later).
+    pub max_jobs: Option<usize>,
+    /// Run only this shard of the sweep's values, into its shard file (see [`crate::study::shards`]).
+    pub shard: Option<Shard>,
+}
+
+/// Runs the study and writes `dir/<name>.h5`: for a single run under `<name>.h5.partial`, renamed
+/// once complete; for a sweep job by job (with `resume`, only the jobs the existing file lacks).
+/// Time histories go to the file block by block while each run goes. With a shard, only the
+/// shard's values, into `dir/<name>.shard-I-of-N.h5`. A history block that cannot be written
+/// ends the study with that error, as any other write does.
+pub fn execute(
+    st: &Loaded,
+    dir: &Path,
+    opts: Options,
+    version: &str,
+    progress: &(dyn Fn(Progress) + Sync),
+) -> Result<Outcome> {
+    execute_until(st, dir, opts, version, progress, &Stop::new())
+}
+
+/// [`execute`] that ends early when `stop` is requested. A single run is then written with what
+/// it recorded, marked incomplete with the time it stopped (`stopped_at`); a sweep keeps the
+/// values finished before, leaves the interrupted ones not run (`/sweep/done` 0, for `resume`)
+/// and starts no other. [`Outcome::interrupted`] says so.
+pub fn execute_until(
+    st: &Loaded,
+    dir: &Path,
+    opts: Options,
+    version: &str,
+    progress: &(dyn Fn(Progress) + Sync),
+    user_stop: &Stop,
+) -> Result<Outcome> {
+    let start = Instant::now();
+    let name = &st.spec.study.name;
+    let Some(sw) = &st.spec.sweep else {
+        if let Some(sh) = opts.shard {
+            return Err(invalid(
+                &st.path,
+                "sweep",
+                format!("--shard {sh}: shards split a sweep's values; this study has no [sweep]"),
+            ));
+        }
+        progress(Progress::Start {
+            total: 1,
+            pending: 1,
+        });
+        // A run that fails keeps what it recorded, in a file marked incomplete. The time
+        // histories are appended to the file while the run goes.
+        let mut out = PartialFile::create(dir, name, version)?;
+        let partial = out.partial().to_path_buf();
+        let e = h5err(&partial);
+        let history = if st.spec.analysis.samples_per_period > 0 {
+            if let Err(err) = SingleHistory::create(&out.file, &st.spec.observables) {
+                return Err(out.fail(err));
+            }
+            // On disk whole (h5::create_streamed), then the histories opened there.
+            if let Err(err) = out.materialize() {
+                out.discard();
+                return Err(err);
+            }
+            match SingleHistory::open(
+                &out.file,
+                &st.spec.observables,
+                st.spec.analysis.history_bits(),
+            ) {
+                Ok(h) => Some(h),
+                Err(err) => return Err(out.fail(err)),
+            }
+        } else {
+            None
+        };
+        // A block that cannot be written stops the run and, below, the study: it is the file
+        // that failed, not the run.
+        let mut write_failure = None;
+        let mut append = |from: usize, time: &[f64], values: &[Vec<f64>]| -> Result<()> {
+            match &history {
+                Some(h) => h.append(from, time, values).map_err(|err| {
+                    write_failure = Some(e(err));
+                    Error::Interrupted { time: None }
+                }),
+                None => Ok(()),
+            }
+        };
+        let job_start = Instant::now();
+        let ran = st.run_job_partial(
+            None,
+            None,
+            &mut throttled(0, progress),
+            user_stop,
+            history.is_some().then_some(&mut append as HistorySink),
+        );
+        let (r, failure) = match (ran, write_failure) {
+            (Ok(x), None) => x,
+            (_, Some(err)) | (Err(err), None) => {
+                drop(history);
+                out.discard();
+                return Err(err);
+            }
+        };
+        progress(Progress::Done {
+            job: 0,
+            ok: failure.is_none(),
+        });
+        let written = (|| -> hdf5::Result<()> {
+            let file = &out.file;
+            Root::of(st, &r.integrator, r.start, r.period)
+                .write(file, u8::from(failure.is_none()))?;
+            if st.spec.analysis.samples_per_period > 0 {
+                mark_bits(file, st.spec.analysis.history_bits())?;
+            }
+            if !r.warnings.is_empty() {
+                str_attr(file, "warnings", &r.warnings.join("\n"))?;
+            }
+            if let Some(e) = &failure {
+                str_attr(file, "error", &e.to_string())?;
+                if let Error::Solver(jointplay_solver::Error::Diverged { time, .. })
+                | Error::Interrupted {
+                    time: Some(time), ..
+                } = e
+                {
+                    f64_attr(file, "stopped_at", *time)?;
+                }
+            }
+            write_single(file, st, &r)
+        })();
+        drop(history);
+        if let Err(err) = written {
+            return Err(out.fail(err));
+        }
+        let file = out.finish()?;
+        let interrupted = matches!(failure, Some(Error::Interrupted { .. }));
+        return Ok(Outcome {
+            file,
+            jobs: 1,
+            ran: 1,
+            complete: !interrupted,
+            interrupted,
+            failed: failure.map(|e| (0, e.to_string())).into_iter().collect(),
+            warnings: r.warnings,
+            wall: start.elapsed().as_secs_f64(),
+            rhs_evals: r.trace.stats.rhs_evals,
+            busy: job_start.elapsed().as_secs_f64(),
+            threads: 1,
+            tables: Vec::new(),
+        });
+    };
+    // The jobs this file holds, by their index in the whole sweep; row r of every dataset is
+    // job rows[r] (the identity without a shard).
+    let rows: Vec<usize> = match opts.shard {
+        Some(sh) => {
+            crate::study::shards::check(st, sh)?;
+            sh.jobs(st.jobs.len())
+        }
+        None => (0..st.jobs.len()).collect(),
+    };
+    crate::storage::durable::create_dir(dir)?;
+    let path = match opts.shard {
+        Some(sh) => dir.join(sh.file_name(name)),
+        None => dir.join(format!("{name}.h5")),
+    };
+    // Taken before anything under the file's name is touched (crate::storage::lock).
+    let _lock = crate::storage::lock::Lock::acquire(&path)?;
+    let n = rows.len();
+    let layout = st.layout(sw)?;
+    let mut warnings = Vec::new();
+    let mut store = storage::open(
+        &path,
+        &st.text,
+        opts.shard,
+        &layout,
+        n,
+        opts.resume,
+        &mut |w| warnings.push(w),
+    )?;
+    let journal = store.journal.path().to_path_buf();
+    let pending = store.values.iter().filter(|v| v.is_none()).count();
+    progress(Progress::Start { total: n, pending });
+    let mut failed: Vec<(usize, String)> = Vec::new();
+    let mut rhs = 0u64;
+    let limit = opts.max_jobs.unwrap_or(usize::MAX);
+    let mut finished = 0usize;
+    let stop = AtomicBool::new(limit == 0);
+    // Nanoseconds the jobs took, summed over the threads.
+    let busy = AtomicU64::new(0);
+    let mut threads = 1;
+    // Keeps the results of jobs in rows `batch`: appended to the journal, forced to disk once for
+    // all of them, and only then counted. An interrupted value is left to run again; values
+    // past `max_jobs` are dropped.
+    let mut keep =
+        |batch: Vec<(usize, Result<JobResult>)>, store: &mut storage::Store| -> Result<()> {
+            let mut counted = Vec::new();
+            for (r, res) in batch {
+                if finished + counted.len() >= limit {
+                    break;
+                }
+                let j = rows[r];
+                let outcome = match res {
+                    Err(Error::Interrupted { .. }) => continue,
+                    Ok(res) => {
+                        rhs += res.trace.stats.rhs_evals;
+                        counted.push((j, true));
+                        Kept::Done(storage::job_row(&layout, &res))
+                    }
+                    Err(err) => {
+                        let msg = err.to_string();
+                        failed.push((j, msg.clone()));
+                        counted.push((j, false));
+                        Kept::Failed(msg)
+                    }
+                };
+                store.add(crate::storage::rows::Value { row: r, outcome })?;
+            }
+            store.commit()?;
+            for (job, ok) in counted {
+                progress(Progress::Done { job, ok });
+                finished += 1;
+            }
+            if finished >= limit {
+                stop.store(true, Ordering::SeqCst);
+            }
+            Ok(())
+        };
+    if sw.continuation {
+        // In order; each job starts from the previous job's final state (read back from the
+        // values kept when resuming, so a resumed run continues from exactly the same state).
+        // Never sharded: rows are jobs.
+        let mut prev: Option<HybridState> = None;
+        for j in 0..n {
+            if stop.load(Ordering::SeqCst) || user_stop.requested() {
+                break;
+            }
+            if let Some(v) = &store.values[j] {
+                prev = match &v.outcome {
+                    Kept::Done(row) => Some(storage::row_state(row).map_err(|m| Error::Io {
+                        file: journal.clone(),
+                        message: format!("value {j}: {m}"),
+                    })?),
+                    Kept::Failed(_) => None,
+                };
+                continue;
+            }
+            let job_start = Instant::now();
+            let res = st.run_job(
+                Some(st.jobs[j].0),
+                prev.as_ref(),
+                &mut throttled(j, progress),
+                user_stop,
+                None,
+            );
+            busy.fetch_add(job_start.elapsed().as_nanos() as u64, Ordering::Relaxed);
+            prev = res.as_ref().ok().map(|r| r.trace.final_state.clone());
+            keep(vec![(j, res)], &mut store)?;
+        }
+    } else {
+        // The jobs run on the caller's rayon pool (the global one, or one it installed); a
+        // thread of its own keeps each result as it comes.
+        threads = rayon::current_num_threads();
+        // Bounded, so that finished jobs wait for the writer instead of piling up in memory.
+        let (tx, rx) = mpsc::sync_channel::<(usize, Box<Result<JobResult>>)>(2 * threads);
+        // The costs of the values kept already seed the estimate.
+        let known: Vec<Option<f64>> = store
+            .values
+            .iter()
+            .map(|v| match v.as_ref().map(|v| &v.outcome) {
+                Some(Kept::Done(row)) => row.f64s("wall_time").first().copied(),
+                _ => None,
+            })
+            .collect();
+        let todo: Vec<bool> = store.values.iter().map(|v| v.is_none()).collect();
+        let queue = std::sync::Mutex::new(crate::study::schedule::Queue::new(
+            rows.iter().map(|&j| st.jobs[j].0).collect(),
+            &todo,
+            &known,
+        ));
+        let busy = &busy;
+        let write_err = std::thread::scope(|scope| {
+            let (stop, store) = (&stop, &mut store);
+            let writer = scope.spawn(move || {
+                let mut write_err = None;
+                while let Ok(first) = rx.recv() {
+                    // The results that came meanwhile are kept together: one commit for all.
+                    let mut batch = vec![(first.0, *first.1)];
+                    while let Ok((r, res)) = rx.try_recv() {
+                        batch.push((r, *res));
+                    }
+                    if write_err.is_some() || stop.load(Ordering::SeqCst) {
+                        continue;
+                    }
+                    if let Err(err) = keep(batch, store) {
+                        // Stop the other jobs: their results could not be kept.
+                        stop.store(true, Ordering::SeqCst);
+                        write_err = Some(err);
+                    }
+                }
+                write_err
+            });
+            // Each thread takes the value the queue estimates costliest (crate::study::schedule).
+            let queue = &queue;
+            (0..threads).into_par_iter().for_each_with(tx, |tx, _| {
+                loop {
+                    if stop.load(Ordering::SeqCst) || user_stop.requested() {
+                        return;
+                    }
+                    let next = queue.lock().map(|mut q| q.take_next()).unwrap_or(None);
+                    let Some(r) = next else { return };
+                    let j = rows[r];
+                    let job_start = Instant::now();
+                    let res = st.run_job(
+                        Some(st.jobs[j].0),
+                        None,
+                        &mut throttled(j, progress),
+                        user_stop,
+                        None,
+                    );
+                    let took = job_start.elapsed();
+                    busy.fetch_add(took.as_nanos() as u64, Ordering::Relaxed);
+                    // A failed or interrupted run's time says little about the value's cost.
+                    if res.is_ok()
+                        && let Ok(mut q) = queue.lock()
+                    {
+                        q.finished(r, took.as_secs_f64());
+                    }
+                    // The writer lives until every sender is gone.
+                    let _ = tx.send((r, Box::new(res)));
+                }
+            });
+            writer.join()
+        });
+        match write_err {
+            Ok(None) => {}
+            Ok(Some(err)) => return Err(err),
+            Err(_) => {
+                return Err(Error::Io {
+                    file: journal.clone(),
+                    message: "the thread keeping the sweep's results stopped unexpectedly".into(),
+                });
+            }
+        }
+    }
+    // The file, written from the values kept; a complete one ends the journal.
+    let wall = start.elapsed().as_secs_f64();
+    let jobs: Vec<(f64, i8)> = rows.iter().map(|&j| st.jobs[j]).collect();
+    let shard = opts.shard.map(|sh| (sh, rows.as_slice()));
+    let complete = storage::write_file(&path, &layout, version, &jobs, shard, &store.values, wall)?;
+    if complete {
+        drop(store);
+        crate::storage::durable::remove(&journal)?;
+    }
+    // A shard's rows are part of a sweep: its table comes with the merge.
+    let tables = if opts.shard.is_none() {
+        crate::storage::table::write_beside(&path)?
+    } else {
+        Vec::new()
+    };
+    Ok(Outcome {
+        file: path.clone(),
+        jobs: n,
+        ran: finished,
+        complete,
+        interrupted: user_stop.requested() && !complete,
+        failed,
+        warnings,
+        wall,
+        rhs_evals: rhs,
+        busy: busy.load(Ordering::Relaxed) as f64 * 1e-9,
+        threads,
+        tables,
+    })
+}
+
+impl SweepLayout {
+    /// The layout of the sweep file `file`, whose study text parses to `spec`.
+    pub(crate) fn read(file: &hdf5::File, spec: &AnalysisStudy) -> hdf5::Result<SweepLayout> {
+        let root = Root::read(file)?;
+        let sw = spec
+            .sweep
+            .as_ref()
+            .ok_or_else(|| hdf5::Error::from("its study text has no [sweep]"))?;
+        let g = file.group("sweep")?;
+        let cols = |g: &hdf5::Group, name: &str| -> hdf5::Result<usize> {
+            Ok(g.dataset(name)?.shape().get(1).copied().unwrap_or(0))
+        };
+        let units = spec
+            .observables
+            .iter()
+            .map(|o| {
+                let ds = g.dataset(&o.name)?;
+                read_str(&ds, "unit")
+            })
+            .collect::<hdf5::Result<Vec<_>>>()?;
+        let history = match g.group("history") {
+            Ok(h) => cols(&h, "time")?,
+            Err(_) => 0,
+        };
+        Ok(SweepLayout {
+            root,
+            observables: spec.observables.clone(),
+            units,
+            sections: spec.sections.iter().map(|s| s.name.clone()).collect(),
+            parameter: sw.parameter.clone(),
+            unit: sw.unit.clone(),
+            continuation: sw.continuation,
+            kept: cols(&g, "strobe_time")?,
+            history,
+            shape: hybrid::StateShape {
+                dim: cols(&g, "final_state")?,
+                contacts: cols(&g, "final_onset")?,
+                clearances: cols(&g, "final_warned")?,
+            },
+            chaos: crate::measures::chaos::ChaosSpec {
+                lyapunov: spec.lyapunov.clone(),
+                zero_one: spec.zero_one.clone(),
+            },
+            bits: spec.analysis.history_bits(),
+        })
+    }
+}
+
+impl Loaded {
+    /// The layout of this study's sweep file, from a probe of job 0 (its flow is built, not run).
+    fn layout(&self, sw: &SweepSpec) -> Result<SweepLayout> {
+        let target = self.target(Some(self.jobs[0].0))?;
+        let flow = target.flow();
+        // The memory of a new run has the sizes of the flow's memory (contacts, clearance joints).
+        let mut memory = HybridState::default();
+        flow.save_memory(&mut memory);
+        let (method, period, start) = (flow.method(), flow.period(), flow.start_time());
+        let plan = self.plan(method, start, period);
+        Ok(SweepLayout {
+            root: Root::of(self, &method.describe(), start, period),
+            observables: self.spec.observables.clone(),
+            units: flow.observable_units(),
+            sections: self.planes.iter().map(|p| p.name.clone()).collect(),
+            parameter: sw.parameter.clone(),
+            unit: sw.unit.clone(),
+            continuation: sw.continuation,
+            kept: plan.kept(),
+            history: plan.history_len(),
+            shape: hybrid::StateShape {
+                dim: flow.dim(),
+                contacts: memory.onset.len(),
+                clearances: memory.warned.len(),
+            },
+            chaos: self.chaos_spec(),
+            bits: self.spec.analysis.history_bits(),
+        })
+    }
+}
+
+fn write_single(file: &hdf5::File, st: &Loaded, r: &JobResult) -> hdf5::Result<()> {
+    let t = &r.trace;
+    let obs = &st.spec.observables;
+    u64_attr(file, "rhs_evals", t.stats.rhs_evals)?;
+    u64_attr(file, "accepted_steps", t.stats.accepted)?;
+    f64_attr(file, "wall_time", r.wall)?;
+    if st.spec.analysis.samples_per_period > 0 {
+        // Written while the run went (SingleHistory).
+        let g = file.group("history")?;
+        describe(
+            &g.dataset("time")?,
+            Some("s"),
+            "sample times over the kept window",
+        )?;
+        for (o, u) in obs.iter().zip(&r.units) {
+            let ds = g.dataset(&o.name)?;
+            describe(&ds, Some(u), &format!("{} over the kept window", o.path))?;
+            str_attr(&ds, "path", &o.path)?;
+            mark_bits(&ds, st.spec.analysis.history_bits())?;
+        }
+    }
+    let g = file.create_group("sections")?;
+    let s0 = g.create_group("strobe")?;
+    write1(
+        &s0,
+        "time",
+        &t.strobe_time,
+        "s",
+        "t0 + phase + k T, one per kept period",
+    )?;
+    obs_datasets(&s0, obs, &r.units, &t.strobe, "at the strobe times")?;
+    for (p, c) in st.planes.iter().zip(&t.crossings) {
+        write_crossings(&g, &p.name, obs, &r.units, &c.time, &c.values)?;
+    }
+    if let Some(c) = &r.chaos {
+        crate::storage::chaos::write_single(file, c)?;
+    }
+    hybrid::write_state(file, &t.final_state)
+}
+
+impl Root {
+    /// The root attributes of `st`'s file.
+    pub(crate) fn of(st: &Loaded, integrator: &str, start: f64, period: f64) -> Root {
+        let a = &st.spec.analysis;
+        let flow = match &st.base {
+            Base::Scene { path, .. } => format!("scene {}", path.display()),
+            Base::System(_) => "system".to_string(),
+        };
+        Root {
+            study_name: st.spec.study.name.clone(),
+            study_file: st.path.display().to_string(),
+            study: st.text.clone(),
+            description: st.spec.study.description.clone(),
+            flow,
+            flow_text: st.base_text(),
+            integrator: integrator.to_string(),
+            start_time: start,
+            period,
+            phase: a.phase,
+            periods: a.periods as u64,
+            transient: a.transient as u64,
+            samples_per_period: a.samples_per_period as u64,
+            history_periods: a.history_periods.unwrap_or(a.periods - a.transient) as u64,
+        }
+    }
+}
