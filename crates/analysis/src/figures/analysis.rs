@@ -19,6 +19,8 @@
 //! two-trajectory estimate), and the 0-1 test's K; a single run gets a convergence figure of the
 //! running exponent estimates (`<study>-lyapunov.png`).
 
+use crate::measures::indicator::Row;
+use crate::measures::registry::INDICATORS;
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
@@ -47,9 +49,12 @@ struct Data {
     units: BTreeMap<String, String>,
     sweep: Option<(String, String)>,
     jobs: Vec<Job>,
-    /// Per done sweep value: parameter, lambda_1, its standard error, the two-trajectory
-    /// estimate and K (NaN where not computed).
-    chaos: Vec<[f64; 5]>,
+    /// Per done sweep value: parameter, lambda_1, its standard error and the two-trajectory
+    /// estimate (NaN where not computed).
+    chaos: Vec<[f64; 4]>,
+    /// Each chaos indicator the sweep computed (crate::measures::registry), with its parameter
+    /// and number per done value.
+    numbers: Vec<(Row, Vec<[f64; 2]>)>,
     /// A single run's running Lyapunov estimates: times, one row per time, and the
     /// two-trajectory estimate.
     convergence: Option<Convergence>,
@@ -169,6 +174,7 @@ fn read(path: &Path) -> Result<Data> {
     let mut jobs = Vec::new();
     let mut sweep = None;
     let mut chaos = Vec::new();
+    let mut numbers = Vec::new();
     let mut convergence = None;
     if let Ok(g) = file.group("sweep") {
         let pds = g.dataset("parameter").map_err(&e)?;
@@ -274,16 +280,21 @@ fn read(path: &Path) -> Result<Data> {
                     })
                     .unwrap_or_else(|_| vec![f64::NAN; params.len()])
             };
-            let (l1, e1, two, k) = (
+            let (l1, e1, two) = (
                 col("exponents", 0),
                 col("stderr", 0),
                 col("two_trajectory", 0),
-                col("k", 0),
             );
             let at = |v: &[f64], j: usize| v.get(j).copied().unwrap_or(f64::NAN);
-            for (j, p) in params.iter().enumerate() {
-                if done[j] == 1 {
-                    chaos.push([*p, at(&l1, j), at(&e1, j), at(&two, j), at(&k, j)]);
+            let done_values = || params.iter().enumerate().filter(|(j, _)| done[*j] == 1);
+            for (j, p) in done_values() {
+                chaos.push([*p, at(&l1, j), at(&e1, j), at(&two, j)]);
+            }
+            for i in INDICATORS {
+                let row = i.row();
+                if c.dataset(row.name).is_ok() {
+                    let v = col(row.name, 0);
+                    numbers.push((row, done_values().map(|(j, p)| [*p, at(&v, j)]).collect()));
                 }
             }
         }
@@ -339,6 +350,7 @@ fn read(path: &Path) -> Result<Data> {
         sweep,
         jobs,
         chaos,
+        numbers,
         convergence,
         continuation,
     })
@@ -380,13 +392,14 @@ fn default_figures(d: &Data) -> Vec<FigureSpec> {
 }
 
 /// The chaos panels under a bifurcation diagram: lambda_1 with its 3-standard-error band and the
-/// two-trajectory estimate, and K; none when the sweep has no chaos measures.
+/// two-trajectory estimate, and one panel per chaos indicator (K of the 0-1 test); none when the
+/// sweep has no chaos measures.
 fn chaos_panels(d: &Data, x_label: &str, px: f64) -> Vec<Panel> {
     let mut out = Vec::new();
-    let rows: Vec<&[f64; 5]> = d.chaos.iter().filter(|r| r[1].is_finite()).collect();
+    let rows: Vec<&[f64; 4]> = d.chaos.iter().filter(|r| r[1].is_finite()).collect();
     if !rows.is_empty() {
         let x: Vec<f64> = rows.iter().map(|r| r[0] * px).collect();
-        let line = |label: &str, f: &dyn Fn(&[f64; 5]) -> f64| Series {
+        let line = |label: &str, f: &dyn Fn(&[f64; 4]) -> f64| Series {
             label: label.into(),
             x: x.clone(),
             y: rows.iter().map(|r| f(r)).collect(),
@@ -417,14 +430,17 @@ fn chaos_panels(d: &Data, x_label: &str, px: f64) -> Vec<Panel> {
         p.points.push(line("lambda_1 (tangent)", &|r| r[1]));
         out.push(p);
     }
-    let krows: Vec<&[f64; 5]> = d.chaos.iter().filter(|r| r[4].is_finite()).collect();
-    if !krows.is_empty() {
-        let mut p = Panel::new("0-1 test for chaos", x_label, "K", Vec::new());
-        p.y_range = Some((-0.1, 1.1));
+    for (row, values) in &d.numbers {
+        let finite: Vec<&[f64; 2]> = values.iter().filter(|r| r[1].is_finite()).collect();
+        if finite.is_empty() {
+            continue;
+        }
+        let mut p = Panel::new(row.title, x_label, row.column, Vec::new());
+        p.y_range = row.range;
         p.points = vec![Series {
-            label: "K".into(),
-            x: krows.iter().map(|r| r[0] * px).collect(),
-            y: krows.iter().map(|r| r[4]).collect(),
+            label: row.column.into(),
+            x: finite.iter().map(|r| r[0] * px).collect(),
+            y: finite.iter().map(|r| r[1]).collect(),
         }];
         out.push(p);
     }

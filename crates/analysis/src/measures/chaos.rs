@@ -22,25 +22,8 @@
 //! - *undetermined* otherwise (the measures disagree, or the run is too short to tell): say so
 //!   rather than guess.
 
-use serde::Deserialize;
-
+use crate::measures::indicator::{Asked, Reading, Verdict};
 use crate::measures::lyapunov::{LyapunovSpec, Spectrum};
-use crate::measures::zero_one::ZeroOne;
-
-/// The `[zero_one]` table.
-#[derive(Debug, Clone, PartialEq, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub struct ZeroOneSpec {
-    /// Name of the observable the test runs on.
-    pub observable: String,
-    /// The section whose samples it uses: "strobe" (default) or a hyperplane's name.
-    #[serde(default = "strobe")]
-    pub section: String,
-}
-
-fn strobe() -> String {
-    "strobe".into()
-}
 
 /// What the measures say.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -64,7 +47,8 @@ impl Class {
 #[derive(Debug, Clone)]
 pub struct Chaos {
     pub spectrum: Option<Spectrum>,
-    pub zero_one: Option<ZeroOne>,
+    /// What each indicator the study asked for read ([`crate::measures::registry`]).
+    pub readings: Vec<Reading>,
     pub class: Class,
 }
 
@@ -88,14 +72,11 @@ pub fn strobe_period(series: &[f64]) -> Option<usize> {
 }
 
 /// Classifies by the rules of the module overview; `period` is the strobe series' period found
-/// by [`strobe_period`].
-pub fn classify(
-    spectrum: Option<&Spectrum>,
-    zero_one: Option<&ZeroOne>,
-    period: Option<usize>,
-) -> Class {
-    let k = zero_one.and_then(|z| z.k);
-    let constant = zero_one.is_some_and(|z| z.constant);
+/// by [`strobe_period`]; the indicators' verdicts count as the 0-1 test's K does there (chaotic:
+/// K > 0.8, regular: K < 0.2), every indicator that ran having to agree.
+pub fn classify(spectrum: Option<&Spectrum>, readings: &[Reading], period: Option<usize>) -> Class {
+    let all = |ok: &dyn Fn(Verdict) -> bool| readings.iter().all(|r| ok(r.verdict));
+    let ran = !readings.is_empty();
     if let Some(s) = spectrum {
         let (l, e) = (s.exponents[0], s.stderr[0]);
         let e = if e.is_finite() { e } else { f64::INFINITY };
@@ -111,27 +92,27 @@ pub fn classify(
             let e = if e.is_finite() { e } else { f64::INFINITY };
             let floor = 1e-3 / s.period;
             if l > 3.0 * e && l > floor {
-                if k.is_none_or(|k| k > 0.8) && !constant && period.is_none() {
+                if all(&|v| v == Verdict::Chaotic) && period.is_none() {
                     Class::Chaotic
                 } else {
                     Class::Undetermined
                 }
             } else if l < -3.0 * e && l < -floor {
-                if k.is_none_or(|k| k < 0.2) {
+                if all(&|v| matches!(v, Verdict::Regular | Verdict::Constant)) {
                     Class::Periodic
                 } else {
                     Class::Undetermined
                 }
-            } else if l.abs() <= 3.0 * e + floor && k.is_some_and(|k| k < 0.2) && !constant {
+            } else if l.abs() <= 3.0 * e + floor && ran && all(&|v| v == Verdict::Regular) {
                 Class::QuasiPeriodic
             } else {
                 Class::Undetermined
             }
         }
         None => {
-            if constant || k.is_some_and(|k| k < 0.2) {
+            if ran && all(&|v| matches!(v, Verdict::Regular | Verdict::Constant)) {
                 Class::Periodic
-            } else if k.is_some_and(|k| k > 0.8) {
+            } else if ran && all(&|v| v == Verdict::Chaotic) {
                 Class::Chaotic
             } else {
                 Class::Undetermined
@@ -144,12 +125,13 @@ pub fn classify(
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct ChaosSpec {
     pub lyapunov: Option<LyapunovSpec>,
-    pub zero_one: Option<ZeroOneSpec>,
+    /// The indicators asked for, in the order of [`crate::measures::registry::INDICATORS`].
+    pub indicators: Vec<Asked>,
 }
 
 impl ChaosSpec {
     pub fn any(&self) -> bool {
-        self.lyapunov.is_some() || self.zero_one.is_some()
+        self.lyapunov.is_some() || !self.indicators.is_empty()
     }
 }
 
@@ -176,36 +158,43 @@ mod tests {
             end: HybridState::new(0.0, vec![]),
         }
     }
-    fn k(v: f64) -> ZeroOne {
-        ZeroOne {
-            k: Some(v),
-            constant: false,
-            oversampled: false,
-            samples: 1000,
+    /// The 0-1 test's reading of K = `v` (the thresholds of [`crate::measures::zero_one`]).
+    fn k(v: f64) -> Reading {
+        let verdict = if v > 0.8 {
+            Verdict::Chaotic
+        } else if v < 0.2 {
+            Verdict::Regular
+        } else {
+            Verdict::Unsure
+        };
+        Reading {
+            key: "zero_one",
+            value: v,
+            verdict,
+            attributes: vec![],
         }
     }
 
     #[test]
     fn the_classes_follow_the_documented_thresholds() {
-        let c = |l: f64, e: f64, z: Option<&ZeroOne>| classify(Some(&spectrum(l, e)), z, None);
-        assert_eq!(c(0.15, 0.002, Some(&k(0.98))), Class::Chaotic);
-        assert_eq!(c(0.15, 0.002, Some(&k(0.1))), Class::Undetermined);
-        assert_eq!(c(-0.3, 0.01, Some(&k(0.01))), Class::Periodic);
-        assert_eq!(c(1e-4, 0.01, Some(&k(0.05))), Class::QuasiPeriodic);
-        assert_eq!(c(1e-4, 0.01, None), Class::Undetermined);
+        let c = |l: f64, e: f64, z: &[Reading]| classify(Some(&spectrum(l, e)), z, None);
+        assert_eq!(c(0.15, 0.002, &[k(0.98)]), Class::Chaotic);
+        assert_eq!(c(0.15, 0.002, &[k(0.1)]), Class::Undetermined);
+        assert_eq!(c(-0.3, 0.01, &[k(0.01)]), Class::Periodic);
+        assert_eq!(c(1e-4, 0.01, &[k(0.05)]), Class::QuasiPeriodic);
+        assert_eq!(c(1e-4, 0.01, &[]), Class::Undetermined);
         // A strobe series that repeats makes it periodic unless lambda_1 is clearly positive.
-        let p = classify(Some(&spectrum(1e-4, 0.01)), Some(&k(0.05)), Some(2));
+        let p = classify(Some(&spectrum(1e-4, 0.01)), &[k(0.05)], Some(2));
         assert_eq!(p, Class::Periodic);
         let series: Vec<f64> = (0..100).map(|j| [0.3, -0.7, 0.1][j % 3]).collect();
         assert_eq!(strobe_period(&series), Some(3));
         let drifting: Vec<f64> = (0..100).map(|j| (j as f64).sin()).collect();
         assert_eq!(strobe_period(&drifting), None);
-        let constant = ZeroOne {
-            k: None,
-            constant: true,
-            oversampled: false,
-            samples: 1000,
+        let constant = Reading {
+            verdict: Verdict::Constant,
+            value: f64::NAN,
+            ..k(0.5)
         };
-        assert_eq!(classify(None, Some(&constant), None), Class::Periodic);
+        assert_eq!(classify(None, &[constant], None), Class::Periodic);
     }
 }

@@ -12,7 +12,9 @@
 //!   multipliers.
 
 pub mod chaos;
+pub mod indicator;
 pub mod lyapunov;
 pub mod periodic;
+pub mod registry;
 pub mod sections;
 pub mod zero_one;

@@ -19,6 +19,8 @@
 //!   oversampling (K is still given, flagged);
 //! - fewer than [`MIN_SAMPLES`] samples is an error.
 
+use crate::measures::indicator::{Indicator, Number, Reading, Row, Verdict};
+
 /// The least number of samples the test is run on: `n <= N/10` must leave enough lags for the
 /// correlation (G&M use N = 1e4; 500 gives 50 lags).
 pub const MIN_SAMPLES: usize = 500;
@@ -117,6 +119,67 @@ fn correlation(a: &[f64], b: &[f64]) -> f64 {
         sbb += (y - mb).powi(2);
     }
     sab / (saa * sbb).sqrt()
+}
+
+/// The 0-1 test as a chaos indicator ([`crate::measures::indicator`]): its number is K, chaotic
+/// above 0.8 and regular below 0.2 (the thresholds of book/src/explanation/lyapunov.md), a
+/// constant series regular with no K.
+pub struct ZeroOneTest;
+
+impl Indicator for ZeroOneTest {
+    fn key(&self) -> &'static str {
+        "zero_one"
+    }
+
+    fn title(&self) -> &'static str {
+        "0-1 test"
+    }
+
+    fn least_samples(&self) -> usize {
+        MIN_SAMPLES
+    }
+
+    fn row(&self) -> Row {
+        Row {
+            name: "k",
+            unit: "1",
+            description: "0-1 test K per value (NaN: constant series)",
+            column: "K",
+            digits: 3,
+            title: "0-1 test for chaos",
+            range: Some((-0.1, 1.1)),
+        }
+    }
+
+    fn compute(&self, series: &[f64]) -> Result<Reading, String> {
+        let z = zero_one(series)?;
+        let verdict = match z.k {
+            _ if z.constant => Verdict::Constant,
+            Some(k) if k > 0.8 => Verdict::Chaotic,
+            Some(k) if k < 0.2 => Verdict::Regular,
+            _ => Verdict::Unsure,
+        };
+        let value = z.k.unwrap_or(f64::NAN);
+        Ok(Reading {
+            key: self.key(),
+            value,
+            verdict,
+            attributes: vec![
+                ("k", Number::Real(value)),
+                ("constant", Number::Flag(z.constant)),
+                ("oversampled", Number::Flag(z.oversampled)),
+                ("samples", Number::Count(z.samples as u64)),
+            ],
+        })
+    }
+
+    fn line(&self, k: f64) -> String {
+        if k.is_nan() {
+            "0-1 test     constant series (no K)".to_string()
+        } else {
+            format!("0-1 test     K = {k:.3}")
+        }
+    }
 }
 
 #[cfg(test)]

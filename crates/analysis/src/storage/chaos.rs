@@ -3,6 +3,13 @@
 //! book/src/reference/hdf5.md). The measures themselves are [`crate::measures::chaos`].
 
 use crate::measures::chaos::{CLASS_NAMES, Chaos, ChaosSpec, Class};
+use crate::measures::indicator::{Indicator, Number};
+use crate::measures::registry::INDICATORS;
+
+/// The registered indicator of `key` (a spec's keys come from the registry).
+pub(crate) fn indicator(key: &str) -> &'static dyn Indicator {
+    crate::measures::registry::find(key).expect("an indicator of the registry")
+}
 use crate::storage::h5::{
     create_nan, f64_attr, str_attr, u8_attr_set, u64_attr, write_table, write1,
 };
@@ -70,12 +77,15 @@ pub(crate) fn write_single(file: &hdf5::File, c: &Chaos) -> hdf5::Result<()> {
             )?;
         }
     }
-    if let Some(z) = &c.zero_one {
-        let g0 = g.create_group("zero_one")?;
-        f64_attr(&g0, "k", z.k.unwrap_or(f64::NAN))?;
-        u8_attr_set(&g0, "constant", u8::from(z.constant))?;
-        u8_attr_set(&g0, "oversampled", u8::from(z.oversampled))?;
-        u64_attr(&g0, "samples", z.samples as u64)?;
+    for r in &c.readings {
+        let g0 = g.create_group(r.key)?;
+        for (name, v) in &r.attributes {
+            match *v {
+                Number::Real(x) => f64_attr(&g0, name, x)?,
+                Number::Flag(b) => u8_attr_set(&g0, name, u8::from(b))?,
+                Number::Count(n) => u64_attr(&g0, name, n)?,
+            }
+        }
     }
     Ok(())
 }
@@ -130,14 +140,9 @@ pub(crate) fn create_rows(g: &hdf5::Group, n: usize, spec: &ChaosSpec) -> hdf5::
             )?;
         }
     }
-    if spec.zero_one.is_some() {
-        create_nan(
-            &c,
-            "k",
-            &[n],
-            "1",
-            "0-1 test K per value (NaN: constant series)",
-        )?;
+    for asked in &spec.indicators {
+        let row = indicator(asked.key).row();
+        create_nan(&c, row.name, &[n], row.unit, row.description)?;
     }
     Ok(())
 }
@@ -199,13 +204,11 @@ pub fn summary(path: &std::path::Path) -> crate::Result<Vec<String>> {
                 out.push(format!("two traj.    {v:.4} +- {s:.4} 1/s"));
             }
         }
-        if let Ok(z) = c.group("zero_one") {
-            let k = crate::storage::h5::read_attr::<f64>(&z, "k").map_err(&e)?;
-            out.push(if k.is_nan() {
-                "0-1 test     constant series (no K)".to_string()
-            } else {
-                format!("0-1 test     K = {k:.3}")
-            });
+        for i in INDICATORS {
+            if let Ok(z) = c.group(i.key()) {
+                let v = crate::storage::h5::read_attr::<f64>(&z, i.row().name).map_err(&e)?;
+                out.push(i.line(v));
+            }
         }
         out.push(format!(
             "class        {}",

@@ -73,8 +73,9 @@ pub(crate) fn row_names(l: &SweepLayout) -> Vec<(String, Kind, Option<usize>)> {
                 v.push(("chaos/two_trajectory".into(), Kind::F64, 2));
             }
         }
-        if l.chaos.zero_one.is_some() {
-            v.push(("chaos/k".into(), Kind::F64, ONE));
+        for asked in &l.chaos.indicators {
+            let row = crate::storage::chaos::indicator(asked.key).row();
+            v.push((format!("chaos/{}", row.name), Kind::F64, ONE));
         }
     }
     v.into_iter()
@@ -134,13 +135,17 @@ pub(crate) fn job_row(l: &SweepLayout, r: &JobResult) -> Row {
                     w,
                     nan,
                 )),
-                "chaos/k" => Cells::F64(vec![
-                    r.chaos
-                        .as_ref()
-                        .and_then(|c| c.zero_one.as_ref())
-                        .and_then(|z| z.k)
-                        .unwrap_or(nan),
-                ]),
+                other if other.starts_with("chaos/") => {
+                    // An indicator's number (the rows above are the spectrum's).
+                    let row = &other["chaos/".len()..];
+                    Cells::F64(vec![
+                        r.chaos
+                            .iter()
+                            .flat_map(|c| &c.readings)
+                            .find(|x| crate::storage::chaos::indicator(x.key).row().name == row)
+                            .map_or(nan, |x| x.value),
+                    ])
+                }
                 other => match other.strip_prefix("history/") {
                     Some(o) => {
                         let v = obs(o).map_or(&[][..], |i| &t.history[i][..]);

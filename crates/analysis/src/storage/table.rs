@@ -13,6 +13,8 @@
 use std::path::{Path, PathBuf};
 
 use crate::measures::chaos::{CLASS_NAMES, strobe_period};
+use crate::measures::indicator::Row;
+use crate::measures::registry::INDICATORS;
 use crate::storage::h5::{h5err, read_str};
 use crate::{Error, Result};
 
@@ -99,7 +101,17 @@ pub fn of_file(path: &Path) -> Result<Option<Table>> {
         let se = c.dataset("stderr").and_then(|d| d.read_2d::<f64>()).ok()?;
         Some((ex.column(0).to_vec(), se.column(0).to_vec()))
     });
-    let k = chaos.as_ref().and_then(|c| read1(c, "k"));
+    // The chaos indicators' numbers, each in the order of the registry.
+    let numbers: Vec<(Row, Vec<f64>)> = INDICATORS
+        .iter()
+        .filter_map(|i| {
+            let row = i.row();
+            chaos
+                .as_ref()
+                .and_then(|c| read1(c, row.name))
+                .map(|v| (row, v))
+        })
+        .collect();
 
     let mut head: Vec<String> = vec![
         format!("value ({p_unit})"),
@@ -113,8 +125,8 @@ pub fn of_file(path: &Path) -> Result<Option<Table>> {
         head.push("lambda_1 (1/s)".into());
         head.push("lambda_1 stderr (1/s)".into());
     }
-    if k.is_some() {
-        head.push("K".into());
+    for (row, _) in &numbers {
+        head.push(row.column.into());
     }
     for c in &columns {
         head.push(format!("{} min ({})", c.name, c.unit));
@@ -129,8 +141,13 @@ pub fn of_file(path: &Path) -> Result<Option<Table>> {
     let mut md = format!(
         "# Sweep: {name}\n\n{n} values of `{parameter_path}` ({p_unit}). Period: the least p <= 64 \
          with the first observable's strobe points repeating after p periods; class, lambda_1 and \
-         K where the study computed them; min and max: the strobe points of the kept periods.\n\n\
+         {} where the study computed them; min and max: the strobe points of the kept periods.\n\n\
          | {} |\n|{}\n",
+        INDICATORS
+            .iter()
+            .map(|i| i.row().column)
+            .collect::<Vec<_>>()
+            .join(", "),
         head.join(" | "),
         "---|".repeat(head.len())
     );
@@ -169,8 +186,8 @@ pub fn of_file(path: &Path) -> Result<Option<Table>> {
             cells.push(number(ok, ex[i], 4));
             cells.push(number(ok, se[i], 4));
         }
-        if let Some(k) = &k {
-            cells.push(number(ok, k[i], 3));
+        for (row, v) in &numbers {
+            cells.push(number(ok, v[i], row.digits));
         }
         for c in &columns {
             let finite = c.rows[i].iter().copied().filter(|v| v.is_finite());

@@ -118,7 +118,7 @@ impl Loaded {
     ) -> Result<Option<crate::measures::chaos::Chaos>> {
         use crate::flow::tangent::Tangent;
         let spec = &self.spec;
-        if spec.lyapunov.is_none() && spec.zero_one.is_none() {
+        if spec.lyapunov.is_none() && spec.asked().is_empty() {
             return Ok(None);
         }
         let spectrum = match &spec.lyapunov {
@@ -139,36 +139,39 @@ impl Loaded {
             }
             None => None,
         };
-        let zero_one = match &spec.zero_one {
-            Some(z) => {
-                let i = spec.observable(&z.observable).expect("checked when loaded");
-                let series = if z.section == "strobe" {
-                    &tr.strobe[i]
-                } else {
-                    let p = self
-                        .planes
-                        .iter()
-                        .position(|p| p.name == z.section)
-                        .expect("checked when loaded");
-                    &tr.crossings[p].values[i]
-                };
-                Some(
-                    crate::measures::zero_one::zero_one(series)
-                        .map_err(|m| invalid(&self.path, "zero_one", m))?,
-                )
-            }
-            None => None,
-        };
-        let obs = spec
-            .zero_one
-            .as_ref()
-            .and_then(|z| spec.observable(&z.observable))
+        let asked = spec.asked();
+        let mut readings = Vec::with_capacity(asked.len());
+        for x in &asked {
+            let z = &x.series;
+            let i = spec.observable(&z.observable).expect("checked when loaded");
+            let series = if z.section == "strobe" {
+                &tr.strobe[i]
+            } else {
+                let p = self
+                    .planes
+                    .iter()
+                    .position(|p| p.name == z.section)
+                    .expect("checked when loaded");
+                &tr.crossings[p].values[i]
+            };
+            let indicator = crate::measures::registry::find(x.key).expect("registered");
+            readings.push(
+                indicator
+                    .compute(series)
+                    .map_err(|m| invalid(&self.path, x.key, m))?,
+            );
+        }
+        // The period is looked for in the first indicator's series (the first observable's
+        // without one).
+        let obs = asked
+            .first()
+            .and_then(|x| spec.observable(&x.series.observable))
             .unwrap_or(0);
         let period = crate::measures::chaos::strobe_period(&tr.strobe[obs]);
-        let class = crate::measures::chaos::classify(spectrum.as_ref(), zero_one.as_ref(), period);
+        let class = crate::measures::chaos::classify(spectrum.as_ref(), &readings, period);
         Ok(Some(crate::measures::chaos::Chaos {
             spectrum,
-            zero_one,
+            readings,
             class,
         }))
     }
@@ -177,7 +180,7 @@ impl Loaded {
     pub fn chaos_spec(&self) -> crate::measures::chaos::ChaosSpec {
         crate::measures::chaos::ChaosSpec {
             lyapunov: self.spec.lyapunov.clone(),
-            zero_one: self.spec.zero_one.clone(),
+            indicators: self.spec.asked(),
         }
     }
 

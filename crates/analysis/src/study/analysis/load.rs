@@ -154,18 +154,20 @@ impl Loaded {
                 direction: s.direction,
             });
         }
-        if let Some(z) = &spec.zero_one {
+        for asked in spec.asked() {
+            let (key, z) = (asked.key, &asked.series);
+            let indicator = crate::measures::registry::find(key).expect("registered");
             if !names.contains_key(&z.observable) {
                 return Err(invalid(
                     path,
-                    "zero_one.observable",
+                    format!("{key}.observable"),
                     format!("'{}' is not an observable of this study", z.observable),
                 ));
             }
             if z.section != "strobe" && !planes.iter().any(|p| p.name == z.section) {
                 return Err(invalid(
                     path,
-                    "zero_one.section",
+                    format!("{key}.section"),
                     format!(
                         "'{}' is neither 'strobe' nor a section of this study",
                         z.section
@@ -173,13 +175,14 @@ impl Loaded {
                 ));
             }
             let kept = a.periods - a.transient;
-            if z.section == "strobe" && kept < crate::measures::zero_one::MIN_SAMPLES {
+            let least = indicator.least_samples();
+            if z.section == "strobe" && kept < least {
                 return Err(invalid(
                     path,
-                    "zero_one",
+                    key,
                     format!(
-                        "the strobe section keeps {kept} samples (analysis.periods - analysis.transient), but the 0-1 test needs at least {}",
-                        crate::measures::zero_one::MIN_SAMPLES
+                        "the strobe section keeps {kept} samples (analysis.periods - analysis.transient), but the {} needs at least {least}",
+                        indicator.title()
                     ),
                 ));
             }

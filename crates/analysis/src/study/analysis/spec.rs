@@ -14,7 +14,9 @@ use crate::flow::systems::SystemSpec;
 use crate::measures::sections::Direction;
 use crate::study::spec::invalid;
 
-/// A nonlinear-analysis study file.
+crate::measures::registry::with_indicator_tables! {
+/// A nonlinear-analysis study file. The tables of the chaos indicators (`[zero_one]`, ...) are
+/// fields too, one per indicator of `crate::measures::registry` (`asked` lists those given).
 #[derive(Debug, Clone, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct AnalysisStudy {
@@ -35,12 +37,10 @@ pub struct AnalysisStudy {
     /// Lyapunov exponents of the run or of every sweep value (see [`crate::measures::chaos`]).
     #[serde(default)]
     pub lyapunov: Option<crate::measures::lyapunov::LyapunovSpec>,
-    /// The 0-1 test for chaos on one observable's section samples.
-    #[serde(default)]
-    pub zero_one: Option<crate::measures::chaos::ZeroOneSpec>,
     /// Periodic orbits followed in a parameter (see [`crate::study::continuation`]).
     #[serde(default)]
     pub continuation: Option<crate::study::continuation::spec::ContinuationSpec>,
+}
 }
 
 /// The `[study]` table.

@@ -107,7 +107,6 @@ pub fn execute_until(
     user_stop: &Stop,
 ) -> Result<Outcome> {
     let start = Instant::now();
-    let name = &st.spec.study.name;
     let Some(sw) = &st.spec.sweep else {
         if let Some(sh) = opts.shard {
             return Err(invalid(
@@ -116,199 +115,239 @@ pub fn execute_until(
                 format!("--shard {sh}: shards split a sweep's values; this study has no [sweep]"),
             ));
         }
-        progress(Progress::Start {
-            total: 1,
-            pending: 1,
-        });
-        // A run that fails keeps what it recorded, in a file marked incomplete. The time
-        // histories are appended to the file while the run goes.
-        let mut out = PartialFile::create(dir, name, version)?;
-        let partial = out.partial().to_path_buf();
-        let e = h5err(&partial);
-        let history = if st.spec.analysis.samples_per_period > 0 {
-            if let Err(err) = SingleHistory::create(&out.file, &st.spec.observables) {
-                return Err(out.fail(err));
-            }
-            // On disk whole (h5::create_streamed), then the histories opened there.
-            if let Err(err) = out.materialize() {
-                out.discard();
-                return Err(err);
-            }
-            match SingleHistory::open(
-                &out.file,
-                &st.spec.observables,
-                st.spec.analysis.history_bits(),
-            ) {
-                Ok(h) => Some(h),
-                Err(err) => return Err(out.fail(err)),
-            }
-        } else {
-            None
-        };
-        // A block that cannot be written stops the run and, below, the study: it is the file
-        // that failed, not the run.
-        let mut write_failure = None;
-        let mut append = |from: usize, time: &[f64], values: &[Vec<f64>]| -> Result<()> {
-            match &history {
-                Some(h) => h.append(from, time, values).map_err(|err| {
-                    write_failure = Some(e(err));
-                    Error::Interrupted { time: None }
-                }),
-                None => Ok(()),
-            }
-        };
-        let job_start = Instant::now();
-        let ran = st.run_job_partial(
-            None,
-            None,
-            &mut throttled(0, progress),
-            user_stop,
-            history.is_some().then_some(&mut append as HistorySink),
-        );
-        let (r, failure) = match (ran, write_failure) {
-            (Ok(x), None) => x,
-            (_, Some(err)) | (Err(err), None) => {
-                drop(history);
-                out.discard();
-                return Err(err);
-            }
-        };
-        progress(Progress::Done {
-            job: 0,
-            ok: failure.is_none(),
-        });
-        let written = (|| -> hdf5::Result<()> {
-            let file = &out.file;
-            Root::of(st, &r.integrator, r.start, r.period)
-                .write(file, u8::from(failure.is_none()))?;
-            if st.spec.analysis.samples_per_period > 0 {
-                mark_bits(file, st.spec.analysis.history_bits())?;
-            }
-            if !r.warnings.is_empty() {
-                str_attr(file, "warnings", &r.warnings.join("\n"))?;
-            }
-            if let Some(e) = &failure {
-                str_attr(file, "error", &e.to_string())?;
-                if let Error::Solver(jointplay_solver::Error::Diverged { time, .. })
-                | Error::Interrupted {
-                    time: Some(time), ..
-                } = e
-                {
-                    f64_attr(file, "stopped_at", *time)?;
-                }
-            }
-            write_single(file, st, &r)
-        })();
-        drop(history);
-        if let Err(err) = written {
+        return single_run(st, dir, version, progress, user_stop, start);
+    };
+    let mut sweep = Sweep::set_up(st, sw, dir, opts, progress)?;
+    let stop = AtomicBool::new(sweep.limit == 0);
+    if sw.continuation {
+        sweep.run_in_order(progress, user_stop, &stop)?;
+    } else {
+        sweep.run_in_parallel(progress, user_stop, &stop)?;
+    }
+    sweep.write(version, user_stop, start)
+}
+
+/// A study without a sweep: one run, its histories appended to `<name>.h5.partial` while it
+/// goes, the file finished (or marked incomplete with the error) once it ends.
+fn single_run(
+    st: &Loaded,
+    dir: &Path,
+    version: &str,
+    progress: &(dyn Fn(Progress) + Sync),
+    user_stop: &Stop,
+    start: Instant,
+) -> Result<Outcome> {
+    let name = &st.spec.study.name;
+    progress(Progress::Start {
+        total: 1,
+        pending: 1,
+    });
+    // A run that fails keeps what it recorded, in a file marked incomplete. The time
+    // histories are appended to the file while the run goes.
+    let mut out = PartialFile::create(dir, name, version)?;
+    let partial = out.partial().to_path_buf();
+    let e = h5err(&partial);
+    let history = if st.spec.analysis.samples_per_period > 0 {
+        if let Err(err) = SingleHistory::create(&out.file, &st.spec.observables) {
             return Err(out.fail(err));
         }
-        let file = out.finish()?;
-        let interrupted = matches!(failure, Some(Error::Interrupted { .. }));
-        return Ok(Outcome {
-            file,
-            jobs: 1,
-            ran: 1,
-            complete: !interrupted,
-            interrupted,
-            failed: failure.map(|e| (0, e.to_string())).into_iter().collect(),
-            warnings: r.warnings,
-            wall: start.elapsed().as_secs_f64(),
-            rhs_evals: r.trace.stats.rhs_evals,
-            busy: job_start.elapsed().as_secs_f64(),
-            threads: 1,
-            tables: Vec::new(),
-        });
-    };
-    // The jobs this file holds, by their index in the whole sweep; row r of every dataset is
-    // job rows[r] (the identity without a shard).
-    let rows: Vec<usize> = match opts.shard {
-        Some(sh) => {
-            crate::study::shards::check(st, sh)?;
-            sh.jobs(st.jobs.len())
+        // On disk whole (h5::create_streamed), then the histories opened there.
+        if let Err(err) = out.materialize() {
+            out.discard();
+            return Err(err);
         }
-        None => (0..st.jobs.len()).collect(),
+        match SingleHistory::open(
+            &out.file,
+            &st.spec.observables,
+            st.spec.analysis.history_bits(),
+        ) {
+            Ok(h) => Some(h),
+            Err(err) => return Err(out.fail(err)),
+        }
+    } else {
+        None
     };
-    crate::storage::durable::create_dir(dir)?;
-    let path = match opts.shard {
-        Some(sh) => dir.join(sh.file_name(name)),
-        None => dir.join(format!("{name}.h5")),
+    // A block that cannot be written stops the run and, below, the study: it is the file
+    // that failed, not the run.
+    let mut write_failure = None;
+    let mut append = |from: usize, time: &[f64], values: &[Vec<f64>]| -> Result<()> {
+        match &history {
+            Some(h) => h.append(from, time, values).map_err(|err| {
+                write_failure = Some(e(err));
+                Error::Interrupted { time: None }
+            }),
+            None => Ok(()),
+        }
     };
-    // Taken before anything under the file's name is touched (crate::storage::lock).
-    let _lock = crate::storage::lock::Lock::acquire(&path)?;
-    let n = rows.len();
-    let layout = st.layout(sw)?;
-    let mut warnings = Vec::new();
-    let mut store = storage::open(
-        &path,
-        &st.text,
-        opts.shard,
-        &layout,
-        n,
-        opts.resume,
-        &mut |w| warnings.push(w),
-    )?;
-    let journal = store.journal.path().to_path_buf();
-    let pending = store.values.iter().filter(|v| v.is_none()).count();
-    progress(Progress::Start { total: n, pending });
-    let mut failed: Vec<(usize, String)> = Vec::new();
-    let mut rhs = 0u64;
-    let limit = opts.max_jobs.unwrap_or(usize::MAX);
-    let mut finished = 0usize;
-    let stop = AtomicBool::new(limit == 0);
-    // Nanoseconds the jobs took, summed over the threads.
-    let busy = AtomicU64::new(0);
-    let mut threads = 1;
-    // Keeps the results of jobs in rows `batch`: appended to the journal, forced to disk once for
-    // all of them, and only then counted. An interrupted value is left to run again; values
-    // past `max_jobs` are dropped.
-    let mut keep =
-        |batch: Vec<(usize, Result<JobResult>)>, store: &mut storage::Store| -> Result<()> {
-            let mut counted = Vec::new();
-            for (r, res) in batch {
-                if finished + counted.len() >= limit {
-                    break;
-                }
-                let j = rows[r];
-                let outcome = match res {
-                    Err(Error::Interrupted { .. }) => continue,
-                    Ok(res) => {
-                        rhs += res.trace.stats.rhs_evals;
-                        counted.push((j, true));
-                        Kept::Done(storage::job_row(&layout, &res))
-                    }
-                    Err(err) => {
-                        let msg = err.to_string();
-                        failed.push((j, msg.clone()));
-                        counted.push((j, false));
-                        Kept::Failed(msg)
-                    }
-                };
-                store.add(crate::storage::rows::Value { row: r, outcome })?;
+    let job_start = Instant::now();
+    let ran = st.run_job_partial(
+        None,
+        None,
+        &mut throttled(0, progress),
+        user_stop,
+        history.is_some().then_some(&mut append as HistorySink),
+    );
+    let (r, failure) = match (ran, write_failure) {
+        (Ok(x), None) => x,
+        (_, Some(err)) | (Err(err), None) => {
+            drop(history);
+            out.discard();
+            return Err(err);
+        }
+    };
+    progress(Progress::Done {
+        job: 0,
+        ok: failure.is_none(),
+    });
+    let written = (|| -> hdf5::Result<()> {
+        let file = &out.file;
+        Root::of(st, &r.integrator, r.start, r.period).write(file, u8::from(failure.is_none()))?;
+        if st.spec.analysis.samples_per_period > 0 {
+            mark_bits(file, st.spec.analysis.history_bits())?;
+        }
+        if !r.warnings.is_empty() {
+            str_attr(file, "warnings", &r.warnings.join("\n"))?;
+        }
+        if let Some(e) = &failure {
+            str_attr(file, "error", &e.to_string())?;
+            if let Error::Solver(jointplay_solver::Error::Diverged { time, .. })
+            | Error::Interrupted {
+                time: Some(time), ..
+            } = e
+            {
+                f64_attr(file, "stopped_at", *time)?;
             }
-            store.commit()?;
-            for (job, ok) in counted {
-                progress(Progress::Done { job, ok });
-                finished += 1;
+        }
+        write_single(file, st, &r)
+    })();
+    drop(history);
+    if let Err(err) = written {
+        return Err(out.fail(err));
+    }
+    let file = out.finish()?;
+    let interrupted = matches!(failure, Some(Error::Interrupted { .. }));
+    Ok(Outcome {
+        file,
+        jobs: 1,
+        ran: 1,
+        complete: !interrupted,
+        interrupted,
+        failed: failure.map(|e| (0, e.to_string())).into_iter().collect(),
+        warnings: r.warnings,
+        wall: start.elapsed().as_secs_f64(),
+        rhs_evals: r.trace.stats.rhs_evals,
+        busy: job_start.elapsed().as_secs_f64(),
+        threads: 1,
+        tables: Vec::new(),
+    })
+}
+
+/// A sweep being run: the rows of its file, its lock, its layout and the values kept so far
+/// (from its journal, when resumed), and the tally of this call's jobs.
+struct Sweep<'s> {
+    st: &'s Loaded,
+    opts: Options,
+    /// The job (index in the whole sweep) of each row of the file: the identity without a shard.
+    rows: Vec<usize>,
+    path: PathBuf,
+    /// Held until the file is written (crate::storage::lock).
+    _lock: crate::storage::lock::Lock,
+    layout: SweepLayout,
+    store: storage::Store,
+    journal: PathBuf,
+    warnings: Vec<String>,
+    /// At most this many values finish in this call (`max_jobs`).
+    limit: usize,
+    tally: Tally,
+    /// Nanoseconds the jobs took, summed over the threads.
+    busy: AtomicU64,
+    threads: usize,
+}
+
+/// What this call's jobs did: values finished (done or failed), the failures, the
+/// right-hand-side evaluations of the values done.
+#[derive(Default)]
+struct Tally {
+    finished: usize,
+    failed: Vec<(usize, String)>,
+    rhs: u64,
+}
+
+impl<'s> Sweep<'s> {
+    /// The rows of the file (a shard's or every value), its lock taken before anything under its
+    /// name is touched, and the values kept from an earlier run when resuming.
+    fn set_up(
+        st: &'s Loaded,
+        sw: &SweepSpec,
+        dir: &Path,
+        opts: Options,
+        progress: &(dyn Fn(Progress) + Sync),
+    ) -> Result<Sweep<'s>> {
+        let name = &st.spec.study.name;
+        let rows: Vec<usize> = match opts.shard {
+            Some(sh) => {
+                crate::study::shards::check(st, sh)?;
+                sh.jobs(st.jobs.len())
             }
-            if finished >= limit {
-                stop.store(true, Ordering::SeqCst);
-            }
-            Ok(())
+            None => (0..st.jobs.len()).collect(),
         };
-    if sw.continuation {
-        // In order; each job starts from the previous job's final state (read back from the
-        // values kept when resuming, so a resumed run continues from exactly the same state).
-        // Never sharded: rows are jobs.
+        crate::storage::durable::create_dir(dir)?;
+        let path = match opts.shard {
+            Some(sh) => dir.join(sh.file_name(name)),
+            None => dir.join(format!("{name}.h5")),
+        };
+        let lock = crate::storage::lock::Lock::acquire(&path)?;
+        let n = rows.len();
+        let layout = st.layout(sw)?;
+        let mut warnings = Vec::new();
+        let store = storage::open(
+            &path,
+            &st.text,
+            opts.shard,
+            &layout,
+            n,
+            opts.resume,
+            &mut |w| warnings.push(w),
+        )?;
+        let journal = store.journal.path().to_path_buf();
+        let pending = store.values.iter().filter(|v| v.is_none()).count();
+        progress(Progress::Start { total: n, pending });
+        Ok(Sweep {
+            st,
+            opts,
+            rows,
+            path,
+            _lock: lock,
+            layout,
+            store,
+            journal,
+            warnings,
+            limit: opts.max_jobs.unwrap_or(usize::MAX),
+            tally: Tally::default(),
+            busy: AtomicU64::new(0),
+            threads: 1,
+        })
+    }
+
+    /// A continuation sweep: the values in order, each from the previous value's final state
+    /// (read back from the values kept when resuming, so a resumed run continues from exactly
+    /// the same state). Never sharded: rows are jobs.
+    fn run_in_order(
+        &mut self,
+        progress: &(dyn Fn(Progress) + Sync),
+        user_stop: &Stop,
+        stop: &AtomicBool,
+    ) -> Result<()> {
+        let st = self.st;
         let mut prev: Option<HybridState> = None;
-        for j in 0..n {
+        for j in 0..self.rows.len() {
             if stop.load(Ordering::SeqCst) || user_stop.requested() {
                 break;
             }
-            if let Some(v) = &store.values[j] {
+            if let Some(v) = &self.store.values[j] {
                 prev = match &v.outcome {
                     Kept::Done(row) => Some(storage::row_state(row).map_err(|m| Error::Io {
-                        file: journal.clone(),
+                        file: self.journal.clone(),
                         message: format!("value {j}: {m}"),
                     })?),
                     Kept::Failed(_) => None,
@@ -323,18 +362,42 @@ pub fn execute_until(
                 user_stop,
                 None,
             );
-            busy.fetch_add(job_start.elapsed().as_nanos() as u64, Ordering::Relaxed);
+            self.busy
+                .fetch_add(job_start.elapsed().as_nanos() as u64, Ordering::Relaxed);
             prev = res.as_ref().ok().map(|r| r.trace.final_state.clone());
-            keep(vec![(j, res)], &mut store)?;
+            keep(
+                &mut self.tally,
+                &mut self.store,
+                Keeping {
+                    rows: &self.rows,
+                    layout: &self.layout,
+                    limit: self.limit,
+                    stop,
+                    progress,
+                },
+                vec![(j, res)],
+            )?;
         }
-    } else {
-        // The jobs run on the caller's rayon pool (the global one, or one it installed); a
-        // thread of its own keeps each result as it comes.
-        threads = rayon::current_num_threads();
+        Ok(())
+    }
+
+    /// Independent values on the caller's rayon pool (the global one, or one it installed), the
+    /// costliest first (crate::study::schedule); a thread of its own keeps each result as it
+    /// comes, several at once when they come together.
+    fn run_in_parallel(
+        &mut self,
+        progress: &(dyn Fn(Progress) + Sync),
+        user_stop: &Stop,
+        stop: &AtomicBool,
+    ) -> Result<()> {
+        let st = self.st;
+        let threads = rayon::current_num_threads();
+        self.threads = threads;
         // Bounded, so that finished jobs wait for the writer instead of piling up in memory.
         let (tx, rx) = mpsc::sync_channel::<(usize, Box<Result<JobResult>>)>(2 * threads);
         // The costs of the values kept already seed the estimate.
-        let known: Vec<Option<f64>> = store
+        let known: Vec<Option<f64>> = self
+            .store
             .values
             .iter()
             .map(|v| match v.as_ref().map(|v| &v.outcome) {
@@ -342,15 +405,15 @@ pub fn execute_until(
                 _ => None,
             })
             .collect();
-        let todo: Vec<bool> = store.values.iter().map(|v| v.is_none()).collect();
+        let todo: Vec<bool> = self.store.values.iter().map(|v| v.is_none()).collect();
         let queue = std::sync::Mutex::new(crate::study::schedule::Queue::new(
-            rows.iter().map(|&j| st.jobs[j].0).collect(),
+            self.rows.iter().map(|&j| st.jobs[j].0).collect(),
             &todo,
             &known,
         ));
-        let busy = &busy;
+        let (rows, layout, limit, busy) = (&self.rows, &self.layout, self.limit, &self.busy);
+        let (tally, store) = (&mut self.tally, &mut self.store);
         let write_err = std::thread::scope(|scope| {
-            let (stop, store) = (&stop, &mut store);
             let writer = scope.spawn(move || {
                 let mut write_err = None;
                 while let Ok(first) = rx.recv() {
@@ -362,7 +425,14 @@ pub fn execute_until(
                     if write_err.is_some() || stop.load(Ordering::SeqCst) {
                         continue;
                     }
-                    if let Err(err) = keep(batch, store) {
+                    let how = Keeping {
+                        rows,
+                        layout,
+                        limit,
+                        stop,
+                        progress,
+                    };
+                    if let Err(err) = keep(tally, store, how, batch) {
                         // Stop the other jobs: their results could not be kept.
                         stop.store(true, Ordering::SeqCst);
                         write_err = Some(err);
@@ -370,7 +440,6 @@ pub fn execute_until(
                 }
                 write_err
             });
-            // Each thread takes the value the queue estimates costliest (crate::study::schedule).
             let queue = &queue;
             (0..threads).into_par_iter().for_each_with(tx, |tx, _| {
                 loop {
@@ -403,45 +472,106 @@ pub fn execute_until(
             writer.join()
         });
         match write_err {
-            Ok(None) => {}
-            Ok(Some(err)) => return Err(err),
-            Err(_) => {
-                return Err(Error::Io {
-                    file: journal.clone(),
-                    message: "the thread keeping the sweep's results stopped unexpectedly".into(),
-                });
-            }
+            Ok(None) => Ok(()),
+            Ok(Some(err)) => Err(err),
+            Err(_) => Err(Error::Io {
+                file: self.journal.clone(),
+                message: "the thread keeping the sweep's results stopped unexpectedly".into(),
+            }),
         }
     }
-    // The file, written from the values kept; a complete one ends the journal.
-    let wall = start.elapsed().as_secs_f64();
-    let jobs: Vec<(f64, i8)> = rows.iter().map(|&j| st.jobs[j]).collect();
-    let shard = opts.shard.map(|sh| (sh, rows.as_slice()));
-    let complete = storage::write_file(&path, &layout, version, &jobs, shard, &store.values, wall)?;
-    if complete {
-        drop(store);
-        crate::storage::durable::remove(&journal)?;
+
+    /// The file, written from the values kept; a complete one ends the journal. The sweep's
+    /// table beside it (a shard's rows are part of a sweep: its table comes with the merge).
+    fn write(self, version: &str, user_stop: &Stop, start: Instant) -> Result<Outcome> {
+        let st = self.st;
+        let wall = start.elapsed().as_secs_f64();
+        let jobs: Vec<(f64, i8)> = self.rows.iter().map(|&j| st.jobs[j]).collect();
+        let shard = self.opts.shard.map(|sh| (sh, self.rows.as_slice()));
+        let complete = storage::write_file(
+            &self.path,
+            &self.layout,
+            version,
+            &jobs,
+            shard,
+            &self.store.values,
+            wall,
+        )?;
+        if complete {
+            drop(self.store);
+            crate::storage::durable::remove(&self.journal)?;
+        }
+        let tables = if self.opts.shard.is_none() {
+            crate::storage::table::write_beside(&self.path)?
+        } else {
+            Vec::new()
+        };
+        Ok(Outcome {
+            file: self.path.clone(),
+            jobs: self.rows.len(),
+            ran: self.tally.finished,
+            complete,
+            interrupted: user_stop.requested() && !complete,
+            failed: self.tally.failed,
+            warnings: self.warnings,
+            wall,
+            rhs_evals: self.tally.rhs,
+            busy: self.busy.load(Ordering::Relaxed) as f64 * 1e-9,
+            threads: self.threads,
+            tables,
+        })
     }
-    // A shard's rows are part of a sweep: its table comes with the merge.
-    let tables = if opts.shard.is_none() {
-        crate::storage::table::write_beside(&path)?
-    } else {
-        Vec::new()
-    };
-    Ok(Outcome {
-        file: path.clone(),
-        jobs: n,
-        ran: finished,
-        complete,
-        interrupted: user_stop.requested() && !complete,
-        failed,
-        warnings,
-        wall,
-        rhs_evals: rhs,
-        busy: busy.load(Ordering::Relaxed) as f64 * 1e-9,
-        threads,
-        tables,
-    })
+}
+
+/// What [`keep`] needs of the sweep besides its tally and its store.
+struct Keeping<'k> {
+    rows: &'k [usize],
+    layout: &'k SweepLayout,
+    limit: usize,
+    stop: &'k AtomicBool,
+    progress: &'k (dyn Fn(Progress) + Sync),
+}
+
+/// Keeps the results of the jobs in rows `batch`: appended to the journal, forced to disk once
+/// for all of them, and only then counted. An interrupted value is left to run again; values
+/// past `max_jobs` are dropped.
+fn keep(
+    tally: &mut Tally,
+    store: &mut storage::Store,
+    how: Keeping,
+    batch: Vec<(usize, Result<JobResult>)>,
+) -> Result<()> {
+    let mut counted = Vec::new();
+    for (r, res) in batch {
+        if tally.finished + counted.len() >= how.limit {
+            break;
+        }
+        let j = how.rows[r];
+        let outcome = match res {
+            Err(Error::Interrupted { .. }) => continue,
+            Ok(res) => {
+                tally.rhs += res.trace.stats.rhs_evals;
+                counted.push((j, true));
+                Kept::Done(storage::job_row(how.layout, &res))
+            }
+            Err(err) => {
+                let msg = err.to_string();
+                tally.failed.push((j, msg.clone()));
+                counted.push((j, false));
+                Kept::Failed(msg)
+            }
+        };
+        store.add(crate::storage::rows::Value { row: r, outcome })?;
+    }
+    store.commit()?;
+    for (job, ok) in counted {
+        (how.progress)(Progress::Done { job, ok });
+        tally.finished += 1;
+    }
+    if tally.finished >= how.limit {
+        how.stop.store(true, Ordering::SeqCst);
+    }
+    Ok(())
 }
 
 impl SweepLayout {
@@ -485,7 +615,7 @@ impl SweepLayout {
             },
             chaos: crate::measures::chaos::ChaosSpec {
                 lyapunov: spec.lyapunov.clone(),
-                zero_one: spec.zero_one.clone(),
+                indicators: spec.asked(),
             },
             bits: spec.analysis.history_bits(),
         })
