@@ -1,7 +1,7 @@
 //! Every chaos indicator the program knows ([`crate::measures::indicator::Indicator`]), listed
 //! once: adding one is its own file, its entry here, and its documentation.
 //!
-//! [`with_indicator_tables`] appends a field per indicator to the analysis study's spec (its
+//! `with_indicator_tables` appends a field per indicator to the analysis study's spec (its
 //! table, `[<key>]`, optional), so that the study file is read by the same typed parser that
 //! refuses unknown fields and names them with their line; [`INDICATORS`] lists them for
 //! everything else (checks, computation, storage, summaries, tables, figures).

@@ -19,8 +19,8 @@
 //!   observables are recorded at the crossing. Two crossings inside one step cancel and go
 //!   unseen, so the step must resolve the motion (any useful accuracy setting does).
 //!
-//! The flow only has to be an [`OdeSystem`](jointplay_solver::ode::OdeSystem) that can evaluate observables
-//! ([`Observed`](crate::flow::observe::Observed));
+//! The flow only has to be an [`jointplay_solver::ode::OdeSystem`] that can evaluate observables
+//! ([`Observed`]);
 //! nothing here knows mechanics.
 
 use jointplay_solver::ode::{Flow, Method, SampleTimes, Stats, Step, advance_on};

@@ -1,7 +1,7 @@
-//! The analysis file (layout in book/src/reference/hdf5.md): its root attributes ([`Root`]),
-//! the layout of a sweep file and its creation with every row not done ([`SweepLayout`],
-//! [`create_sweep_file`]), the histories of a single run written while it goes
-//! ([`SingleHistory`]), the section crossings, and what one job stores ([`JobResult`]). A
+//! The analysis file (layout in book/src/reference/hdf5.md): its root attributes (`Root`),
+//! the layout of a sweep file and its creation with every row not done (`SweepLayout`,
+//! `create_sweep_file`), the histories of a single run written while it goes
+//! (`SingleHistory`), the section crossings, and what one job stores ([`JobResult`]). A
 //! sweep's values reach the file through its journal ([`crate::storage::sweep`]); a shard file
 //! records its [`Shard`]. The studies that make these files are [`crate::study::analysis`].
 

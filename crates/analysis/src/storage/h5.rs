@@ -18,8 +18,8 @@
 //! mantissa bytes, deflate finds long repeats in the first planes. The compression is lossless:
 //! only the file's bytes change. (What a scene's `output.significant_bits` or an analysis's
 //! `significant_bits` asks for is rounded before, by [`crate::storage::bitround`], and marked with the
-//! attribute `significant_bits`.) The chunks of a run's recording (streamed by [`RunWriter`] or
-//! written whole by [`write_run`] and [`write_study`]), and those of a single analysis run's
+//! attribute `significant_bits`.) The chunks of a run's recording (streamed by [`RunWriter`](crate::storage::run_file::RunWriter) or
+//! written whole by [`write_run`](crate::storage::run_file::write_run) and [`write_study`](crate::storage::run_file::write_study)), and those of a single analysis run's
 //! histories, are shuffled and deflated by
 //! `crate::storage::chunk`, with libdeflate and on several threads where nothing else runs, and written
 //! as they are; every other dataset goes through HDF5's own filters (zlib). The chunks are in
@@ -31,7 +31,7 @@
 //! the per-chunk index and deflate's start-up cost stay negligible. Datasets of strings are not
 //! compressed (their values live on the file's heap, out of the filters' reach).
 //!
-//! **Streaming.** A run file can be written while the run goes ([`RunWriter`]): its datasets
+//! **Streaming.** A run file can be written while the run goes ([`RunWriter`](crate::storage::run_file::RunWriter)): its datasets
 //! are created empty and extendable, and every [`STREAM_ROWS`] samples are appended as one chunk
 //! each (not flushed until the close: see `create_streamed`), so a run's memory does not grow
 //! with its length; the attributes known only

@@ -545,7 +545,7 @@ pub struct RunResult {
 pub(crate) const INTERRUPTED: &str = "interrupted on request; the samples before it are kept";
 
 impl RunResult {
-    /// True when the run was stopped on request ([`simulate_until`]) rather than by a failure.
+    /// True when the run was stopped on request ([`simulate_until`](crate::study::run::simulate_until)) rather than by a failure.
     pub fn interrupted(&self) -> bool {
         self.stopped
             .as_ref()
@@ -567,7 +567,7 @@ impl RunResult {
     }
 }
 
-/// True for the datasets of a run (its [`Channel::dataset`]) that [`run_figures`] draws: the
+/// True for the datasets of a run (its [`Channel::dataset`]) that [`run_figures`](crate::figures::run_figures) draws: the
 /// bodies' positions, the drives' forces, the diagnostics, and each clearance joint's orbit and
 /// normal forces. A run written to its file while it goes keeps only these in memory.
 pub fn drawn(dataset: &str) -> bool {

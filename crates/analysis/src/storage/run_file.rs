@@ -1,7 +1,7 @@
 //! The run file (layout in book/src/reference/hdf5.md): a run written whole ([`write_run`]), the
 //! runs of a comparison study in one file ([`write_study`]), and a run written while it goes
 //! ([`RunWriter`]: its datasets created empty and extendable, every
-//! [`STREAM_ROWS`](crate::storage::h5::STREAM_ROWS) samples appended as one chunk per column,
+//! [`STREAM_ROWS`] samples appended as one chunk per column,
 //! compressed by `crate::storage::chunk`; the attributes known only at the end written when it
 //! ends). What a run records is [`crate::storage::run`]; the helpers every file kind uses are
 //! [`crate::storage::h5`].

@@ -6,7 +6,7 @@
 //! actuator forces and the diagnostics. A non-finite recorded value stops the run with an error
 //! naming the time and the quantity: nothing non-finite is ever recorded.
 //!
-//! What is recorded is declared once ([`Recording::of`]): one [`Channel`] per dataset of the run
+//! What is recorded is declared once ([`Recording::of`]): one [`Channel`](crate::storage::run::Channel) per dataset of the run
 //! file, whose columns are observables of [`crate::flow::observe`] (`bodies.B.position.x`, `.y`, `.z`
 //! for `/bodies/B/position`), evaluated by the same code a study observes with and written by
 //! one generic writer ([`crate::storage::run_file::write_run`]).

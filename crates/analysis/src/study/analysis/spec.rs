@@ -1,5 +1,5 @@
 //! An analysis study file as data: its tables, deserialised with unknown fields refused, and
-//! the values of its sweep ([`sweep_jobs`]). Checks that need the scene are in
+//! the values of its sweep (`sweep_jobs`). Checks that need the scene are in
 //! [`crate::study::analysis::load`].
 
 use serde::Deserialize;

@@ -86,10 +86,10 @@ pub struct Continuation {
     pub specials: Vec<Special>,
     /// Seconds of wall time.
     pub wall: f64,
-    /// Units of the observables (set by [`run_study`]).
+    /// Units of the observables (set by [`run_study`](crate::study::continuation::run::run_study)).
     pub units: Vec<String>,
     /// Set when the continuation stopped before its end (a progress report returned `false`):
-    /// what [`resume`] needs to go on. The last branch is then the one being followed.
+    /// what [`resume`](crate::study::continuation::follow::resume) needs to go on. The last branch is then the one being followed.
     pub unfinished: Option<Unfinished>,
 }
 

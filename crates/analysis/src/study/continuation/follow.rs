@@ -433,7 +433,7 @@ pub fn continuation(
     follow(&ctx, Continuation::default(), None, queue, 0, progress)
 }
 
-/// Goes on with a continuation that stopped before its end (read back with [`read_unfinished`]):
+/// Goes on with a continuation that stopped before its end (read back with [`read_unfinished`](crate::study::continuation::file::read_unfinished)):
 /// the branch being followed from its last point with the step it had, then the branches still
 /// waiting. With the same settings the points are those an uninterrupted run computes.
 pub fn resume(

@@ -11,7 +11,7 @@
 //! * [`follow`]: the algorithm (predictor, corrector, step control, test functions, location,
 //!   branch switching) over any flow ([`continuation`], [`resume`]);
 //! * [`start`]: a start state read from an earlier file and checked;
-//! * [`file`]: the continuation in HDF5: the state kept after every point
+//! * [`file`](mod@file): the continuation in HDF5: the state kept after every point
 //!   (`<study>.continuation.h5`) and the group of the analysis file;
 //! * [`run`]: a continuation study end to end ([`run_study`], [`run_into`]), fresh or resumed.
 

@@ -15,9 +15,9 @@ use crate::study::continuation::spec::*;
 /// Where a continuation begins.
 pub enum Begin {
     /// From the study's start after `transient` periods at `from`, or from the `start` state
-    /// read before with [`start_of`] (then `transient` periods from it, default none).
+    /// read before with [`Loaded::continuation_start`](crate::study::analysis::load::Loaded::continuation_start) (then `transient` periods from it, default none).
     Fresh(Option<HybridState>),
-    /// Going on with an unfinished continuation read back with [`read_unfinished`].
+    /// Going on with an unfinished continuation read back with [`read_unfinished`](crate::study::continuation::file::read_unfinished).
     Resume(Continuation),
 }
 

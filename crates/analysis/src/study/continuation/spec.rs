@@ -214,7 +214,7 @@ impl ContinuationSpec {
     pub fn max_step(&self) -> f64 {
         self.max_step.unwrap_or(self.step * 10.0)
     }
-    /// The settings of [`continuation`], with the grazing observable's index.
+    /// The settings of [`continuation`](crate::study::continuation::follow::continuation), with the grazing observable's index.
     pub fn settings(&self, grazing: Option<usize>) -> Settings {
         Settings {
             from: self.from,
