@@ -2,8 +2,9 @@
 //! element: its geometry, its normal and friction laws ([`super::laws`]), and the constraint rows
 //! that stay in the joint for what the contact leaves unconstrained.
 
-use super::joints::{JointFrame, Rows};
-use super::{Ctx, laws, positive};
+use super::ctx::{Ctx, positive};
+use super::laws;
+use super::rows::{JointFrame, Rows};
 use crate::clearance::{Clearance, Geometry};
 use crate::error::Result;
 use crate::scene::{ClearanceSpec, JointKind, JointSpec, RevoluteModel};
