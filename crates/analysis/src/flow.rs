@@ -123,7 +123,7 @@ impl OdeSystem for MechFlow<'_> {
     fn event_components(&self, i: usize, parts: &mut Vec<std::ops::Range<usize>>) {
         self.mech.event_components(i, parts)
     }
-    fn apply_event(&mut self, i: usize, t: f64, y: &mut [f64]) -> std::result::Result<(), String> {
+    fn apply_event(&mut self, i: usize, t: f64, y: &mut [f64]) -> jointplay_solver::Result<()> {
         self.mech.apply_event(i, t, y)
     }
     fn event_restarts_step(&self, i: usize) -> bool {
@@ -198,7 +198,7 @@ impl OdeSystem for SysFlow<'_> {
     fn event_values(&mut self, t: f64, y: &[f64], g: &mut [f64]) {
         self.sys.event_values(t, y, g)
     }
-    fn apply_event(&mut self, i: usize, t: f64, y: &mut [f64]) -> Result<(), String> {
+    fn apply_event(&mut self, i: usize, t: f64, y: &mut [f64]) -> jointplay_solver::Result<()> {
         self.sys.apply_event(i, t, y)
     }
 }
@@ -412,7 +412,7 @@ impl OdeSystem for AnyFlow<'_> {
     fn event_components(&self, i: usize, parts: &mut Vec<std::ops::Range<usize>>) {
         either!(self, f => f.event_components(i, parts))
     }
-    fn apply_event(&mut self, i: usize, t: f64, y: &mut [f64]) -> std::result::Result<(), String> {
+    fn apply_event(&mut self, i: usize, t: f64, y: &mut [f64]) -> jointplay_solver::Result<()> {
         either!(self, f => f.apply_event(i, t, y))
     }
     fn event_restarts_step(&self, i: usize) -> bool {

@@ -331,7 +331,7 @@ impl<F: Tangent> OdeSystem for Extended<'_, F> {
     /// `S = DR + (f+ - DR f-) n^T / (n^T f-)` (Mueller 1995), n the gradient of the event
     /// function and f-, f+ the vector field before and after the reset; the second trajectory's
     /// own events reset it alone.
-    fn apply_event(&mut self, i: usize, t: f64, y: &mut [f64]) -> std::result::Result<(), String> {
+    fn apply_event(&mut self, i: usize, t: f64, y: &mut [f64]) -> jointplay_solver::Result<()> {
         let (n, ne) = (self.n, self.flow.events());
         if i >= ne {
             let r2 = self.second_range();

@@ -477,16 +477,19 @@ impl OdeSystem for Builtin {
         }
     }
 
-    fn apply_event(&mut self, _i: usize, t: f64, y: &mut [f64]) -> Result<(), String> {
+    fn apply_event(&mut self, _i: usize, t: f64, y: &mut [f64]) -> jointplay_solver::Result<()> {
         if let Builtin::Impact {
             stop, restitution, ..
         } = *self
         {
             if y[1] < CHATTER_VELOCITY {
-                return Err(format!(
-                    "impact at t = {t} with approach velocity {:e} (below {CHATTER_VELOCITY:e}): the mass chatters toward rest on the stop, which the Newton impact law does not model",
-                    y[1]
-                ));
+                return Err(jointplay_solver::Error::Diverged {
+                    time: t,
+                    message: format!(
+                        "impact at t = {t} with approach velocity {:e} (below {CHATTER_VELOCITY:e}): the mass chatters toward rest on the stop, which the Newton impact law does not model",
+                        y[1]
+                    ),
+                });
             }
             // On the stop exactly (the located crossing is within round-off of it).
             y[0] = stop;

@@ -53,7 +53,7 @@ impl Model {
         let cx = Ctx::new(&scene.path);
         // Disabled effects are removed from the scene before anything is compiled.
         let (spec, disabled) = crate::disable::apply(&scene.spec)
-            .map_err(|(field, message)| cx.err(field, message))?;
+            .map_err(|(field, error)| cx.err(field, error.to_string()))?;
         let spec = &spec;
         check_finite(&scene.text, &scene.path, &cx)?;
         let bodies = bodies::compile(spec, &cx)?;

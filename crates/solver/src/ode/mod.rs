@@ -194,14 +194,10 @@ pub trait OdeSystem {
         parts.push(0..self.dim());
     }
 
-    /// Applies event `i` at `(t, y)`: resets `y` in place. An error (a sentence) stops the run at
-    /// `t` (for example an impact too slow to resolve: chattering).
-    fn apply_event(
-        &mut self,
-        _i: usize,
-        _t: f64,
-        _y: &mut [f64],
-    ) -> std::result::Result<(), String> {
+    /// Applies event `i` at `(t, y)`: resets `y` in place. An error stops the run with it (for
+    /// example [`Error::Diverged`](crate::Error::Diverged) at `t` for an impact too slow to
+    /// resolve: chattering).
+    fn apply_event(&mut self, _i: usize, _t: f64, _y: &mut [f64]) -> Result<()> {
         Ok(())
     }
 

@@ -519,8 +519,8 @@ fn step_loop<S: OdeSystem>(
             t = t_new;
             if let Some(i) = event {
                 // The reset, then a fresh first stage from the reset state.
-                if let Err(message) = sys.apply_event(i, t, y) {
-                    break 'run Err(Error::Diverged { time: t, message });
+                if let Err(e) = sys.apply_event(i, t, y) {
+                    break 'run Err(e);
                 }
                 sys.rhs(t, y, &mut w.k[0]);
                 stats.rhs_evals += 1;
