@@ -287,7 +287,9 @@ pub enum RevoluteModel {
     Planar,
 }
 
-/// Clearance block of a joint (lengths in m).
+/// Clearance block of a joint (lengths in m). One struct for every geometry, because the file
+/// does not name the geometry (the joint kind and `model` imply it); the scene compiler sorts it
+/// into a per-geometry enum and refuses the fields of another geometry (`compile/clearance.rs`).
 #[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct ClearanceSpec {
