@@ -42,7 +42,7 @@
 use std::f64::consts::PI;
 
 use jointplay_solver::ode::dopri5::DOPRI5;
-use jointplay_solver::ode::{Method, OdeSystem};
+use jointplay_solver::ode::{Events, Method, OdeSystem};
 use jointplay_solver::scene::IntegratorKind;
 use serde::Deserialize;
 use toml::Table;
@@ -467,17 +467,27 @@ impl OdeSystem for Builtin {
         }
     }
 
-    fn events(&self) -> usize {
+    fn events(&mut self) -> Option<&mut dyn Events> {
+        if matches!(self, Builtin::Impact { .. }) {
+            Some(self)
+        } else {
+            None
+        }
+    }
+}
+
+impl Events for Builtin {
+    fn count(&mut self) -> usize {
         usize::from(matches!(self, Builtin::Impact { .. }))
     }
 
-    fn event_values(&mut self, _t: f64, y: &[f64], g: &mut [f64]) {
+    fn values(&mut self, _t: f64, y: &[f64], g: &mut [f64]) {
         if let Builtin::Impact { stop, .. } = *self {
             g[0] = stop - y[0];
         }
     }
 
-    fn apply_event(&mut self, _i: usize, t: f64, y: &mut [f64]) -> jointplay_solver::Result<()> {
+    fn apply(&mut self, _i: usize, t: f64, y: &mut [f64]) -> jointplay_solver::Result<()> {
         if let Builtin::Impact {
             stop, restitution, ..
         } = *self

@@ -33,7 +33,7 @@
 use jointplay_solver::dynamics::Mechanism;
 use jointplay_solver::error::{Error, Result};
 use jointplay_solver::model::Model;
-use jointplay_solver::ode::{self, Flow, Method, OdeSystem};
+use jointplay_solver::ode::{self, Events, Flow, Method, OdeSystem, Stiffness};
 use jointplay_solver::scene::SceneSpec;
 use jointplay_solver::workspace::Workspace;
 use std::path::Path;
@@ -147,37 +147,33 @@ impl OdeSystem for Census<'_> {
     fn explain_non_finite(&mut self, t: f64, y: &[f64], component: usize) -> String {
         self.mech.explain_non_finite(t, y, component)
     }
-    fn stiff_directions(
+    fn events(&mut self) -> Option<&mut dyn Events> {
+        self.mech.events()
+    }
+    fn stiffness(&mut self) -> Option<&mut dyn Stiffness> {
+        Some(self)
+    }
+}
+
+/// The mechanism's stiff directions, with the contact Jacobian counted as an evaluation.
+impl Stiffness for Census<'_> {
+    fn directions(
         &mut self,
         t: f64,
         y: &[f64],
         h: f64,
         dirs: &mut Vec<f64>,
         pattern: &mut Vec<u32>,
-    ) -> bool {
-        self.mech.stiff_directions(t, y, h, dirs, pattern)
+    ) {
+        if let Some(s) = self.mech.stiffness() {
+            s.directions(t, y, h, dirs, pattern)
+        }
     }
-    fn stiff_jacobian(&mut self, t: f64, y: &[f64], basis: &[f64], image: &mut [f64]) -> bool {
+    fn jacobian(&mut self, t: f64, y: &[f64], basis: &[f64], image: &mut [f64]) -> bool {
         self.evaluations += 1;
-        self.mech.stiff_jacobian(t, y, basis, image)
-    }
-    fn events(&self) -> usize {
-        self.mech.events()
-    }
-    fn event_values(&mut self, t: f64, y: &[f64], g: &mut [f64]) {
-        self.mech.event_values(t, y, g)
-    }
-    fn event_values_at_rhs(&mut self, t: f64, y: &[f64], g: &mut [f64]) {
-        self.mech.event_values_at_rhs(t, y, g)
-    }
-    fn event_value(&mut self, i: usize, t: f64, y: &[f64], g: &mut [f64]) -> f64 {
-        self.mech.event_value(i, t, y, g)
-    }
-    fn event_components(&self, i: usize, parts: &mut Vec<std::ops::Range<usize>>) {
-        self.mech.event_components(i, parts)
-    }
-    fn event_restarts_step(&self, i: usize) -> bool {
-        self.mech.event_restarts_step(i)
+        self.mech
+            .stiffness()
+            .is_some_and(|s| s.jacobian(t, y, basis, image))
     }
 }
 

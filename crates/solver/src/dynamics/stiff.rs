@@ -11,7 +11,7 @@ use crate::workspace::{Workspace, minv_block};
 impl Model {
     /// The directions along which the contacts make the right-hand side stiff at `y`, for a step
     /// of about `h` (s) (see
-    /// [`OdeSystem::stiff_directions`](crate::ode::OdeSystem::stiff_directions)). A contact
+    /// [`Stiffness::directions`](crate::ode::Stiffness::directions)). A contact
     /// counts when it penetrates at `y` or would within `h` at its current rate
     /// (`delta + h delta_dot > 0`).
     /// Its force depends stiffly on its penetration `delta(q)` (the normal law's stiffness), on

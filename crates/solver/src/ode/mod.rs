@@ -1,6 +1,9 @@
 //! Time integration of first-order ODE systems `y' = f(t, y)`; knows no mechanics.
 //!
-//! * [`OdeSystem`]: the only thing an integrator needs: a dimension and a right-hand side.
+//! * [`OdeSystem`]: the only thing an integrator needs: a dimension and a right-hand side, with
+//!   optional bookkeeping after each step (memories, guards); event functions ([`Events`]) and
+//!   stiff structure ([`Stiffness`]) are optional capabilities the system returns when it has
+//!   them ([`OdeSystem::events`], [`OdeSystem::stiffness`]).
 //! * [`Integrator`]: one integration scheme (stepper, error estimate, dense output) and how
 //!   scenes, studies and the step loop use it. Each lives in its own submodule, whose docs give
 //!   the scheme and its source, and is listed once in [`INTEGRATORS`], the registry.
@@ -117,35 +120,6 @@ pub trait OdeSystem {
         format!("state component {component} became non-finite")
     }
 
-    /// Directions of the state space along which the right-hand side may be stiff near
-    /// `(t, y)`, for a step of about `h` (s): the linearly implicit W-method
-    /// ([`ros34pw2`]) differences f along them only and treats the rest of the Jacobian as zero.
-    /// Writes the directions (each of length [`OdeSystem::dim`], any scale, not necessarily
-    /// orthogonal) one after the other into `dirs` and a list identifying where they come from
-    /// into `pattern` (the method differences again when the pattern changes), and returns true.
-    /// Returns false (the default) when the system knows no such structure: the method then
-    /// differences the whole Jacobian.
-    fn stiff_directions(
-        &mut self,
-        _t: f64,
-        _y: &[f64],
-        _h: f64,
-        _dirs: &mut Vec<f64>,
-        _pattern: &mut Vec<u32>,
-    ) -> bool {
-        false
-    }
-
-    /// The Jacobian df/dy at `(t, y)` along the `r` unit directions `basis` (each of length
-    /// [`OdeSystem::dim`], one after the other), into `image` (the same layout), for the
-    /// directions [`OdeSystem::stiff_directions`] gave: `J q` or an approximation of it that
-    /// keeps its stiff part, as the W-method allows. Counts as one right-hand-side evaluation.
-    /// Returns false (the default) when the system has no such product: the method then
-    /// differences f along each direction (r evaluations).
-    fn stiff_jacobian(&mut self, _t: f64, _y: &[f64], _basis: &[f64], _image: &mut [f64]) -> bool {
-        false
-    }
-
     /// Takes the system's discrete memory (contact-onset history, guard flags) from `state`
     /// before [`advance`] integrates; an error when it does not fit the system. A state without
     /// memory (empty vectors) starts the memory afresh. The default keeps none.
@@ -156,48 +130,67 @@ pub trait OdeSystem {
     /// Writes the system's discrete memory into `state` after [`advance`] has integrated.
     fn save_memory(&self, _state: &mut HybridState) {}
 
-    /// Number of event functions: state resets such as an impact (a Newton impact law
-    /// `v -> -e v` at a rigid stop). 0 by default: a smooth or compliant system.
-    fn events(&self) -> usize {
-        0
+    /// The system's event functions (state resets such as an impact, or points where a step
+    /// must end, such as a contact onset); None (the default) for a system without them.
+    fn events(&mut self) -> Option<&mut dyn Events> {
+        None
     }
+
+    /// Where the right-hand side is stiff, for the linearly implicit W-method ([`ros34pw2`]);
+    /// None (the default) when the system knows no such structure: the method then differences
+    /// the whole Jacobian.
+    fn stiffness(&mut self) -> Option<&mut dyn Stiffness> {
+        None
+    }
+}
+
+/// The number of event functions of `sys` (0 without [`OdeSystem::events`]).
+pub fn event_count<S: OdeSystem + ?Sized>(sys: &mut S) -> usize {
+    sys.events().map_or(0, |e| e.count())
+}
+
+/// Event functions of an [`OdeSystem`]: state resets such as an impact (a Newton impact law
+/// `v -> -e v` at a rigid stop), or points where a step must end (a contact onset). The state `y`
+/// they read is the system's whole state.
+pub trait Events {
+    /// Number of event functions.
+    fn count(&mut self) -> usize;
 
     /// Values of the event functions at `(t, y)` into `g`: event `i` fires where `g_i` crosses
     /// from positive to zero or below inside a step. The integrator locates the crossing on its
-    /// dense output (bisection to round-off), ends the step there, calls
-    /// [`OdeSystem::apply_event`] and restarts from the reset state (a fresh first stage).
-    fn event_values(&mut self, _t: f64, _y: &[f64], _g: &mut [f64]) {}
+    /// dense output (bisection to round-off), ends the step there, calls [`Events::apply`] and
+    /// restarts from the reset state (a fresh first stage).
+    fn values(&mut self, t: f64, y: &[f64], g: &mut [f64]);
 
-    /// [`OdeSystem::event_values`] at the state `y` of the last [`OdeSystem::rhs`]: the
-    /// integrator calls it at the end of every accepted step, whose last right-hand side is
-    /// `f(t + h, y_new)` (every `Stepper::step` ends with it; `t` is the step's end time,
-    /// which `t + h` may miss by a rounding). A system that keeps what its right-hand side
-    /// computed may read the values from that instead of evaluating them afresh; they must be
-    /// those of `event_values`, bit for bit. The default evaluates them.
-    fn event_values_at_rhs(&mut self, t: f64, y: &[f64], g: &mut [f64]) {
-        self.event_values(t, y, g)
+    /// [`Events::values`] at the state `y` of the last [`OdeSystem::rhs`]: the integrator calls
+    /// it at the end of every accepted step, whose last right-hand side is `f(t + h, y_new)`
+    /// (every `Stepper::step` ends with it; `t` is the step's end time, which `t + h` may miss
+    /// by a rounding). A system that keeps what its right-hand side computed may read the values
+    /// from that instead of evaluating them afresh; they must be those of `values`, bit for bit.
+    /// The default evaluates them.
+    fn values_at_rhs(&mut self, t: f64, y: &[f64], g: &mut [f64]) {
+        self.values(t, y, g)
     }
 
-    /// Event function `i` alone at `(t, y)`, as [`OdeSystem::event_values`] gives it (bit for
-    /// bit): the bisection that locates a crossing needs no other. `g` (of length
-    /// [`OdeSystem::events`]) is scratch. The default evaluates them all.
-    fn event_value(&mut self, i: usize, t: f64, y: &[f64], g: &mut [f64]) -> f64 {
-        self.event_values(t, y, g);
+    /// Event function `i` alone at `(t, y)`, as [`Events::values`] gives it (bit for bit): the
+    /// bisection that locates a crossing needs no other. `g` (of length [`Events::count`]) is
+    /// scratch. The default evaluates them all.
+    fn value(&mut self, i: usize, t: f64, y: &[f64], g: &mut [f64]) -> f64 {
+        self.values(t, y, g);
         g[i]
     }
 
     /// The components of the state that event function `i` reads, into `parts` (replacing what
-    /// it held): the bisection interpolates only these, and [`OdeSystem::event_value`] must
-    /// give the same value whatever the others hold. The default is the whole state.
-    fn event_components(&self, _i: usize, parts: &mut Vec<Range<usize>>) {
+    /// it held): the bisection interpolates only these, and [`Events::value`] must give the same
+    /// value whatever the others hold. Left empty (the default), the whole state.
+    fn components(&mut self, _i: usize, parts: &mut Vec<Range<usize>>) {
         parts.clear();
-        parts.push(0..self.dim());
     }
 
     /// Applies event `i` at `(t, y)`: resets `y` in place. An error stops the run with it (for
     /// example [`Error::Diverged`](crate::Error::Diverged) at `t` for an impact too slow to
-    /// resolve: chattering).
-    fn apply_event(&mut self, _i: usize, _t: f64, _y: &mut [f64]) -> Result<()> {
+    /// resolve: chattering). The default changes nothing.
+    fn apply(&mut self, _i: usize, _t: f64, _y: &mut [f64]) -> Result<()> {
         Ok(())
     }
 
@@ -206,7 +199,36 @@ pub trait OdeSystem {
     /// controller's proposal alone: for an event where the dynamics change character, such as
     /// a contact onset, the step the controller grew before it is too long after it. False by
     /// default.
-    fn event_restarts_step(&self, _i: usize) -> bool {
+    fn restarts_step(&mut self, _i: usize) -> bool {
+        false
+    }
+}
+
+/// Where the right-hand side of an [`OdeSystem`] is stiff, for the linearly implicit W-method
+/// ([`ros34pw2`]).
+pub trait Stiffness {
+    /// Directions of the state space along which the right-hand side may be stiff near
+    /// `(t, y)`, for a step of about `h` (s): the method differences f along them only and
+    /// treats the rest of the Jacobian as zero. Writes the directions (each of length
+    /// [`OdeSystem::dim`], any scale, not necessarily orthogonal) one after the other into
+    /// `dirs` and a list identifying where they come from into `pattern` (the method
+    /// differences again when the pattern changes).
+    fn directions(
+        &mut self,
+        t: f64,
+        y: &[f64],
+        h: f64,
+        dirs: &mut Vec<f64>,
+        pattern: &mut Vec<u32>,
+    );
+
+    /// The Jacobian df/dy at `(t, y)` along the `r` unit directions `basis` (each of length
+    /// [`OdeSystem::dim`], one after the other), into `image` (the same layout), for the
+    /// directions [`Stiffness::directions`] gave: `J q` or an approximation of it that keeps its
+    /// stiff part, as the W-method allows. Counts as one right-hand-side evaluation. Returns
+    /// false (the default) when the system has no such product: the method then differences f
+    /// along each direction (r evaluations).
+    fn jacobian(&mut self, _t: f64, _y: &[f64], _basis: &[f64], _image: &mut [f64]) -> bool {
         false
     }
 }

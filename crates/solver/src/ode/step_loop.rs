@@ -213,8 +213,8 @@ impl SampleTimes for &[f64] {
 /// The first event of the step from `(t, y)` over `h` whose function crosses from positive to
 /// zero or below (`g0` at the start, `g1` at the end), located by bisection to round-off on the
 /// step's dense output (`w` holds it), each crossing function read alone
-/// ([`OdeSystem::event_value`]) from the components it reads, interpolated alone
-/// ([`OdeSystem::event_components`], `parts` their scratch; `ys` is left with the others stale):
+/// ([`Events::value`]) from the components it reads, interpolated alone
+/// ([`Events::components`], `parts` their scratch; `ys` is left with the others stale):
 /// the event and the fraction of the step at the first point found at or past the crossing.
 #[allow(clippy::too_many_arguments)]
 fn first_crossing<S: OdeSystem>(
@@ -227,11 +227,16 @@ fn first_crossing<S: OdeSystem>(
     (gi, parts): (&mut [f64], &mut Vec<Range<usize>>),
 ) -> Option<(usize, f64)> {
     let mut first: Option<(usize, f64)> = None;
+    let n = sys.dim();
+    let events = sys.events()?;
     for i in 0..g0.len() {
         if !(g0[i] > 0.0 && g1[i] <= 0.0) {
             continue;
         }
-        sys.event_components(i, parts);
+        events.components(i, parts);
+        if parts.is_empty() {
+            parts.push(0..n);
+        }
         let (mut lo, mut hi) = (0.0, 1.0);
         for _ in 0..60 {
             let mid = 0.5 * (lo + hi);
@@ -241,7 +246,7 @@ fn first_crossing<S: OdeSystem>(
                 break;
             }
             stepper.eval_parts(y, w, h, mid, ys, parts);
-            if sys.event_value(i, t + mid * h, ys, gi) > 0.0 {
+            if events.value(i, t + mid * h, ys, gi) > 0.0 {
                 lo = mid
             } else {
                 hi = mid
@@ -252,6 +257,11 @@ fn first_crossing<S: OdeSystem>(
         }
     }
     first
+}
+
+/// Whether event `i` of `sys` restarts the step ([`Events::restarts_step`]).
+fn restarts_step<S: OdeSystem>(sys: &mut S, i: usize) -> bool {
+    sys.events().is_some_and(|e| e.restarts_step(i))
 }
 
 /// The step loop. `(t, y, memory)` is the state it starts from and leaves at the last accepted
@@ -336,13 +346,13 @@ fn step_loop<S: OdeSystem>(
     let mut k_step: u64 = memory.grid_steps;
     let mut t = t0;
     // Event functions at the start of the current step and at its end.
-    let n_events = sys.events();
+    let n_events = event_count(sys);
     let (mut g0, mut g1) = (vec![0.0; n_events], vec![0.0; n_events]);
     let mut gi = vec![0.0; n_events];
     let mut parts = Vec::new();
     let mut y_event = vec![0.0; if n_events > 0 { n } else { 0 }];
-    if n_events > 0 {
-        sys.event_values(t0, y, &mut g0);
+    if let Some(events) = sys.events().filter(|_| n_events > 0) {
+        events.values(t0, y, &mut g0);
     }
     let res = 'run: {
         while t < t_end {
@@ -407,9 +417,9 @@ fn step_loop<S: OdeSystem>(
             // An event inside the step ends it at the event (located on the dense output).
             let mut event = None;
             let mut dense_ready = false;
-            if n_events > 0 {
+            if let Some(events) = sys.events().filter(|_| n_events > 0) {
                 // The step's last right-hand side was f(t_new, y_new).
-                sys.event_values_at_rhs(t_new, &w.y_new, &mut g1);
+                events.values_at_rhs(t_new, &w.y_new, &mut g1);
                 if g0.iter().zip(&g1).any(|(a, b)| *a > 0.0 && *b <= 0.0) {
                     stepper.dense(sys, t, y, h_try, &mut w, stats);
                     dense_ready = true;
@@ -425,7 +435,7 @@ fn step_loop<S: OdeSystem>(
                     if let Some((i, theta)) = first
                         && theta < 1.0
                     {
-                        if !sys.event_restarts_step(i) {
+                        if !restarts_step(sys, i) {
                             stepper.eval(y, &w, h_try, theta, &mut y_event);
                             t_new = t + theta * h_try;
                             on_grid = false;
@@ -519,19 +529,21 @@ fn step_loop<S: OdeSystem>(
             t = t_new;
             if let Some(i) = event {
                 // The reset, then a fresh first stage from the reset state.
-                if let Err(e) = sys.apply_event(i, t, y) {
+                if let Some(Err(e)) = sys.events().map(|e| e.apply(i, t, y)) {
                     break 'run Err(e);
                 }
                 sys.rhs(t, y, &mut w.k[0]);
                 stats.rhs_evals += 1;
-                if adaptive && sys.event_restarts_step(i) {
+                if adaptive && restarts_step(sys, i) {
                     let q = method.control_order();
                     let fresh = initial_step(sys, t, y, &w.k[0], (rtol, atol, max_step), q, stats);
                     h = h.min(fresh);
                     last_rejected = false;
                 }
                 stats.events += 1;
-                sys.event_values(t, y, &mut g0);
+                if let Some(events) = sys.events() {
+                    events.values(t, y, &mut g0);
+                }
                 continue;
             }
             if n_events > 0 {

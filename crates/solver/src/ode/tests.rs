@@ -37,13 +37,18 @@ impl OdeSystem for LastRhs {
         self.last = (t, y.to_vec());
         Harmonic.rhs(t, y, d)
     }
-    fn events(&self) -> usize {
+    fn events(&mut self) -> Option<&mut dyn Events> {
+        Some(self)
+    }
+}
+impl Events for LastRhs {
+    fn count(&mut self) -> usize {
         1
     }
-    fn event_values(&mut self, _t: f64, y: &[f64], g: &mut [f64]) {
+    fn values(&mut self, _t: f64, y: &[f64], g: &mut [f64]) {
         g[0] = 10.0 + y[0];
     }
-    fn event_values_at_rhs(&mut self, t: f64, y: &[f64], g: &mut [f64]) {
+    fn values_at_rhs(&mut self, t: f64, y: &[f64], g: &mut [f64]) {
         // The state bit for bit; the time is the step's end, which t + h may miss by a
         // rounding.
         assert!(
@@ -51,7 +56,7 @@ impl OdeSystem for LastRhs {
             "the step's last right-hand side was not at its end"
         );
         self.checked += 1;
-        self.event_values(t, y, g)
+        self.values(t, y, g)
     }
 }
 
@@ -113,7 +118,7 @@ fn dense_output_in_parts_is_the_whole_dense_outputs() {
 }
 
 /// The integrator reads the event functions at a step's end from the system's last
-/// right-hand side ([`OdeSystem::event_values_at_rhs`]): every stepper, adaptive or at a fixed
+/// right-hand side ([`Events::values_at_rhs`]): every stepper, adaptive or at a fixed
 /// step, must end its step with f(t + h, y_new).
 #[test]
 fn every_step_ends_with_the_right_hand_side_at_its_end() {

@@ -77,7 +77,7 @@ fn rosenbrock23_error_estimate_is_of_order_three() {
     }
 }
 
-/// A system whose `stiff_directions` offers the given directions (none: A = 0), so that
+/// A system whose `Stiffness::directions` offers the given directions (none: A = 0), so that
 /// ROS34PW2 runs with a matrix other than the Jacobian.
 struct Directions<S>(S, Vec<f64>);
 impl<S: OdeSystem> OdeSystem for Directions<S> {
@@ -87,17 +87,21 @@ impl<S: OdeSystem> OdeSystem for Directions<S> {
     fn rhs(&mut self, t: f64, y: &[f64], d: &mut [f64]) {
         self.0.rhs(t, y, d)
     }
-    fn stiff_directions(
+    fn stiffness(&mut self) -> Option<&mut dyn Stiffness> {
+        Some(self)
+    }
+}
+impl<S: OdeSystem> Stiffness for Directions<S> {
+    fn directions(
         &mut self,
         _t: f64,
         _y: &[f64],
         _h: f64,
         dirs: &mut Vec<f64>,
         pattern: &mut Vec<u32>,
-    ) -> bool {
+    ) {
         dirs.clone_from(&self.1);
         pattern.clear();
-        true
     }
 }
 
