@@ -6,7 +6,7 @@ solve_ivp events) and restarts it, so that no step straddles the onset and the o
 exact. jointplay instead steps across: during the step in which the penetration becomes positive the
 damped law uses the current penetration rate as the onset velocity, and once the step is accepted the
 onset velocity is located on the cubic Hermite interpolant of the penetration and the first stage of
-the next step is re-evaluated (crates/solver/src/dynamics.rs, update_onsets; ode.rs). This script
+the next step is re-evaluated (crates/solver/src/dynamics/onset.rs, update_onsets; ode/step_loop.rs). This script
 integrates the same SciPy model with the same RK45 (Dormand-Prince 5(4)) both ways, driving
 scipy.integrate.RK45 step by step for the second, and prints error and right-hand-side evaluations.
 

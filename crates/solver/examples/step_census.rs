@@ -31,8 +31,9 @@
 //! `solver.friction_events`; `--until` ends the run at T s (default: the scene's span).
 
 use jointplay_solver::dynamics::Mechanism;
+use jointplay_solver::error::{Error, Result};
 use jointplay_solver::model::Model;
-use jointplay_solver::ode::{self, Flow, Method, OdeSystem};
+use jointplay_solver::ode::{self, Events, Flow, Method, OdeSystem, Stiffness};
 use jointplay_solver::scene::SceneSpec;
 use jointplay_solver::workspace::Workspace;
 use std::path::Path;
@@ -146,37 +147,33 @@ impl OdeSystem for Census<'_> {
     fn explain_non_finite(&mut self, t: f64, y: &[f64], component: usize) -> String {
         self.mech.explain_non_finite(t, y, component)
     }
-    fn stiff_directions(
+    fn events(&mut self) -> Option<&mut dyn Events> {
+        self.mech.events()
+    }
+    fn stiffness(&mut self) -> Option<&mut dyn Stiffness> {
+        Some(self)
+    }
+}
+
+/// The mechanism's stiff directions, with the contact Jacobian counted as an evaluation.
+impl Stiffness for Census<'_> {
+    fn directions(
         &mut self,
         t: f64,
         y: &[f64],
         h: f64,
         dirs: &mut Vec<f64>,
         pattern: &mut Vec<u32>,
-    ) -> bool {
-        self.mech.stiff_directions(t, y, h, dirs, pattern)
+    ) {
+        if let Some(s) = self.mech.stiffness() {
+            s.directions(t, y, h, dirs, pattern)
+        }
     }
-    fn stiff_jacobian(&mut self, t: f64, y: &[f64], basis: &[f64], image: &mut [f64]) -> bool {
+    fn jacobian(&mut self, t: f64, y: &[f64], basis: &[f64], image: &mut [f64]) -> bool {
         self.evaluations += 1;
-        self.mech.stiff_jacobian(t, y, basis, image)
-    }
-    fn events(&self) -> usize {
-        self.mech.events()
-    }
-    fn event_values(&mut self, t: f64, y: &[f64], g: &mut [f64]) {
-        self.mech.event_values(t, y, g)
-    }
-    fn event_values_at_rhs(&mut self, t: f64, y: &[f64], g: &mut [f64]) {
-        self.mech.event_values_at_rhs(t, y, g)
-    }
-    fn event_value(&mut self, i: usize, t: f64, y: &[f64], g: &mut [f64]) -> f64 {
-        self.mech.event_value(i, t, y, g)
-    }
-    fn event_components(&self, i: usize, parts: &mut Vec<std::ops::Range<usize>>) {
-        self.mech.event_components(i, parts)
-    }
-    fn event_restarts_step(&self, i: usize) -> bool {
-        self.mech.event_restarts_step(i)
+        self.mech
+            .stiffness()
+            .is_some_and(|s| s.jacobian(t, y, basis, image))
     }
 }
 
@@ -220,18 +217,22 @@ fn main() -> ExitCode {
     }
 }
 
-fn census() -> Result<(), String> {
+fn census() -> Result<()> {
     let args: Vec<String> = std::env::args().skip(1).collect();
     let usage =
         "usage: step_census SCENE INTEGRATOR RTOL [--events] [--ends] [--friction] [--until T]";
     let [scene, integrator, rtol, rest @ ..] = &args[..] else {
-        return Err(usage.into());
+        return Err(Error::Usage { usage });
     };
-    let rtol: f64 = rtol
-        .parse()
-        .map_err(|_| format!("RTOL '{rtol}' is not a number"))?;
+    let rtol: f64 = rtol.parse().map_err(|_| Error::NotANumber {
+        argument: "RTOL".into(),
+        value: rtol.clone(),
+    })?;
     if !(rtol.is_finite() && rtol > 0.0) {
-        return Err(format!("RTOL {rtol} must be positive"));
+        return Err(Error::NotPositive {
+            argument: "RTOL".into(),
+            value: rtol,
+        });
     }
     let (mut events, mut ends, mut friction, mut until) = (false, false, false, None);
     let mut rest = rest.iter();
@@ -241,21 +242,23 @@ fn census() -> Result<(), String> {
             "--ends" => ends = true,
             "--friction" => friction = true,
             "--until" => {
-                let t = rest.next().ok_or(usage)?;
-                until = Some(
-                    t.parse::<f64>()
-                        .map_err(|_| format!("--until '{t}' is not a number"))?,
-                );
+                let t = rest.next().ok_or(Error::Usage { usage })?;
+                until = Some(t.parse::<f64>().map_err(|_| Error::NotANumber {
+                    argument: "--until".into(),
+                    value: t.clone(),
+                })?);
             }
-            _ => return Err(usage.into()),
+            _ => return Err(Error::Usage { usage }),
         }
     }
-    let file = SceneSpec::load(Path::new(scene)).map_err(|e| e.to_string())?;
-    let (mut model, mut state) = Model::compile(&file).map_err(|e| e.to_string())?;
-    model.assemble(&mut state).map_err(|e| e.to_string())?;
+    let file = SceneSpec::load(Path::new(scene))?;
+    let (mut model, mut state) = Model::compile(&file)?;
+    model.assemble(&mut state)?;
     let method = Method::of_family(integrator, rtol, rtol * 1e-3)
         .filter(|m| m.fixed_step().is_none())
-        .ok_or_else(|| format!("'{integrator}' is not an adaptive integrator"))?;
+        .ok_or_else(|| Error::NotAdaptive {
+            family: integrator.clone(),
+        })?;
     model.settings.method = method;
     model.settings.onset_events = events;
     model.settings.end_events = ends;
@@ -288,8 +291,7 @@ fn census() -> Result<(), String> {
         t_end,
         &[],
         |_, _, _| Flow::Continue,
-    )
-    .map_err(|e| e.to_string())?;
+    )?;
     // Evaluations after the last accepted step (rejected attempts at the end) go to its class.
     census.class_evaluations[census.last.0] += census.evaluations - census.counted;
     let Census {

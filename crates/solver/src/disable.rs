@@ -20,6 +20,7 @@
 //! without clearance, no friction anywhere), is an error naming `disable[i]`, so a typo never
 //! passes silently.
 
+use crate::error::{Error, Result};
 use crate::scene::{ClearanceSpec, FrictionSpec, NormalSpec, SceneSpec};
 
 /// An effect a `disable` entry can name.
@@ -121,33 +122,33 @@ pub enum Disable {
 
 impl Disable {
     /// Parses an entry: `"<effect>"` or `"<joint>.<effect>"`. The error says what is wrong with it.
-    pub fn parse(entry: &str) -> Result<Disable, String> {
+    pub fn parse(entry: &str) -> Result<Disable> {
         let (joint, name) = match entry.split_once('.') {
             Some((j, e)) => (Some(j), e),
             None => (None, entry),
         };
         let Some(effect) = Effect::ALL.into_iter().find(|e| e.name() == name) else {
-            return Err(format!(
-                "unknown effect '{name}'; known: {}",
-                Effect::ALL.map(Effect::name).join(", ")
-            ));
+            return Err(Error::UnknownEffect {
+                name: name.to_string(),
+                known: Effect::ALL.map(Effect::name).join(", "),
+            });
         };
         match (joint, effect) {
             (None, e) => Ok(Disable::All(e)),
             (Some(j), Effect::Joint(e)) => Ok(Disable::Joint(j.to_string(), e)),
             (Some(_), Effect::Gravity | Effect::Springs | Effect::Loads | Effect::Recording(_)) => {
-                Err(format!(
-                    "'{name}' is not a joint effect; per joint: {}",
-                    JointEffect::ALL.map(JointEffect::name).join(", ")
-                ))
+                Err(Error::NotJointEffect {
+                    name: name.to_string(),
+                    per_joint: JointEffect::ALL.map(JointEffect::name).join(", "),
+                })
             }
         }
     }
 }
 
 /// Applies `spec.disable` to a copy of `spec`. Returns the edited scene and one line per entry
-/// saying what it removed; errors are `(field, message)`.
-pub fn apply(spec: &SceneSpec) -> Result<(SceneSpec, Vec<String>), (String, String)> {
+/// saying what it removed; an error comes with the field of its entry (`disable[2]`).
+pub fn apply(spec: &SceneSpec) -> Result<(SceneSpec, Vec<String>), (String, Error)> {
     let mut s = spec.clone();
     let mut lines = Vec::new();
     for (i, entry) in spec.disable.iter().enumerate() {
@@ -160,12 +161,16 @@ pub fn apply(spec: &SceneSpec) -> Result<(SceneSpec, Vec<String>), (String, Stri
 }
 
 /// Removes one effect from `s`; returns what it removed, or why there was nothing to remove.
-fn disable(s: &mut SceneSpec, d: &Disable) -> Result<String, String> {
-    let none = |what: &str| Err(format!("nothing to disable: {what}"));
+fn disable(s: &mut SceneSpec, d: &Disable) -> Result<String> {
+    let none = |what: &str| {
+        Err(Error::NothingToDisable {
+            what: what.to_string(),
+        })
+    };
     let (joint, effect) = match d {
         Disable::Joint(j, e) => {
             if !s.joints.iter().any(|x| &x.name == j) {
-                return Err(format!("no joint '{j}'"));
+                return Err(Error::NoJoint { joint: j.clone() });
             }
             (Some(j.as_str()), *e)
         }
@@ -266,8 +271,9 @@ mod tests {
     #[test]
     fn every_effect_parses_from_its_name_for_the_scene_and_joint_effects_per_joint() {
         for e in Effect::ALL {
-            assert_eq!(Disable::parse(e.name()), Ok(Disable::All(e)));
-            let scoped = Disable::parse(&format!("S2.{}", e.name()));
+            let parse = |entry: &str| Disable::parse(entry).map_err(|e| e.to_string());
+            assert_eq!(parse(e.name()), Ok(Disable::All(e)));
+            let scoped = parse(&format!("S2.{}", e.name()));
             match e {
                 Effect::Joint(j) => assert_eq!(scoped, Ok(Disable::Joint("S2".into(), j))),
                 Effect::Gravity | Effect::Springs | Effect::Loads | Effect::Recording(_) => {
@@ -282,14 +288,17 @@ mod tests {
             }
         }
         assert_eq!(
-            Disable::parse("wobble"),
+            Disable::parse("wobble").map_err(|e| e.to_string()),
             Err(
                 "unknown effect 'wobble'; known: gravity, springs, loads, clearance, friction, \
                  contact_damping, axial_contact, accelerations, diagnostics, energy"
                     .into()
             )
         );
-        assert!(Disable::parse("S2.fricton").is_err());
+        assert!(matches!(
+            Disable::parse("S2.fricton"),
+            Err(Error::UnknownEffect { name, .. }) if name == "fricton"
+        ));
     }
 
     /// Compiles the bundled 4-UPS-RPU scene with `disable = list`.

@@ -36,6 +36,31 @@ pub enum Error {
     /// The integration produced a non-finite state or could not continue.
     #[error("integration stopped at t = {time} s: {message}")]
     Diverged { time: f64, message: String },
+    /// A `disable` entry names no effect ([`crate::disable`]); `known` lists the effects.
+    #[error("unknown effect '{name}'; known: {known}")]
+    UnknownEffect { name: String, known: String },
+    /// A `disable` entry scopes to one joint an effect of the whole scene; `per_joint` lists the
+    /// effects a joint has.
+    #[error("'{name}' is not a joint effect; per joint: {per_joint}")]
+    NotJointEffect { name: String, per_joint: String },
+    /// A `disable` entry names a joint the scene does not have.
+    #[error("no joint '{joint}'")]
+    NoJoint { joint: String },
+    /// A `disable` entry would remove what the scene does not have (`what` says so).
+    #[error("nothing to disable: {what}")]
+    NothingToDisable { what: String },
+    /// A program's command line is not what it takes: its usage.
+    #[error("{usage}")]
+    Usage { usage: &'static str },
+    /// A command-line argument that must be a number is not.
+    #[error("{argument} '{value}' is not a number")]
+    NotANumber { argument: String, value: String },
+    /// A command-line number that must be positive is not.
+    #[error("{argument} {value} must be positive")]
+    NotPositive { argument: String, value: f64 },
+    /// A method family named where an integrator with error control is needed.
+    #[error("'{family}' is not an adaptive integrator")]
+    NotAdaptive { family: String },
 }
 
 /// Result alias of the solver crate.

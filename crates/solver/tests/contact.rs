@@ -754,10 +754,10 @@ fn friction_events_end_steps_at_the_friction_laws_kinks() {
 }
 
 /// The integrator reads the contact events' functions three ways: all of them at a state
-/// ([`OdeSystem::event_values`]), all of them from the right-hand side just evaluated there (at
-/// a step's end: `event_values_at_rhs`), and one at a time from its contact's joint alone, given
+/// ([`Events::values`]), all of them from the right-hand side just evaluated there (at
+/// a step's end: `values_at_rhs`), and one at a time from its contact's joint alone, given
 /// only the state components it declares (in the bisection that locates a crossing:
-/// `event_value` and `event_components`). The three must agree bit for bit, or a run with events
+/// `value` and `components`). The three must agree bit for bit, or a run with events
 /// would depend on which was used. Checked at 201 states of the mixed
 /// 4-UPS/RPU's first 0.2 s (three clearance joints, six contact slots, the R1 housing on the
 /// ground), with onsets, ends and Ambrosio's friction kinks all on: 6 + 6 + 24 functions, open
@@ -773,7 +773,7 @@ fn contact_event_functions_read_one_at_a_time_or_from_the_rhs_are_the_full_evalu
     let samples: Vec<f64> = (0..=200).map(|k| k as f64 * 1e-3).collect();
     let states = run(&model, &mut state, model.settings.method, 0.2, &samples);
     let mut sys = jointplay_solver::dynamics::Mechanism::new(&model);
-    let n = sys.events();
+    let n = sys.events().unwrap().count();
     assert_eq!(
         n,
         6 + 6 + 6 * 2 * 2,
@@ -785,18 +785,19 @@ fn contact_event_functions_read_one_at_a_time_or_from_the_rhs_are_the_full_evalu
     let (mut closed, mut kinks_between) = (0, 0);
     for (t, y) in &states {
         sys.rhs(*t, y, &mut dy);
-        sys.event_values_at_rhs(*t, y, &mut at_rhs);
-        sys.event_values(*t, y, &mut full);
+        let events = sys.events().unwrap();
+        events.values_at_rhs(*t, y, &mut at_rhs);
+        events.values(*t, y, &mut full);
         let bits = |g: &[f64]| g.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
         assert_eq!(bits(&at_rhs), bits(&full), "from the rhs at t = {t} s");
         for (i, all) in full.iter().enumerate() {
             // Only the components the function declares it reads: the others are NaN.
-            sys.event_components(i, &mut parts);
+            events.components(i, &mut parts);
             let mut only = vec![f64::NAN; y.len()];
             for part in &parts {
                 only[part.clone()].copy_from_slice(&y[part.clone()]);
             }
-            let one = sys.event_value(i, *t, &only, &mut scratch);
+            let one = events.value(i, *t, &only, &mut scratch);
             assert_eq!(
                 one.to_bits(),
                 all.to_bits(),

@@ -3,6 +3,13 @@
 //! the ones below it. This test reads the sources, collects every `crate::<module>` path outside
 //! comments (imports and inline paths alike; a file under `src/m/` counts as module `m`) and
 //! fails with the cycle when the graph has one.
+//!
+//! The folders `compile/` (the compiler's passes) and `dynamics/` (the stages of the equations)
+//! are checked the same way inside: their files' `super::<file>` and `crate::<folder>::<file>`
+//! paths must form no cycle either. `mod.rs` declares and so depends on every file of its
+//! folder; a file that reaches back for an item of `mod.rs` (`super::item`) closes a cycle, so
+//! what the files share sits in a leaf file of the folder (`compile/ctx.rs`, `compile/rows.rs`,
+//! `dynamics/blocks.rs`).
 
 use std::collections::{BTreeMap, BTreeSet};
 use std::path::Path;
@@ -94,7 +101,15 @@ fn solver_modules_form_no_import_cycle() {
         "kin must stay a leaf: {:?}",
         graph["kin"]
     );
-    // Depth-first search for a back edge.
+    if let Some(cycle) = find_cycle(&graph) {
+        panic!("import cycle among solver modules: {}", cycle.join(" -> "));
+    }
+    // The graph is not empty: the parser found the imports it should.
+    assert!(graph["dynamics"].contains("model") && graph["model"].contains("kin"));
+}
+
+/// A cycle of `graph`, depth first, if it has one.
+fn find_cycle(graph: &BTreeMap<String, BTreeSet<String>>) -> Option<Vec<String>> {
     fn visit(
         m: &str,
         graph: &BTreeMap<String, BTreeSet<String>>,
@@ -125,10 +140,103 @@ fn solver_modules_form_no_import_cycle() {
     let mut state = BTreeMap::new();
     for m in graph.keys() {
         let mut path = Vec::new();
-        if let Some(cycle) = visit(m, &graph, &mut state, &mut path) {
-            panic!("import cycle among solver modules: {}", cycle.join(" -> "));
+        if let Some(cycle) = visit(m, graph, &mut state, &mut path) {
+            return Some(cycle);
         }
     }
-    // The graph is not empty: the parser found the imports it should.
-    assert!(graph["dynamics"].contains("model") && graph["model"].contains("kin"));
+    None
+}
+
+/// The names after each `prefix` in `text` outside `//` comments (`prefix{a, b}` groups too).
+fn names_after(text: &str, prefix: &str) -> BTreeSet<String> {
+    let ident = |s: &str| -> String {
+        s.trim()
+            .chars()
+            .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
+            .collect()
+    };
+    let mut found = BTreeSet::new();
+    for line in text.lines() {
+        let mut rest = line.split("//").next().unwrap();
+        while let Some(i) = rest.find(prefix) {
+            // `super::super::` and longer prefixes leave the folder.
+            let before = &rest[..i];
+            rest = &rest[i + prefix.len()..];
+            if before.ends_with("::") {
+                continue;
+            }
+            if let Some(group) = rest.strip_prefix('{') {
+                let end = group.find('}').unwrap_or(group.len());
+                found.extend(group[..end].split(',').map(ident).filter(|n| !n.is_empty()));
+            } else {
+                let n = ident(rest);
+                if !n.is_empty() {
+                    found.insert(n);
+                }
+            }
+        }
+    }
+    found
+}
+
+/// The import graph of the files of `src/<folder>/`: `mod` for `mod.rs`, the file stem for the
+/// others. `mod.rs` depends on every file it declares; another file on each file it names with
+/// `super::<file>` or `crate::<folder>::<file>`, and on `mod` when it names an item of `mod.rs`
+/// that way.
+fn folder_graph(folder: &str) -> BTreeMap<String, BTreeSet<String>> {
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("src")
+        .join(folder);
+    let mut files = Vec::new();
+    collect(&dir, &mut files);
+    let stem = |f: &Path| f.file_stem().unwrap().to_string_lossy().to_string();
+    let names: BTreeSet<String> = files.iter().map(|f| stem(f)).collect();
+    let mut graph = BTreeMap::new();
+    for f in &files {
+        let text = std::fs::read_to_string(f).unwrap();
+        let m = stem(f);
+        let mut deps = BTreeSet::new();
+        let mut refs = names_after(&text, &format!("crate::{folder}::"));
+        if m == "mod" {
+            refs.extend(names_after(&text, "self::"));
+            for line in text.lines() {
+                let l = line.trim_start();
+                let l = l.strip_prefix("pub(crate) ").unwrap_or(l);
+                let l = l.strip_prefix("pub ").unwrap_or(l);
+                if let Some(n) = l.strip_prefix("mod ") {
+                    refs.insert(n.trim_end_matches(';').trim().to_string());
+                }
+            }
+        } else {
+            refs.extend(names_after(&text, "super::"));
+        }
+        for r in refs {
+            let target = if names.contains(&r) { r } else { "mod".into() };
+            if target != m {
+                deps.insert(target);
+            }
+        }
+        graph.insert(m, deps);
+    }
+    graph
+}
+
+#[test]
+fn compile_passes_and_dynamics_stages_form_no_import_cycle() {
+    for folder in ["compile", "dynamics"] {
+        let graph = folder_graph(folder);
+        if let Some(cycle) = find_cycle(&graph) {
+            panic!("import cycle among {folder}/: {}", cycle.join(" -> "));
+        }
+        // The parser found the edges it should.
+        assert!(graph["mod"].len() + 1 == graph.len(), "{folder}: {graph:?}");
+    }
+    let c = folder_graph("compile");
+    assert!(c["joints"].contains("clearance") && c["clearance"].contains("rows"));
+    assert!(c["ctx"].is_empty() && c["rows"].is_empty(), "{c:?}");
+    let d = folder_graph("dynamics");
+    assert!(
+        d["forces"].contains("kinematics") && d["blocks"].is_empty(),
+        "{d:?}"
+    );
 }

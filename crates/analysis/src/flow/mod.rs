@@ -25,7 +25,7 @@ pub mod tangent;
 
 use jointplay_solver::dynamics::Mechanism;
 use jointplay_solver::model::{Model, State};
-use jointplay_solver::ode::{Method, OdeSystem};
+use jointplay_solver::ode::{Events, Method, OdeSystem, Stiffness};
 use jointplay_solver::state::HybridState;
 
 use crate::Result;
@@ -114,39 +114,11 @@ impl OdeSystem for MechFlow<'_> {
     fn save_memory(&self, state: &mut HybridState) {
         self.mech.save_memory(state)
     }
-    fn events(&self) -> usize {
+    fn events(&mut self) -> Option<&mut dyn Events> {
         self.mech.events()
     }
-    fn event_values(&mut self, t: f64, y: &[f64], g: &mut [f64]) {
-        self.mech.event_values(t, y, g)
-    }
-    fn event_values_at_rhs(&mut self, t: f64, y: &[f64], g: &mut [f64]) {
-        self.mech.event_values_at_rhs(t, y, g)
-    }
-    fn event_value(&mut self, i: usize, t: f64, y: &[f64], g: &mut [f64]) -> f64 {
-        self.mech.event_value(i, t, y, g)
-    }
-    fn event_components(&self, i: usize, parts: &mut Vec<std::ops::Range<usize>>) {
-        self.mech.event_components(i, parts)
-    }
-    fn apply_event(&mut self, i: usize, t: f64, y: &mut [f64]) -> std::result::Result<(), String> {
-        self.mech.apply_event(i, t, y)
-    }
-    fn event_restarts_step(&self, i: usize) -> bool {
-        self.mech.event_restarts_step(i)
-    }
-    fn stiff_directions(
-        &mut self,
-        t: f64,
-        y: &[f64],
-        h: f64,
-        dirs: &mut Vec<f64>,
-        pattern: &mut Vec<u32>,
-    ) -> bool {
-        self.mech.stiff_directions(t, y, h, dirs, pattern)
-    }
-    fn stiff_jacobian(&mut self, t: f64, y: &[f64], basis: &[f64], image: &mut [f64]) -> bool {
-        self.mech.stiff_jacobian(t, y, basis, image)
+    fn stiffness(&mut self) -> Option<&mut dyn Stiffness> {
+        self.mech.stiffness()
     }
 }
 
@@ -198,14 +170,8 @@ impl OdeSystem for SysFlow<'_> {
     fn rhs(&mut self, t: f64, y: &[f64], d: &mut [f64]) {
         self.sys.rhs(t, y, d)
     }
-    fn events(&self) -> usize {
+    fn events(&mut self) -> Option<&mut dyn Events> {
         self.sys.events()
-    }
-    fn event_values(&mut self, t: f64, y: &[f64], g: &mut [f64]) {
-        self.sys.event_values(t, y, g)
-    }
-    fn apply_event(&mut self, i: usize, t: f64, y: &mut [f64]) -> Result<(), String> {
-        self.sys.apply_event(i, t, y)
     }
 }
 
@@ -403,39 +369,11 @@ impl OdeSystem for AnyFlow<'_> {
     fn save_memory(&self, state: &mut HybridState) {
         either!(self, f => f.save_memory(state))
     }
-    fn events(&self) -> usize {
+    fn events(&mut self) -> Option<&mut dyn Events> {
         either!(self, f => f.events())
     }
-    fn event_values(&mut self, t: f64, y: &[f64], g: &mut [f64]) {
-        either!(self, f => f.event_values(t, y, g))
-    }
-    fn event_values_at_rhs(&mut self, t: f64, y: &[f64], g: &mut [f64]) {
-        either!(self, f => f.event_values_at_rhs(t, y, g))
-    }
-    fn event_value(&mut self, i: usize, t: f64, y: &[f64], g: &mut [f64]) -> f64 {
-        either!(self, f => f.event_value(i, t, y, g))
-    }
-    fn event_components(&self, i: usize, parts: &mut Vec<std::ops::Range<usize>>) {
-        either!(self, f => f.event_components(i, parts))
-    }
-    fn apply_event(&mut self, i: usize, t: f64, y: &mut [f64]) -> std::result::Result<(), String> {
-        either!(self, f => f.apply_event(i, t, y))
-    }
-    fn event_restarts_step(&self, i: usize) -> bool {
-        either!(self, f => f.event_restarts_step(i))
-    }
-    fn stiff_directions(
-        &mut self,
-        t: f64,
-        y: &[f64],
-        h: f64,
-        dirs: &mut Vec<f64>,
-        pattern: &mut Vec<u32>,
-    ) -> bool {
-        either!(self, f => f.stiff_directions(t, y, h, dirs, pattern))
-    }
-    fn stiff_jacobian(&mut self, t: f64, y: &[f64], basis: &[f64], image: &mut [f64]) -> bool {
-        either!(self, f => f.stiff_jacobian(t, y, basis, image))
+    fn stiffness(&mut self) -> Option<&mut dyn Stiffness> {
+        either!(self, f => f.stiffness())
     }
 }
 

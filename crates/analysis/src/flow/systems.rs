@@ -42,7 +42,7 @@
 use std::f64::consts::PI;
 
 use jointplay_solver::ode::dopri5::DOPRI5;
-use jointplay_solver::ode::{Method, OdeSystem};
+use jointplay_solver::ode::{Events, Method, OdeSystem};
 use jointplay_solver::scene::IntegratorKind;
 use serde::Deserialize;
 use toml::Table;
@@ -467,26 +467,39 @@ impl OdeSystem for Builtin {
         }
     }
 
-    fn events(&self) -> usize {
+    fn events(&mut self) -> Option<&mut dyn Events> {
+        if matches!(self, Builtin::Impact { .. }) {
+            Some(self)
+        } else {
+            None
+        }
+    }
+}
+
+impl Events for Builtin {
+    fn count(&mut self) -> usize {
         usize::from(matches!(self, Builtin::Impact { .. }))
     }
 
-    fn event_values(&mut self, _t: f64, y: &[f64], g: &mut [f64]) {
+    fn values(&mut self, _t: f64, y: &[f64], g: &mut [f64]) {
         if let Builtin::Impact { stop, .. } = *self {
             g[0] = stop - y[0];
         }
     }
 
-    fn apply_event(&mut self, _i: usize, t: f64, y: &mut [f64]) -> Result<(), String> {
+    fn apply(&mut self, _i: usize, t: f64, y: &mut [f64]) -> jointplay_solver::Result<()> {
         if let Builtin::Impact {
             stop, restitution, ..
         } = *self
         {
             if y[1] < CHATTER_VELOCITY {
-                return Err(format!(
-                    "impact at t = {t} with approach velocity {:e} (below {CHATTER_VELOCITY:e}): the mass chatters toward rest on the stop, which the Newton impact law does not model",
-                    y[1]
-                ));
+                return Err(jointplay_solver::Error::Diverged {
+                    time: t,
+                    message: format!(
+                        "impact at t = {t} with approach velocity {:e} (below {CHATTER_VELOCITY:e}): the mass chatters toward rest on the stop, which the Newton impact law does not model",
+                        y[1]
+                    ),
+                });
             }
             // On the stop exactly (the located crossing is within round-off of it).
             y[0] = stop;

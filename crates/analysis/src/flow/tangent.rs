@@ -110,7 +110,7 @@ pub trait Tangent: Flow {
         out.copy_from_slice(v);
     }
     /// The gradient of event function `i` at `(t, y)` (see
-    /// [`OdeSystem::event_values`]); zeros by default (no events).
+    /// [`Events::values`](jointplay_solver::ode::Events::values)); zeros by default (no events).
     fn event_gradient(&self, _i: usize, _t: f64, _y: &[f64], out: &mut [f64]) {
         out.fill(0.0);
     }

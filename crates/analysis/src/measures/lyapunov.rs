@@ -35,7 +35,7 @@
 //! batches are done), or after the requested periods. The running estimate of every exponent at
 //! every re-orthonormalisation is kept (the convergence figure).
 
-use jointplay_solver::ode::{self, Flow as Step, Method, OdeSystem};
+use jointplay_solver::ode::{self, Events, Flow as Step, Method, OdeSystem, event_count};
 use jointplay_solver::state::HybridState;
 use nalgebra::DMatrix;
 use serde::Deserialize;
@@ -306,50 +306,59 @@ impl<F: Tangent> OdeSystem for Extended<'_, F> {
     fn save_memory(&self, state: &mut HybridState) {
         self.flow.save_memory(state)
     }
-    fn events(&self) -> usize {
-        self.flow.events() + self.second.as_ref().map_or(0, |g| g.events())
+    fn events(&mut self) -> Option<&mut dyn Events> {
+        Some(self)
     }
-    fn event_restarts_step(&self, i: usize) -> bool {
-        let ne = self.flow.events();
+}
+
+impl<F: Tangent> Events for Extended<'_, F> {
+    fn count(&mut self) -> usize {
+        event_count(&mut *self.flow) + self.second.as_deref_mut().map_or(0, event_count)
+    }
+    fn restarts_step(&mut self, i: usize) -> bool {
+        let ne = event_count(&mut *self.flow);
         if i < ne {
-            self.flow.event_restarts_step(i)
+            self.flow.events().is_some_and(|e| e.restarts_step(i))
         } else {
             self.second
-                .as_ref()
-                .is_some_and(|g| g.event_restarts_step(i - ne))
+                .as_deref_mut()
+                .and_then(|g| g.events())
+                .is_some_and(|e| e.restarts_step(i - ne))
         }
     }
-    fn event_values(&mut self, t: f64, y: &[f64], g: &mut [f64]) {
-        let ne = self.flow.events();
+    fn values(&mut self, t: f64, y: &[f64], g: &mut [f64]) {
+        let ne = event_count(&mut *self.flow);
         let r2 = self.second_range();
-        self.flow.event_values(t, &y[..self.n], &mut g[..ne]);
-        if let Some(s) = self.second.as_deref_mut() {
-            s.event_values(t, &y[r2], &mut g[ne..]);
+        if let Some(e) = self.flow.events() {
+            e.values(t, &y[..self.n], &mut g[..ne]);
+        }
+        if let Some(e) = self.second.as_deref_mut().and_then(|s| s.events()) {
+            e.values(t, &y[r2], &mut g[ne..]);
         }
     }
     /// A reset of the first trajectory maps every tangent vector with the saltation matrix
     /// `S = DR + (f+ - DR f-) n^T / (n^T f-)` (Mueller 1995), n the gradient of the event
     /// function and f-, f+ the vector field before and after the reset; the second trajectory's
     /// own events reset it alone.
-    fn apply_event(&mut self, i: usize, t: f64, y: &mut [f64]) -> std::result::Result<(), String> {
-        let (n, ne) = (self.n, self.flow.events());
+    fn apply(&mut self, i: usize, t: f64, y: &mut [f64]) -> jointplay_solver::Result<()> {
+        let (n, ne) = (self.n, event_count(&mut *self.flow));
         if i >= ne {
             let r2 = self.second_range();
-            return match self.second.as_deref_mut() {
-                Some(s) => s.apply_event(i - ne, t, &mut y[r2]),
+            return match self.second.as_deref_mut().and_then(|s| s.events()) {
+                Some(e) => e.apply(i - ne, t, &mut y[r2]),
                 None => Ok(()),
             };
         }
-        if self.flow.event_restarts_step(i) {
+        if self.flow.events().is_some_and(|e| e.restarts_step(i)) {
             // A contact onset: nothing in the state jumps (the compliant force is zero at zero
             // penetration), so the saltation matrix is the identity; the onset velocity's own
             // saltation was applied in `step_accepted`. Not an impact: not counted.
-            return self.flow.apply_event(i, t, &mut y[..n]);
+            return apply_event(&mut *self.flow, i, t, &mut y[..n]);
         }
         let y_minus = y[..n].to_vec();
         let mut f_minus = vec![0.0; n];
         self.flow.rhs(t, &y_minus, &mut f_minus);
-        self.flow.apply_event(i, t, &mut y[..n])?;
+        apply_event(&mut *self.flow, i, t, &mut y[..n])?;
         let mut f_plus = vec![0.0; n];
         self.flow.rhs(t, &y[..n], &mut f_plus);
         let mut grad = vec![0.0; n];
@@ -375,6 +384,16 @@ impl<F: Tangent> OdeSystem for Extended<'_, F> {
         self.events += 1;
         Ok(())
     }
+}
+
+/// Event `i` of `flow` applied at `(t, y)` (nothing without events).
+fn apply_event<F: OdeSystem>(
+    flow: &mut F,
+    i: usize,
+    t: f64,
+    y: &mut [f64],
+) -> jointplay_solver::Result<()> {
+    flow.events().map_or(Ok(()), |e| e.apply(i, t, y))
 }
 
 /// Projects the columns of `v` (n x k, column-major in `y[n..]`) onto the span of `basis`.

@@ -6,7 +6,7 @@ use std::collections::{BTreeMap, HashMap};
 
 use nalgebra::{Matrix3, SymmetricEigen, UnitQuaternion, Vector3};
 
-use super::{Ctx, list, v3};
+use super::ctx::{Ctx, list, v3};
 use crate::error::Result;
 use crate::model::{Body, GROUND};
 use crate::scene::{BodySpec, InertiaSpec, OrientationSpec, SceneSpec, VecRef};

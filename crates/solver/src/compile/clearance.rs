@@ -1,9 +1,18 @@
 //! Pass 4: clearance elements. A joint's `clearance` block becomes a [`Clearance`] contact
 //! element: its geometry, its normal and friction laws ([`super::laws`]), and the constraint rows
 //! that stay in the joint for what the contact leaves unconstrained.
+//!
+//! The scene file does not name a block's geometry: the joint kind implies it (ball in socket
+//! for a spherical joint, journal in bushing for a revolute one) and, for a revolute joint,
+//! `model` (spatial or planar). So the block is read as one struct of optional fields,
+//! [`ClearanceSpec`], which keeps the file format, and sorted here into a per-geometry enum,
+//! `Block` (what a tagged enum would give if the file carried the tag): each variant holds only
+//! its geometry's fields, and a field of another geometry is refused with its path. The
+//! [`Geometry`] is then built from the variant.
 
-use super::joints::{JointFrame, Rows};
-use super::{Ctx, laws, positive};
+use super::ctx::{Ctx, positive};
+use super::laws;
+use super::rows::{JointFrame, Rows};
 use crate::clearance::{Clearance, Geometry};
 use crate::error::Result;
 use crate::scene::{ClearanceSpec, JointKind, JointSpec, RevoluteModel};
@@ -60,154 +69,217 @@ pub(crate) fn remaining_rows(geometry: &Geometry, fr: &JointFrame, rows: &mut Ro
     }
 }
 
+/// A clearance block sorted by geometry: the fields of its geometry only, the radii of a
+/// revolute block already resolved (m).
+enum Block {
+    /// Ball in socket.
+    Spherical {
+        ball_radius: Option<f64>,
+        radial_clearance: Option<f64>,
+    },
+    /// Journal in bearing in the plane normal to the axis.
+    Planar { journal: f64, bushing: f64 },
+    /// Journal free to translate and tilt in its bushing.
+    Spatial {
+        journal: f64,
+        bushing: f64,
+        bushing_length: Option<f64>,
+        face_radius: Option<f64>,
+        axial_clearance: Option<f64>,
+    },
+}
+
 /// The geometry of a clearance block of a joint of kind `kind`; `f` is the block's field path.
 fn geometry(c: &ClearanceSpec, kind: JointKind, f: &str, cx: &Ctx) -> Result<Geometry> {
-    // A joint without play is the ideal joint; the contact laws have no meaning there (the
-    // point-contact stiffness grows without bound as the clearance closes).
-    if c.radial_clearance == Some(0.0) {
-        return Err(cx.err(
-            format!("{f}.radial_clearance"),
-            "zero clearance is the ideal joint: remove the clearance block (or give a positive clearance)",
-        ));
-    }
-    match kind {
-        JointKind::Spherical => spherical(c, f, cx),
-        JointKind::Revolute => revolute(c, f, cx),
-        k => Err(cx.err(
+    match Block::of(c, kind, f, cx)? {
+        Block::Spherical {
+            ball_radius,
+            radial_clearance,
+        } => Ok(Geometry::Spherical {
+            ball_radius: positive(
+                ball_radius,
+                format!("{f}.ball_radius"),
+                "the ball radius (m)",
+                cx,
+            )?,
+            clearance: positive(
+                radial_clearance,
+                format!("{f}.radial_clearance"),
+                "the radial clearance (m)",
+                cx,
+            )?,
+        }),
+        Block::Planar { journal, bushing } => Ok(Geometry::Planar {
+            journal_radius: journal,
+            bearing_radius: bushing,
+        }),
+        Block::Spatial {
+            journal,
+            bushing,
+            bushing_length,
+            face_radius,
+            axial_clearance,
+        } => spatial(
+            (journal, bushing),
+            (bushing_length, face_radius, axial_clearance),
             f,
-            format!(
-                "clearance is available for spherical and revolute joints, not {}",
-                k.name()
-            ),
-        )),
+            cx,
+        ),
     }
 }
 
-/// Ball in socket: ball radius and radial clearance.
-fn spherical(c: &ClearanceSpec, f: &str, cx: &Ctx) -> Result<Geometry> {
-    if c.model.is_some() {
-        return Err(cx.err(format!("{f}.model"), "only revolute joints have a model"));
-    }
-    for (v, n) in [
-        (c.journal_radius, "journal_radius"),
-        (c.bushing_radius, "bushing_radius"),
-        (c.bushing_length, "bushing_length"),
-        (c.face_radius, "face_radius"),
-        (c.axial_clearance, "axial_clearance"),
-    ] {
-        if v.is_some() {
-            return Err(cx.err(
-                format!("{f}.{n}"),
-                "not a field of a spherical clearance (give ball_radius and radial_clearance)",
-            ));
-        }
-    }
-    Ok(Geometry::Spherical {
-        ball_radius: positive(
-            c.ball_radius,
-            format!("{f}.ball_radius"),
-            "the ball radius (m)",
-            cx,
-        )?,
-        clearance: positive(
-            c.radial_clearance,
-            format!("{f}.radial_clearance"),
-            "the radial clearance (m)",
-            cx,
-        )?,
-    })
-}
-
-/// Journal in bushing: the radii from any two of journal radius, bushing radius and radial
-/// clearance, then the planar or spatial model.
-fn revolute(c: &ClearanceSpec, f: &str, cx: &Ctx) -> Result<Geometry> {
-    if c.ball_radius.is_some() {
-        return Err(cx.err(
-            format!("{f}.ball_radius"),
-            "a revolute clearance has a journal_radius",
-        ));
-    }
-    // Any two of journal radius, bushing radius and radial clearance, each positive.
-    let given = |v: Option<f64>, n: &str| {
-        v.map(|x| positive(Some(x), format!("{f}.{n}"), "", cx))
-            .transpose()
-    };
-    let (rj, rb) = match (
-        given(c.journal_radius, "journal_radius")?,
-        given(c.bushing_radius, "bushing_radius")?,
-        given(c.radial_clearance, "radial_clearance")?,
-    ) {
-        (Some(rj), Some(rb), cr) => {
-            if let Some(cr) = cr
-                && ((rb - rj) - cr).abs() > 1e-9 * rb
-            {
-                return Err(cx.err(
-                    format!("{f}.radial_clearance"),
-                    format!(
-                        "{cr} m disagrees with bushing_radius - journal_radius = {} m",
-                        rb - rj
-                    ),
-                ));
-            }
-            (rj, rb)
-        }
-        (Some(rj), None, Some(cr)) => (rj, rj + cr),
-        (None, Some(rb), Some(cr)) => {
-            if cr >= rb {
-                return Err(cx.err(
-                    format!("{f}.radial_clearance"),
-                    format!("{cr} m leaves no journal inside a bushing of radius {rb} m"),
-                ));
-            }
-            (rb - cr, rb)
-        }
-        _ => {
+impl Block {
+    /// Sorts the block `c` of a joint of kind `kind` (field path `f`) by its geometry.
+    fn of(c: &ClearanceSpec, kind: JointKind, f: &str, cx: &Ctx) -> Result<Block> {
+        // A joint without play is the ideal joint; the contact laws have no meaning there (the
+        // point-contact stiffness grows without bound as the clearance closes).
+        if c.radial_clearance == Some(0.0) {
             return Err(cx.err(
                 format!("{f}.radial_clearance"),
-                "missing: give two of journal_radius, bushing_radius and radial_clearance (m)",
+                "zero clearance is the ideal joint: remove the clearance block (or give a positive clearance)",
             ));
         }
-    };
-    if rb <= rj {
-        return Err(cx.err(
-            format!("{f}.bushing_radius"),
-            format!("the radial clearance must be positive: bushing radius {rb} m <= journal radius {rj} m"),
-        ));
-    }
-    match c.model.unwrap_or_default() {
-        RevoluteModel::Planar => {
-            for (v, n) in [
-                (c.bushing_length, "bushing_length"),
-                (c.face_radius, "face_radius"),
-                (c.axial_clearance, "axial_clearance"),
-            ] {
-                if v.is_some() {
-                    return Err(cx.err(format!("{f}.{n}"), "not a field of a planar clearance"));
-                }
-            }
-            Ok(Geometry::Planar {
-                journal_radius: rj,
-                bearing_radius: rb,
-            })
+        match kind {
+            JointKind::Spherical => Block::spherical(c, f, cx),
+            JointKind::Revolute => Block::revolute(c, f, cx),
+            k => Err(cx.err(
+                f,
+                format!(
+                    "clearance is available for spherical and revolute joints, not {}",
+                    k.name()
+                ),
+            )),
         }
-        RevoluteModel::Spatial => spatial(c, rj, rb, f, cx),
+    }
+
+    /// Ball in socket: ball radius and radial clearance.
+    fn spherical(c: &ClearanceSpec, f: &str, cx: &Ctx) -> Result<Block> {
+        if c.model.is_some() {
+            return Err(cx.err(format!("{f}.model"), "only revolute joints have a model"));
+        }
+        for (v, n) in [
+            (c.journal_radius, "journal_radius"),
+            (c.bushing_radius, "bushing_radius"),
+            (c.bushing_length, "bushing_length"),
+            (c.face_radius, "face_radius"),
+            (c.axial_clearance, "axial_clearance"),
+        ] {
+            if v.is_some() {
+                return Err(cx.err(
+                    format!("{f}.{n}"),
+                    "not a field of a spherical clearance (give ball_radius and radial_clearance)",
+                ));
+            }
+        }
+        Ok(Block::Spherical {
+            ball_radius: c.ball_radius,
+            radial_clearance: c.radial_clearance,
+        })
+    }
+
+    /// Journal in bushing: the radii from any two of journal radius, bushing radius and radial
+    /// clearance, then the planar or spatial model.
+    fn revolute(c: &ClearanceSpec, f: &str, cx: &Ctx) -> Result<Block> {
+        if c.ball_radius.is_some() {
+            return Err(cx.err(
+                format!("{f}.ball_radius"),
+                "a revolute clearance has a journal_radius",
+            ));
+        }
+        // Any two of journal radius, bushing radius and radial clearance, each positive.
+        let given = |v: Option<f64>, n: &str| {
+            v.map(|x| positive(Some(x), format!("{f}.{n}"), "", cx))
+                .transpose()
+        };
+        let (rj, rb) = match (
+            given(c.journal_radius, "journal_radius")?,
+            given(c.bushing_radius, "bushing_radius")?,
+            given(c.radial_clearance, "radial_clearance")?,
+        ) {
+            (Some(rj), Some(rb), cr) => {
+                if let Some(cr) = cr
+                    && ((rb - rj) - cr).abs() > 1e-9 * rb
+                {
+                    return Err(cx.err(
+                        format!("{f}.radial_clearance"),
+                        format!(
+                            "{cr} m disagrees with bushing_radius - journal_radius = {} m",
+                            rb - rj
+                        ),
+                    ));
+                }
+                (rj, rb)
+            }
+            (Some(rj), None, Some(cr)) => (rj, rj + cr),
+            (None, Some(rb), Some(cr)) => {
+                if cr >= rb {
+                    return Err(cx.err(
+                        format!("{f}.radial_clearance"),
+                        format!("{cr} m leaves no journal inside a bushing of radius {rb} m"),
+                    ));
+                }
+                (rb - cr, rb)
+            }
+            _ => {
+                return Err(cx.err(
+                    format!("{f}.radial_clearance"),
+                    "missing: give two of journal_radius, bushing_radius and radial_clearance (m)",
+                ));
+            }
+        };
+        if rb <= rj {
+            return Err(cx.err(
+                format!("{f}.bushing_radius"),
+                format!("the radial clearance must be positive: bushing radius {rb} m <= journal radius {rj} m"),
+            ));
+        }
+        match c.model.unwrap_or_default() {
+            RevoluteModel::Planar => {
+                for (v, n) in [
+                    (c.bushing_length, "bushing_length"),
+                    (c.face_radius, "face_radius"),
+                    (c.axial_clearance, "axial_clearance"),
+                ] {
+                    if v.is_some() {
+                        return Err(cx.err(format!("{f}.{n}"), "not a field of a planar clearance"));
+                    }
+                }
+                Ok(Block::Planar {
+                    journal: rj,
+                    bushing: rb,
+                })
+            }
+            RevoluteModel::Spatial => Ok(Block::Spatial {
+                journal: rj,
+                bushing: rb,
+                bushing_length: c.bushing_length,
+                face_radius: c.face_radius,
+                axial_clearance: c.axial_clearance,
+            }),
+        }
     }
 }
 
-/// Spatial journal-bushing geometry with journal radius `rj` and bushing radius `rb`: the
-/// bushing length, and the end faces when the block has axial contact.
-fn spatial(c: &ClearanceSpec, rj: f64, rb: f64, f: &str, cx: &Ctx) -> Result<Geometry> {
+/// Spatial journal-bushing geometry with journal radius `rj` and bushing radius `rb` from the
+/// block's bushing length, face radius and axial clearance: the bushing length, and the end
+/// faces when the block has axial contact.
+fn spatial(
+    (rj, rb): (f64, f64),
+    (bushing_length, face_radius, axial_clearance): (Option<f64>, Option<f64>, Option<f64>),
+    f: &str,
+    cx: &Ctx,
+) -> Result<Geometry> {
     let lb = positive(
-        c.bushing_length,
+        bushing_length,
         format!("{f}.bushing_length"),
         "the bushing length (m)",
         cx,
     )?;
-    let journal_length = match c.axial_clearance {
+    let journal_length = match axial_clearance {
         Some(ca) => Some(lb + 2.0 * positive(Some(ca), format!("{f}.axial_clearance"), "", cx)?),
         None => None,
     };
-    let face_radius = match (c.face_radius, journal_length) {
+    let face_radius = match (face_radius, journal_length) {
         (Some(r), _) => {
             if r <= rb {
                 return Err(cx.err(

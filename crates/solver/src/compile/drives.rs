@@ -4,8 +4,9 @@
 
 use std::collections::HashSet;
 
-use super::joints::{Joints, Rows};
-use super::{Ctx, list, v3};
+use super::ctx::{Ctx, list, v3};
+use super::joints::Joints;
+use super::rows::Rows;
 use crate::error::Result;
 use crate::model::Drive;
 use crate::profile::{Profile, Spline};

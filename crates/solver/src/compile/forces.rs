@@ -5,7 +5,7 @@ use std::collections::HashSet;
 use nalgebra::Vector3;
 
 use super::bodies::Bodies;
-use super::{Ctx, v3};
+use super::ctx::{Ctx, v3};
 use crate::error::Result;
 use crate::model::{GROUND, Load, Spring};
 use crate::scene::SceneSpec;

@@ -2,7 +2,7 @@
 //! by its own function ([`hertz`], [`damped`], [`impact`]) after the elastic part they share
 //! ([`elastic`]); then the friction law. The laws and their sources are in [`crate::contact`].
 
-use super::{Ctx, positive};
+use super::ctx::{Ctx, positive};
 use crate::clearance::Geometry;
 use crate::contact::{
     Damping, Elastic, FrictionLaw, NormalLaw, hunt_crossley_restitution, point_contact_stiffness,

@@ -19,21 +19,27 @@
 //! 7. solver settings and outputs ([`settings::settings`], [`settings::outputs`]), and the
 //!    [`Effects`](crate::model::Effects) the model simulates ([`settings::effects`]).
 //!
+//! The passes share two leaves, which import none of them: [`ctx`] (the context [`Ctx`](ctx::Ctx)
+//! that errors and warnings go through, and small field helpers) and [`rows`] (the constraint
+//! rows appended so far and a joint's frame, from which joints, clearance elements and drives
+//! build their primitives); `tests/module_graph.rs` checks that the passes form no import cycle.
+//!
 //! Every error names the file and the field path (`joints[3].axis_a`); the first error found
 //! stops the compilation.
 
 pub(crate) mod bodies;
 pub(crate) mod clearance;
+pub(crate) mod ctx;
 pub(crate) mod drives;
 pub(crate) mod forces;
 pub(crate) mod joints;
 pub(crate) mod laws;
+pub(crate) mod rows;
 pub(crate) mod settings;
 
 use std::path::Path;
 
-use nalgebra::Vector3;
-
+use self::ctx::{Ctx, v3};
 use crate::error::{Error, Result};
 use crate::model::{Effects, Model, State};
 use crate::scene::SceneFile;
@@ -47,11 +53,11 @@ impl Model {
         let cx = Ctx::new(&scene.path);
         // Disabled effects are removed from the scene before anything is compiled.
         let (spec, disabled) = crate::disable::apply(&scene.spec)
-            .map_err(|(field, message)| cx.err(field, message))?;
+            .map_err(|(field, error)| cx.err(field, error.to_string()))?;
         let spec = &spec;
         check_finite(&scene.text, &scene.path, &cx)?;
         let bodies = bodies::compile(spec, &cx)?;
-        let mut rows = joints::Rows::default();
+        let mut rows = rows::Rows::default();
         let joints = joints::compile(spec, &bodies, &mut rows, &cx)?;
         let joint_rows = rows.n;
         let drives = drives::compile(spec, &joints, &mut rows, &cx)?;
@@ -99,65 +105,6 @@ impl Model {
             y,
         };
         Ok((model, state))
-    }
-}
-
-/// The file being compiled, and the warnings found so far.
-pub(crate) struct Ctx<'a> {
-    file: &'a Path,
-    warnings: std::cell::RefCell<Vec<String>>,
-}
-
-impl<'a> Ctx<'a> {
-    pub(crate) fn new(file: &'a Path) -> Self {
-        Ctx {
-            file,
-            warnings: Default::default(),
-        }
-    }
-
-    /// Records a warning about `field`.
-    pub(crate) fn warn(&self, field: impl std::fmt::Display, message: impl std::fmt::Display) {
-        self.warnings
-            .borrow_mut()
-            .push(format!("{}: {field}: {message}", self.file.display()));
-    }
-
-    /// An error about `field`.
-    pub(crate) fn err(&self, field: impl Into<String>, message: impl Into<String>) -> Error {
-        Error::Invalid {
-            file: self.file.to_path_buf(),
-            field: field.into(),
-            message: message.into(),
-        }
-    }
-
-    /// The warnings recorded, in order.
-    pub(crate) fn into_warnings(self) -> Vec<String> {
-        self.warnings.into_inner()
-    }
-}
-
-pub(crate) fn v3(a: [f64; 3]) -> Vector3<f64> {
-    Vector3::new(a[0], a[1], a[2])
-}
-
-/// `v` when it is given and positive; `what` describes it when it is missing.
-pub(crate) fn positive(v: Option<f64>, field: String, what: &str, cx: &Ctx) -> Result<f64> {
-    match v {
-        None => Err(cx.err(field, format!("missing: {what}"))),
-        Some(x) if x > 0.0 => Ok(x),
-        Some(x) => Err(cx.err(field, format!("must be positive, got {x}"))),
-    }
-}
-
-/// Declared names for an error message ("none" for none).
-pub(crate) fn list<'a>(it: impl Iterator<Item = &'a String>) -> String {
-    let v: Vec<&str> = it.map(|s| s.as_str()).collect();
-    if v.is_empty() {
-        "none".into()
-    } else {
-        v.join(", ")
     }
 }
 

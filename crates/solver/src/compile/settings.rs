@@ -2,7 +2,7 @@
 //! time span (from `end_time` or from `periods` of the drives' common period) and the divergence
 //! guards; then what to record; then the effects the model simulates.
 
-use super::{Ctx, positive};
+use super::ctx::{Ctx, positive};
 use crate::clearance::Geometry;
 use crate::error::Result;
 use crate::model::{

@@ -14,10 +14,10 @@
 //!
 //! # The Jacobian it uses
 //!
-//! * A system that knows where its stiffness lies ([`OdeSystem::stiff_directions`]: a mechanism's
+//! * A system that knows where its stiffness lies ([`Stiffness::directions`](super::Stiffness::directions): a mechanism's
 //!   closed contacts) gives a few directions; with Q their orthonormal basis (n x r) the method
 //!   takes `A = Z Q^T` with `Z = J Q`, the Jacobian restricted to them. Z comes from the system
-//!   when it can form it ([`OdeSystem::stiff_jacobian`]: a mechanism differences its contact
+//!   when it can form it ([`Stiffness::jacobian`](super::Stiffness::jacobian): a mechanism differences its contact
 //!   forces alone and solves for the constrained response with the factorisation at the step
 //!   start, counted as one evaluation), else from r forward differences of f. Then `I - c A` is
 //!   inverted by the Woodbury identity,
@@ -211,7 +211,10 @@ impl LowRank {
             self.orthonormalise(n);
             self.image.clear();
             self.image.resize(n * self.rank, 0.0);
-            let analytic = self.rank > 0 && sys.stiff_jacobian(t, y, &self.basis, &mut self.image);
+            let analytic = self.rank > 0
+                && sys
+                    .stiffness()
+                    .is_some_and(|s| s.jacobian(t, y, &self.basis, &mut self.image));
             if analytic {
                 stats.rhs_evals += 1;
             } else {
@@ -410,7 +413,13 @@ impl Stepper for Ros34pw2 {
         let mut pattern = std::mem::take(&mut lr.new_pattern);
         dirs.clear();
         pattern.clear();
-        let low = sys.stiff_directions(t, y, h, &mut dirs, &mut pattern);
+        let low = match sys.stiffness() {
+            Some(s) => {
+                s.directions(t, y, h, &mut dirs, &mut pattern);
+                true
+            }
+            None => false,
+        };
         lr.dirs = dirs;
         lr.new_pattern = pattern;
         let (k, rest) = w.k.split_at_mut(SCRATCH);
