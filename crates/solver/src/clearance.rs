@@ -221,7 +221,7 @@ impl Clearance {
     pub fn radial_axes(&self) -> (Vector3<f64>, Vector3<f64>) {
         let a = match self.geometry {
             Geometry::Spherical { .. } => Vector3::z(),
-            _ => self.axis_h,
+            Geometry::Planar { .. } | Geometry::Revolute { .. } => self.axis_h,
         };
         let u = any_normal(&a);
         (u, a.cross(&u))

@@ -110,7 +110,7 @@ impl Prim {
     pub fn rows(&self) -> usize {
         match self {
             Prim::Coincident { .. } => 3,
-            _ => 1,
+            Prim::Perpendicular { .. } | Prim::Distance { .. } | Prim::Angle { .. } => 1,
         }
     }
 }

@@ -179,7 +179,11 @@ impl Profile {
             Profile::Harmonic { omega, .. } | Profile::LegLength { omega, .. } if *omega != 0.0 => {
                 Some(2.0 * std::f64::consts::PI / omega.abs())
             }
-            _ => None,
+            // At rest (a zero rate or frequency), or not periodic.
+            Profile::ConstantRate { .. }
+            | Profile::Harmonic { .. }
+            | Profile::LegLength { .. }
+            | Profile::Spline(_) => None,
         }
     }
 }
