@@ -278,62 +278,135 @@ fn values_of<'a>(d: &'a Data, n: &'a str) -> impl Iterator<Item = f64> + 'a {
     })
 }
 
+/// The panels of figure `f`: its branches, its bifurcation diagram (with the chaos panels under
+/// it), or one panel per selected job.
 fn panels_for(d: &Data, f: &FigureSpec) -> Result<Vec<Panel>> {
-    let s = f.scale.unwrap_or(1.0);
-    // Per axis: the figure's own scale and unit when it gives them, else millimetres for small
-    // lengths (display_scale), else as recorded.
-    let auto = |n: &str| -> (f64, Option<String>) {
-        if f.scale.is_some() || f.unit.is_some() {
-            return (s, None);
-        }
-        let u = d.units.get(n).cloned().unwrap_or_default();
-        match display_scale(&u, values_of(d, n)) {
-            Some((k, mm)) => (k, Some(mm.to_string())),
-            None => (1.0, None),
-        }
+    let axes = Axes::new(d, f);
+    let y = axes.y;
+    if f.kind == FigureKind::Branches {
+        return Ok(vec![branches_panel(d, f, y, axes.s, axes.label(y))]);
+    }
+    if f.kind == FigureKind::Bifurcation {
+        return Ok(axes.bifurcation());
+    }
+    let jobs: Vec<&Job> = if f.values.is_empty() {
+        d.jobs.iter().take(6).collect()
+    } else {
+        f.values
+            .iter()
+            .filter_map(|v| {
+                d.jobs
+                    .iter()
+                    .find(|j| (j.parameter - v).abs() <= 1e-9 * v.abs().max(1e-300))
+            })
+            .collect()
     };
-    let unit = |n: &str| {
-        f.unit
-            .clone()
-            .unwrap_or_else(|| d.units.get(n).cloned().unwrap_or_default())
-    };
-    let label_in = |n: &str, shown: &Option<String>| {
-        let u = shown.clone().unwrap_or_else(|| unit(n));
+    let mut panels = Vec::new();
+    for j in jobs {
+        let mut p = axes.job_panel(j);
+        // Thin lines: long trajectories drawn 2 px wide show stroke artifacts.
+        p.line_width = 1;
+        panels.push(p);
+    }
+    Ok(panels)
+}
+
+/// What the panels of one figure share: the figure, the observables on its axes with the scale
+/// and unit each is drawn in, and the section whose points it draws.
+struct Axes<'a> {
+    d: &'a Data,
+    f: &'a FigureSpec,
+    /// The figure's own scale (1 when it gives none).
+    s: f64,
+    x: &'a str,
+    y: &'a str,
+    sx: f64,
+    ux: Option<String>,
+    sy: f64,
+    uy: Option<String>,
+    section: String,
+    sec_label: String,
+}
+
+impl<'a> Axes<'a> {
+    /// The axes of figure `f`: per axis the figure's own scale and unit when it gives them, else
+    /// millimetres for small lengths ([`display_scale`]), else as recorded; an orbit keeps one
+    /// scale for both axes and its circle.
+    fn new(d: &'a Data, f: &'a FigureSpec) -> Axes<'a> {
+        let s = f.scale.unwrap_or(1.0);
+        // Per axis: the figure's own scale and unit when it gives them, else millimetres for small
+        // lengths (display_scale), else as recorded.
+        let auto = |n: &str| -> (f64, Option<String>) {
+            if f.scale.is_some() || f.unit.is_some() {
+                return (s, None);
+            }
+            let u = d.units.get(n).cloned().unwrap_or_default();
+            match display_scale(&u, values_of(d, n)) {
+                Some((k, mm)) => (k, Some(mm.to_string())),
+                None => (1.0, None),
+            }
+        };
+        let y = f.y.as_str();
+        let x = f.x.as_deref().unwrap_or("");
+        let (sx, ux) = auto(x);
+        let (sy, uy) = auto(y);
+        // An orbit keeps one scale for both axes and its circle.
+        let (sx, ux, sy, uy) = if f.kind == FigureKind::Orbit && (sx != sy || ux != uy) {
+            (s, None, s, None)
+        } else {
+            (sx, ux, sy, uy)
+        };
+        let section = f.section.clone().unwrap_or_else(|| "strobe".into());
+        let sec_label = if section == "strobe" {
+            "strobe points".to_string()
+        } else {
+            format!("section '{section}'")
+        };
+        Axes {
+            d,
+            f,
+            s,
+            x,
+            y,
+            sx,
+            ux,
+            sy,
+            uy,
+            section,
+            sec_label,
+        }
+    }
+
+    /// The axis label of observable `n`: its name and the unit it is drawn in.
+    fn label(&self, n: &str) -> String {
+        let shown = if n == self.x { &self.ux } else { &self.uy };
+        let u = shown.clone().unwrap_or_else(|| {
+            self.f
+                .unit
+                .clone()
+                .unwrap_or_else(|| self.d.units.get(n).cloned().unwrap_or_default())
+        });
         if u.is_empty() || u == "1" {
             n.to_string()
         } else {
             format!("{n} ({u})")
         }
-    };
-    let y = f.y.as_str();
-    let x = f.x.as_deref().unwrap_or("");
-    let (sx, ux) = auto(x);
-    let (sy, uy) = auto(y);
-    // An orbit keeps one scale for both axes and its circle.
-    let (sx, ux, sy, uy) = if f.kind == FigureKind::Orbit && (sx != sy || ux != uy) {
-        (s, None, s, None)
-    } else {
-        (sx, ux, sy, uy)
-    };
-    let label = |n: &str| label_in(n, if n == x { &ux } else { &uy });
-    let section = f.section.clone().unwrap_or_else(|| "strobe".into());
-    let sec_label = if section == "strobe" {
-        "strobe points".to_string()
-    } else {
-        format!("section '{section}'")
-    };
-    let title = |what: String, job: &Job| {
-        let t = f.title.clone().unwrap_or(what);
+    }
+
+    /// A panel's title: the figure's own or `what`, with the job's value.
+    fn title(&self, what: String, job: &Job) -> String {
+        let t = self.f.title.clone().unwrap_or(what);
         if job.label.is_empty() {
             t
         } else {
             format!("{t}, {}", job.label)
         }
-    };
-    if f.kind == FigureKind::Branches {
-        return Ok(vec![branches_panel(d, f, y, s, label(y))]);
     }
-    if f.kind == FigureKind::Bifurcation {
+
+    /// The bifurcation diagram (section points against the swept parameter, the way up and the
+    /// way down apart) and the chaos panels under it, on one parameter axis.
+    fn bifurcation(&self) -> Vec<Panel> {
+        let (d, f, y) = (self.d, self.f, self.y);
         let (pname, punit) = d.sweep.clone().unwrap_or_default();
         let mut up = Series {
             label: "way up".into(),
@@ -351,26 +424,26 @@ fn panels_for(d: &Data, f: &FigureSpec) -> Result<Vec<Panel>> {
             None => (1.0, punit),
         };
         for j in &d.jobs {
-            let pts = &j.sections[&section][y];
+            let pts = &j.sections[&self.section][y];
             let s_ = if j.up { &mut up } else { &mut down };
             s_.x.extend(std::iter::repeat_n(j.parameter * px, pts.len()));
-            s_.y.extend(pts.iter().map(|v| v * sy));
+            s_.y.extend(pts.iter().map(|v| v * self.sy));
         }
         let mut p = Panel::new(
             f.title
                 .clone()
-                .unwrap_or(format!("Bifurcation diagram of {y} ({sec_label})")),
+                .unwrap_or(format!("Bifurcation diagram of {y} ({})", self.sec_label)),
             if punit.is_empty() {
                 short(&pname).to_string()
             } else {
                 format!("{} ({punit})", short(&pname))
             },
-            label(y),
+            self.label(y),
             Vec::new(),
         );
         p.point_size = 1;
         if down.x.is_empty() {
-            up.label = sec_label.clone();
+            up.label = self.sec_label.clone();
             p.points = vec![up];
         } else {
             p.points = vec![up, down];
@@ -390,25 +463,16 @@ fn panels_for(d: &Data, f: &FigureSpec) -> Result<Vec<Panel>> {
                 p.x_range = Some((lo - pad, hi + pad));
             }
         }
-        return Ok(panels);
+        panels
     }
-    let jobs: Vec<&Job> = if f.values.is_empty() {
-        d.jobs.iter().take(6).collect()
-    } else {
-        f.values
-            .iter()
-            .filter_map(|v| {
-                d.jobs
-                    .iter()
-                    .find(|j| (j.parameter - v).abs() <= 1e-9 * v.abs().max(1e-300))
-            })
-            .collect()
-    };
-    let mut panels = Vec::new();
-    for j in jobs {
+
+    /// Job `j`'s panel of the figure's kind: its time history, phase portrait, Poincare map or
+    /// orbit.
+    fn job_panel(&self, j: &Job) -> Panel {
+        let (x, y, sx, sy) = (self.x, self.y, self.sx, self.sy);
         let hx = j.history.get(x).map(|v| scaled(v, sx)).unwrap_or_default();
         let hy = j.history.get(y).map(|v| scaled(v, sy)).unwrap_or_default();
-        let pts = j.sections.get(&section);
+        let pts = j.sections.get(&self.section);
         let px = pts
             .and_then(|m| m.get(x))
             .map(|v| scaled(v, sx))
@@ -417,11 +481,11 @@ fn panels_for(d: &Data, f: &FigureSpec) -> Result<Vec<Panel>> {
             .and_then(|m| m.get(y))
             .map(|v| scaled(v, sy))
             .unwrap_or_default();
-        let p = match f.kind {
+        match self.f.kind {
             FigureKind::Time => Panel::new(
-                title(format!("{y} against time"), j),
+                self.title(format!("{y} against time"), j),
                 "time (s)",
-                label(y),
+                self.label(y),
                 vec![Series {
                     label: y.into(),
                     x: j.history_time.clone(),
@@ -430,9 +494,9 @@ fn panels_for(d: &Data, f: &FigureSpec) -> Result<Vec<Panel>> {
             ),
             FigureKind::Phase => {
                 let mut p = Panel::new(
-                    title(format!("Phase portrait {y} against {x}"), j),
-                    label(x),
-                    label(y),
+                    self.title(format!("Phase portrait {y} against {x}"), j),
+                    self.label(x),
+                    self.label(y),
                     vec![Series {
                         label: "trajectory (kept periods)".into(),
                         x: hx,
@@ -440,97 +504,107 @@ fn panels_for(d: &Data, f: &FigureSpec) -> Result<Vec<Panel>> {
                     }],
                 );
                 p.points = vec![Series {
-                    label: sec_label.clone(),
+                    label: self.sec_label.clone(),
                     x: px,
                     y: py,
                 }];
                 p
             }
-            FigureKind::Poincare => {
-                let traj = bbox(&hx, &hy);
-                let mut p = Panel::new(
-                    title(format!("Poincare map {y} against {x}"), j),
-                    label(x),
-                    label(y),
-                    if hx.is_empty() {
-                        Vec::new()
-                    } else {
-                        vec![Series {
-                            label: "trajectory".into(),
-                            x: hx,
-                            y: hy,
-                        }]
-                    },
-                );
-                let pts = Series {
-                    label: sec_label.clone(),
-                    x: px.clone(),
-                    y: py.clone(),
-                };
-                if let (Some(t), Some(b)) = (traj, bbox(&px, &py)) {
-                    let (tw, th) = (t.1 - t.0, t.3 - t.2);
-                    let (bw, bh) = (b.1 - b.0, b.3 - b.2);
-                    if bw < 0.1 * tw && bh < 0.1 * th {
-                        let pad = |lo: f64, hi: f64, span: f64| {
-                            let w = (hi - lo).max(1e-6 * span).max(f64::MIN_POSITIVE);
-                            (lo - 0.25 * w, hi + 0.25 * w)
-                        };
-                        let mut inset = Panel::new("zoom", "", "", Vec::new());
-                        inset.points = vec![pts.clone()];
-                        inset.x_range = Some(pad(b.0, b.1, tw));
-                        inset.y_range = Some(pad(b.2, b.3, th));
-                        p.inset = Some(Box::new(inset));
-                        // Put the inset in the quarter away from the points.
-                        let (cx, cy) = (0.5 * (b.0 + b.1), 0.5 * (b.2 + b.3));
-                        p.inset_corner = (cx < 0.5 * (t.0 + t.1), cy < 0.5 * (t.2 + t.3));
-                    }
-                }
-                p.points = vec![pts];
-                p
-            }
-            FigureKind::Orbit => {
-                let r = if f.circle_from_parameter {
-                    Some(j.parameter * sx)
-                } else {
-                    f.circle.map(|c| c * sx)
-                };
-                let mut series = vec![Series {
-                    label: "centre".into(),
-                    x: hx.clone(),
-                    y: hy.clone(),
-                }];
-                let mut lim = hx.iter().chain(&hy).fold(0.0f64, |m, v| {
-                    if v.is_finite() { m.max(v.abs()) } else { m }
-                });
-                if let Some(r) = r {
-                    let a = (0..=360).map(|k| (k as f64).to_radians());
-                    series.push(Series {
-                        label: format!("clearance {}", crate::study::report::num(r)),
-                        x: a.clone().map(|t| r * t.cos()).collect(),
-                        y: a.map(|t| r * t.sin()).collect(),
-                    });
-                    lim = lim.max(r);
-                }
-                let lim = 1.1 * lim.max(f64::MIN_POSITIVE);
-                let mut p = Panel::new(
-                    title(format!("Orbit {y} against {x}"), j),
-                    label(x),
-                    label(y),
-                    series,
-                );
-                p.x_range = Some((-lim, lim));
-                p.y_range = Some((-lim, lim));
-                p.equal_aspect = true;
-                p
-            }
+            FigureKind::Poincare => self.poincare(j, hx, hy, px, py),
+            FigureKind::Orbit => self.orbit(j, hx, hy),
             FigureKind::Bifurcation | FigureKind::Branches => unreachable!("handled above"),
-        };
-        let mut p = p;
-        // Thin lines: long trajectories drawn 2 px wide show stroke artifacts.
-        p.line_width = 1;
-        panels.push(p);
+        }
     }
-    Ok(panels)
+
+    /// Job `j`'s Poincare map: the section points `(px, py)` over the faint trajectory
+    /// `(hx, hy)`, with a zoomed inset, away from the points, when they cluster within a tenth of
+    /// the trajectory's extent.
+    fn poincare(&self, j: &Job, hx: Vec<f64>, hy: Vec<f64>, px: Vec<f64>, py: Vec<f64>) -> Panel {
+        let (x, y) = (self.x, self.y);
+        let traj = bbox(&hx, &hy);
+        let mut p = Panel::new(
+            self.title(format!("Poincare map {y} against {x}"), j),
+            self.label(x),
+            self.label(y),
+            if hx.is_empty() {
+                Vec::new()
+            } else {
+                vec![Series {
+                    label: "trajectory".into(),
+                    x: hx,
+                    y: hy,
+                }]
+            },
+        );
+        let pts = Series {
+            label: self.sec_label.clone(),
+            x: px.clone(),
+            y: py.clone(),
+        };
+        if let (Some(t), Some(b)) = (traj, bbox(&px, &py)) {
+            let (tw, th) = (t.1 - t.0, t.3 - t.2);
+            let (bw, bh) = (b.1 - b.0, b.3 - b.2);
+            if bw < 0.1 * tw && bh < 0.1 * th {
+                let pad = |lo: f64, hi: f64, span: f64| {
+                    let w = (hi - lo).max(1e-6 * span).max(f64::MIN_POSITIVE);
+                    (lo - 0.25 * w, hi + 0.25 * w)
+                };
+                let mut inset = Panel::new("zoom", "", "", Vec::new());
+                inset.points = vec![pts.clone()];
+                inset.x_range = Some(pad(b.0, b.1, tw));
+                inset.y_range = Some(pad(b.2, b.3, th));
+                p.inset = Some(Box::new(inset));
+                // Put the inset in the quarter away from the points.
+                let (cx, cy) = (0.5 * (b.0 + b.1), 0.5 * (b.2 + b.3));
+                p.inset_corner = (cx < 0.5 * (t.0 + t.1), cy < 0.5 * (t.2 + t.3));
+            }
+        }
+        p.points = vec![pts];
+        p
+    }
+
+    /// Job `j`'s orbit `(hx, hy)` inside its clearance circle (the figure's, or the job's
+    /// parameter), on equal axes about the centre.
+    fn orbit(&self, j: &Job, hx: Vec<f64>, hy: Vec<f64>) -> Panel {
+        let (f, x, y, sx) = (self.f, self.x, self.y, self.sx);
+        let r = if f.circle_from_parameter {
+            Some(j.parameter * sx)
+        } else {
+            f.circle.map(|c| c * sx)
+        };
+        let mut series = vec![Series {
+            label: "centre".into(),
+            x: hx.clone(),
+            y: hy.clone(),
+        }];
+        let mut lim =
+            hx.iter().chain(&hy).fold(
+                0.0f64,
+                |m, v| {
+                    if v.is_finite() { m.max(v.abs()) } else { m }
+                },
+            );
+        if let Some(r) = r {
+            let a = (0..=360).map(|k| (k as f64).to_radians());
+            series.push(Series {
+                label: format!("clearance {}", crate::study::report::num(r)),
+                x: a.clone().map(|t| r * t.cos()).collect(),
+                y: a.map(|t| r * t.sin()).collect(),
+            });
+            lim = lim.max(r);
+        }
+        let lim = 1.1 * lim.max(f64::MIN_POSITIVE);
+        let mut p = Panel::new(
+            self.title(format!("Orbit {y} against {x}"), j),
+            self.label(x),
+            self.label(y),
+            series,
+        );
+        p.x_range = Some((-lim, lim));
+        p.y_range = Some((-lim, lim));
+        p.equal_aspect = true;
+        p
+    }
 }
 
 fn stem(d: &Data, f: &FigureSpec) -> String {
