@@ -19,347 +19,14 @@
 //! two-trajectory estimate), and the 0-1 test's K; a single run gets a convergence figure of the
 //! running exponent estimates (`<study>-lyapunov.png`).
 
-use crate::measures::indicator::Row;
-use crate::measures::registry::INDICATORS;
-use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};
 
+use crate::figures::analysis_data::{Data, Job, read, short};
+pub use crate::figures::analysis_data::{FIGURE_HISTORY, display_scale};
 use crate::figures::plot::write;
 use crate::figures::plot::{Format, Panel, Series};
-use crate::storage::h5::{h5err, read_rows, read_str};
-use crate::study::analysis::spec::{AnalysisStudy, FigureKind, FigureSpec};
+use crate::study::analysis::spec::{FigureKind, FigureSpec};
 use crate::{Error, Result};
-
-/// The recorded data of one run (or one sweep job).
-#[derive(Debug, Clone, Default)]
-struct Job {
-    /// Panel title suffix, e.g. "gamma = 0.28".
-    label: String,
-    parameter: f64,
-    up: bool,
-    history_time: Vec<f64>,
-    history: BTreeMap<String, Vec<f64>>,
-    /// Section name ("strobe" or a hyperplane) to observable to points.
-    sections: BTreeMap<String, BTreeMap<String, Vec<f64>>>,
-}
-
-struct Data {
-    spec: AnalysisStudy,
-    name: String,
-    units: BTreeMap<String, String>,
-    sweep: Option<(String, String)>,
-    jobs: Vec<Job>,
-    /// Per done sweep value: parameter, lambda_1, its standard error and the two-trajectory
-    /// estimate (NaN where not computed).
-    chaos: Vec<[f64; 4]>,
-    /// Each chaos indicator the sweep computed (crate::measures::registry), with its parameter
-    /// and number per done value.
-    numbers: Vec<(Row, Vec<[f64; 2]>)>,
-    /// A single run's running Lyapunov estimates: times, one row per time, and the
-    /// two-trajectory estimate.
-    convergence: Option<Convergence>,
-    /// The branches of periodic orbits, when the study followed them.
-    continuation: Option<ContData>,
-}
-
-/// One branch of periodic orbits as read back: its parameter, stability and, per observable, the
-/// values at its strobe points (one row per point, one column per drive period).
-struct BranchData {
-    parameter: Vec<f64>,
-    stable: Vec<u8>,
-    strobe: BTreeMap<String, Vec<Vec<f64>>>,
-}
-
-/// `/continuation`: the parameter's path and unit, the branches, and the special points (kind,
-/// parameter, observables at the first strobe point).
-struct ContData {
-    parameter: String,
-    unit: String,
-    branches: Vec<BranchData>,
-    specials: Vec<(String, f64, BTreeMap<String, f64>)>,
-}
-
-fn read_continuation(g: &hdf5::Group, spec: &AnalysisStudy) -> hdf5::Result<ContData> {
-    let n: u64 = crate::storage::h5::read_attr(g, "branches").unwrap_or(0);
-    let mut branches = Vec::new();
-    for i in 0..n {
-        let b = g.group(&format!("branch_{i}"))?;
-        let sg = b.group("strobe")?;
-        let mut strobe = BTreeMap::new();
-        for o in &spec.observables {
-            strobe.insert(o.name.clone(), read_rows(&sg, &o.name)?);
-        }
-        branches.push(BranchData {
-            parameter: b.dataset("parameter")?.read_raw()?,
-            stable: b.dataset("stable")?.read_raw()?,
-            strobe,
-        });
-    }
-    let mut specials = Vec::new();
-    if let Ok(sp) = g.group("special") {
-        let kinds = crate::storage::h5::read_strings(&sp, "kind")?;
-        let params: Vec<f64> = sp.dataset("parameter")?.read_raw()?;
-        let sg = sp.group("strobe")?;
-        let mut vals = BTreeMap::new();
-        for o in &spec.observables {
-            vals.insert(o.name.clone(), sg.dataset(&o.name)?.read_raw::<f64>()?);
-        }
-        for (i, (k, p)) in kinds.into_iter().zip(params).enumerate() {
-            let at = vals.iter().map(|(n, v)| (n.clone(), v[i])).collect();
-            specials.push((k, p, at));
-        }
-    }
-    Ok(ContData {
-        parameter: read_str(g, "parameter")?,
-        unit: read_str(g, "parameter_unit").unwrap_or_default(),
-        branches,
-        specials,
-    })
-}
-
-/// Times of the re-orthonormalisations, the running estimates there (one row per time) and the
-/// two-trajectory estimate.
-type Convergence = (Vec<f64>, Vec<Vec<f64>>, Vec<f64>);
-
-/// History samples a figure draws per run, at most: the last ones.
-pub const FIGURE_HISTORY: usize = 20_000;
-
-/// The last [`FIGURE_HISTORY`] values of the one-dimensional dataset `name`.
-fn read_tail(g: &hdf5::Group, name: &str) -> hdf5::Result<Vec<f64>> {
-    let ds = g.dataset(name)?;
-    let n = ds.shape().first().copied().unwrap_or(0);
-    let v = ds.read_slice_1d::<f64, _>(ndarray::s![n.saturating_sub(FIGURE_HISTORY)..n])?;
-    Ok(v.to_vec())
-}
-
-/// The last [`FIGURE_HISTORY`] values of each row of the two-dimensional dataset `name` whose
-/// job is done (`done` 1); an empty row for the others.
-fn read_tail_rows(g: &hdf5::Group, name: &str, done: &[u8]) -> hdf5::Result<Vec<Vec<f64>>> {
-    let ds = g.dataset(name)?;
-    let shape = ds.shape();
-    let cols = shape.get(1).copied().unwrap_or(0);
-    (0..shape.first().copied().unwrap_or(0))
-        .map(|r| {
-            if done.get(r) != Some(&1) {
-                return Ok(Vec::new());
-            }
-            let range = cols.saturating_sub(FIGURE_HISTORY)..cols;
-            Ok(ds.read_slice_1d::<f64, _>(ndarray::s![r, range])?.to_vec())
-        })
-        .collect()
-}
-
-fn read_group(g: &hdf5::Group, spec: &AnalysisStudy) -> hdf5::Result<BTreeMap<String, Vec<f64>>> {
-    let mut m = BTreeMap::new();
-    for o in &spec.observables {
-        m.insert(o.name.clone(), g.dataset(&o.name)?.read_raw::<f64>()?);
-    }
-    Ok(m)
-}
-
-fn read(path: &Path) -> Result<Data> {
-    let e = h5err(path);
-    let file = hdf5::File::open(path).map_err(&e)?;
-    let kind = read_str(&file, "kind").unwrap_or_default();
-    if kind != "analysis" {
-        return Err(Error::Io {
-            file: path.to_path_buf(),
-            message: "not a nonlinear-analysis file (no kind = \"analysis\" attribute): `jointplay plot` redraws the figures of analysis studies; `jointplay run` draws those of scenes and comparison studies".into(),
-        });
-    }
-    let text = read_str(&file, "study").map_err(&e)?;
-    let spec = AnalysisStudy::parse_spec(&text, path)?;
-    let name = read_str(&file, "study_name").map_err(&e)?;
-    let mut units = BTreeMap::new();
-    let mut jobs = Vec::new();
-    let mut sweep = None;
-    let mut chaos = Vec::new();
-    let mut numbers = Vec::new();
-    let mut convergence = None;
-    if let Ok(g) = file.group("sweep") {
-        let pds = g.dataset("parameter").map_err(&e)?;
-        let params = pds.read_raw::<f64>().map_err(&e)?;
-        let pname = read_str(&pds, "path").map_err(&e)?;
-        let punit = read_str(&pds, "unit").unwrap_or_default();
-        let dirs = g
-            .dataset("direction")
-            .and_then(|d| d.read_raw::<i8>())
-            .map_err(&e)?;
-        let done = g
-            .dataset("done")
-            .and_then(|d| d.read_raw::<u8>())
-            .map_err(&e)?;
-        // Every per-value dataset has a row per value of /sweep/parameter: a damaged or edited
-        // file is refused, naming the dataset, rather than indexed out of its bounds.
-        let rows = |name: &str, n: usize| {
-            if n == params.len() {
-                Ok(())
-            } else {
-                Err(Error::Io {
-                    file: path.to_path_buf(),
-                    message: format!(
-                        "/sweep/{name} has {n} rows but /sweep/parameter has {}: not a sweep file \
-                         jointplay wrote (damaged or edited)",
-                        params.len()
-                    ),
-                })
-            }
-        };
-        rows("direction", dirs.len())?;
-        rows("done", done.len())?;
-        let mut strobe = BTreeMap::new();
-        let mut hist = BTreeMap::new();
-        for o in &spec.observables {
-            let ds = g.dataset(&o.name).map_err(&e)?;
-            units.insert(o.name.clone(), read_str(&ds, "unit").unwrap_or_default());
-            let r = read_rows(&g, &o.name).map_err(&e)?;
-            rows(&o.name, r.len())?;
-            strobe.insert(o.name.clone(), r);
-        }
-        let hg = g.group("history").ok();
-        let htime = match &hg {
-            Some(h) => {
-                for o in &spec.observables {
-                    let r = read_tail_rows(h, &o.name, &done).map_err(&e)?;
-                    rows(&format!("history/{}", o.name), r.len())?;
-                    hist.insert(o.name.clone(), r);
-                }
-                let t = read_tail_rows(h, "time", &done).map_err(&e)?;
-                rows("history/time", t.len())?;
-                t
-            }
-            None => Vec::new(),
-        };
-        for (j, p) in params.iter().enumerate() {
-            if done[j] != 1 {
-                continue;
-            }
-            let mut sections = BTreeMap::new();
-            sections.insert(
-                "strobe".to_string(),
-                strobe
-                    .iter()
-                    .map(|(k, v)| (k.clone(), v[j].clone()))
-                    .collect(),
-            );
-            if let Ok(sj) = g.group(&format!("sections/{j}")) {
-                for s in &spec.sections {
-                    let gs = sj.group(&s.name).map_err(&e)?;
-                    sections.insert(s.name.clone(), read_group(&gs, &spec).map_err(&e)?);
-                }
-            }
-            jobs.push(Job {
-                label: format!(
-                    "{} = {}{}",
-                    short(&pname),
-                    // In the unit the parameter axis is drawn in (mm for a clearance).
-                    match display_scale(&punit, params.iter().copied()) {
-                        Some((k, u)) => format!("{} {u}", crate::study::report::num(*p * k)),
-                        None if punit.is_empty() => crate::study::report::num(*p),
-                        None => format!("{} {punit}", crate::study::report::num(*p)),
-                    },
-                    if dirs[j] < 0 { " (down)" } else { "" }
-                ),
-                parameter: *p,
-                up: dirs[j] >= 0,
-                history_time: htime.get(j).cloned().unwrap_or_default(),
-                history: hist
-                    .iter()
-                    .map(|(k, v)| (k.clone(), v[j].clone()))
-                    .collect(),
-                sections,
-            });
-        }
-        if let Ok(c) = g.group("chaos") {
-            let col = |name: &str, k: usize| -> Vec<f64> {
-                c.dataset(name)
-                    .and_then(|d| {
-                        let cols = d.shape().get(1).copied().unwrap_or(1);
-                        d.read_raw::<f64>()
-                            .map(|v| v.iter().skip(k).step_by(cols).copied().collect())
-                    })
-                    .unwrap_or_else(|_| vec![f64::NAN; params.len()])
-            };
-            let (l1, e1, two) = (
-                col("exponents", 0),
-                col("stderr", 0),
-                col("two_trajectory", 0),
-            );
-            let at = |v: &[f64], j: usize| v.get(j).copied().unwrap_or(f64::NAN);
-            let done_values = || params.iter().enumerate().filter(|(j, _)| done[*j] == 1);
-            for (j, p) in done_values() {
-                chaos.push([*p, at(&l1, j), at(&e1, j), at(&two, j)]);
-            }
-            for i in INDICATORS {
-                let row = i.row();
-                if c.dataset(row.name).is_ok() {
-                    let v = col(row.name, 0);
-                    numbers.push((row, done_values().map(|(j, p)| [*p, at(&v, j)]).collect()));
-                }
-            }
-        }
-        sweep = Some((pname, punit));
-    } else {
-        if let Ok(l) = file.group("chaos/lyapunov") {
-            let t = l.dataset("history_time").and_then(|d| d.read_raw::<f64>());
-            let h = read_rows(&l, "history");
-            if let (Ok(t), Ok(h)) = (t, h) {
-                let two = l
-                    .dataset("two_trajectory_history")
-                    .and_then(|d| d.read_raw::<f64>())
-                    .unwrap_or_default();
-                convergence = Some((t, h, two));
-            }
-        }
-        let mut job = Job {
-            up: true,
-            ..Default::default()
-        };
-        if let Ok(h) = file.group("history") {
-            job.history_time = read_tail(&h, "time").map_err(&e)?;
-            job.history = spec
-                .observables
-                .iter()
-                .map(|o| Ok((o.name.clone(), read_tail(&h, &o.name)?)))
-                .collect::<hdf5::Result<_>>()
-                .map_err(&e)?;
-        }
-        let sg = file.group("sections").map_err(&e)?;
-        let strobe = sg.group("strobe").map_err(&e)?;
-        for o in &spec.observables {
-            let ds = strobe.dataset(&o.name).map_err(&e)?;
-            units.insert(o.name.clone(), read_str(&ds, "unit").unwrap_or_default());
-        }
-        job.sections
-            .insert("strobe".into(), read_group(&strobe, &spec).map_err(&e)?);
-        for s in &spec.sections {
-            let g = sg.group(&s.name).map_err(&e)?;
-            job.sections
-                .insert(s.name.clone(), read_group(&g, &spec).map_err(&e)?);
-        }
-        jobs.push(job);
-    }
-    let continuation = match file.group("continuation") {
-        Ok(g) => Some(read_continuation(&g, &spec).map_err(&e)?),
-        Err(_) => None,
-    };
-    Ok(Data {
-        spec,
-        name,
-        units,
-        sweep,
-        jobs,
-        chaos,
-        numbers,
-        convergence,
-        continuation,
-    })
-}
-
-/// Last segment of a parameter path that is not a wildcard or a number.
-fn short(path: &str) -> &str {
-    path.rsplit('.').next().unwrap_or(path)
-}
 
 fn default_figures(d: &Data) -> Vec<FigureSpec> {
     let mut v = Vec::new();
@@ -599,26 +266,6 @@ fn bbox(x: &[f64], y: &[f64]) -> Option<(f64, f64, f64, f64)> {
     Some((x0, x1, y0, y1))
 }
 
-/// Lengths recorded in metres that all stay below 0.1 m (clearances, eccentricities, offsets)
-/// are drawn in millimetres, as the literature's figures draw them: the factor and the unit, or
-/// None to draw the values as recorded.
-pub fn display_scale(
-    unit: &str,
-    vals: impl IntoIterator<Item = f64>,
-) -> Option<(f64, &'static str)> {
-    if unit != "m" {
-        return None;
-    }
-    let mut any = false;
-    for v in vals.into_iter().filter(|v| v.is_finite()) {
-        if v.abs() >= 0.1 {
-            return None;
-        }
-        any = true;
-    }
-    any.then_some((1e3, "mm"))
-}
-
 /// Every recorded value of observable `n`: histories and section points of every job.
 fn values_of<'a>(d: &'a Data, n: &'a str) -> impl Iterator<Item = f64> + 'a {
     d.jobs.iter().flat_map(move |j| {
@@ -631,62 +278,135 @@ fn values_of<'a>(d: &'a Data, n: &'a str) -> impl Iterator<Item = f64> + 'a {
     })
 }
 
+/// The panels of figure `f`: its branches, its bifurcation diagram (with the chaos panels under
+/// it), or one panel per selected job.
 fn panels_for(d: &Data, f: &FigureSpec) -> Result<Vec<Panel>> {
-    let s = f.scale.unwrap_or(1.0);
-    // Per axis: the figure's own scale and unit when it gives them, else millimetres for small
-    // lengths (display_scale), else as recorded.
-    let auto = |n: &str| -> (f64, Option<String>) {
-        if f.scale.is_some() || f.unit.is_some() {
-            return (s, None);
-        }
-        let u = d.units.get(n).cloned().unwrap_or_default();
-        match display_scale(&u, values_of(d, n)) {
-            Some((k, mm)) => (k, Some(mm.to_string())),
-            None => (1.0, None),
-        }
+    let axes = Axes::new(d, f);
+    let y = axes.y;
+    if f.kind == FigureKind::Branches {
+        return Ok(vec![branches_panel(d, f, y, axes.s, axes.label(y))]);
+    }
+    if f.kind == FigureKind::Bifurcation {
+        return Ok(axes.bifurcation());
+    }
+    let jobs: Vec<&Job> = if f.values.is_empty() {
+        d.jobs.iter().take(6).collect()
+    } else {
+        f.values
+            .iter()
+            .filter_map(|v| {
+                d.jobs
+                    .iter()
+                    .find(|j| (j.parameter - v).abs() <= 1e-9 * v.abs().max(1e-300))
+            })
+            .collect()
     };
-    let unit = |n: &str| {
-        f.unit
-            .clone()
-            .unwrap_or_else(|| d.units.get(n).cloned().unwrap_or_default())
-    };
-    let label_in = |n: &str, shown: &Option<String>| {
-        let u = shown.clone().unwrap_or_else(|| unit(n));
+    let mut panels = Vec::new();
+    for j in jobs {
+        let mut p = axes.job_panel(j);
+        // Thin lines: long trajectories drawn 2 px wide show stroke artifacts.
+        p.line_width = 1;
+        panels.push(p);
+    }
+    Ok(panels)
+}
+
+/// What the panels of one figure share: the figure, the observables on its axes with the scale
+/// and unit each is drawn in, and the section whose points it draws.
+struct Axes<'a> {
+    d: &'a Data,
+    f: &'a FigureSpec,
+    /// The figure's own scale (1 when it gives none).
+    s: f64,
+    x: &'a str,
+    y: &'a str,
+    sx: f64,
+    ux: Option<String>,
+    sy: f64,
+    uy: Option<String>,
+    section: String,
+    sec_label: String,
+}
+
+impl<'a> Axes<'a> {
+    /// The axes of figure `f`: per axis the figure's own scale and unit when it gives them, else
+    /// millimetres for small lengths ([`display_scale`]), else as recorded; an orbit keeps one
+    /// scale for both axes and its circle.
+    fn new(d: &'a Data, f: &'a FigureSpec) -> Axes<'a> {
+        let s = f.scale.unwrap_or(1.0);
+        // Per axis: the figure's own scale and unit when it gives them, else millimetres for small
+        // lengths (display_scale), else as recorded.
+        let auto = |n: &str| -> (f64, Option<String>) {
+            if f.scale.is_some() || f.unit.is_some() {
+                return (s, None);
+            }
+            let u = d.units.get(n).cloned().unwrap_or_default();
+            match display_scale(&u, values_of(d, n)) {
+                Some((k, mm)) => (k, Some(mm.to_string())),
+                None => (1.0, None),
+            }
+        };
+        let y = f.y.as_str();
+        let x = f.x.as_deref().unwrap_or("");
+        let (sx, ux) = auto(x);
+        let (sy, uy) = auto(y);
+        // An orbit keeps one scale for both axes and its circle.
+        let (sx, ux, sy, uy) = if f.kind == FigureKind::Orbit && (sx != sy || ux != uy) {
+            (s, None, s, None)
+        } else {
+            (sx, ux, sy, uy)
+        };
+        let section = f.section.clone().unwrap_or_else(|| "strobe".into());
+        let sec_label = if section == "strobe" {
+            "strobe points".to_string()
+        } else {
+            format!("section '{section}'")
+        };
+        Axes {
+            d,
+            f,
+            s,
+            x,
+            y,
+            sx,
+            ux,
+            sy,
+            uy,
+            section,
+            sec_label,
+        }
+    }
+
+    /// The axis label of observable `n`: its name and the unit it is drawn in.
+    fn label(&self, n: &str) -> String {
+        let shown = if n == self.x { &self.ux } else { &self.uy };
+        let u = shown.clone().unwrap_or_else(|| {
+            self.f
+                .unit
+                .clone()
+                .unwrap_or_else(|| self.d.units.get(n).cloned().unwrap_or_default())
+        });
         if u.is_empty() || u == "1" {
             n.to_string()
         } else {
             format!("{n} ({u})")
         }
-    };
-    let y = f.y.as_str();
-    let x = f.x.as_deref().unwrap_or("");
-    let (sx, ux) = auto(x);
-    let (sy, uy) = auto(y);
-    // An orbit keeps one scale for both axes and its circle.
-    let (sx, ux, sy, uy) = if f.kind == FigureKind::Orbit && (sx != sy || ux != uy) {
-        (s, None, s, None)
-    } else {
-        (sx, ux, sy, uy)
-    };
-    let label = |n: &str| label_in(n, if n == x { &ux } else { &uy });
-    let section = f.section.clone().unwrap_or_else(|| "strobe".into());
-    let sec_label = if section == "strobe" {
-        "strobe points".to_string()
-    } else {
-        format!("section '{section}'")
-    };
-    let title = |what: String, job: &Job| {
-        let t = f.title.clone().unwrap_or(what);
+    }
+
+    /// A panel's title: the figure's own or `what`, with the job's value.
+    fn title(&self, what: String, job: &Job) -> String {
+        let t = self.f.title.clone().unwrap_or(what);
         if job.label.is_empty() {
             t
         } else {
             format!("{t}, {}", job.label)
         }
-    };
-    if f.kind == FigureKind::Branches {
-        return Ok(vec![branches_panel(d, f, y, s, label(y))]);
     }
-    if f.kind == FigureKind::Bifurcation {
+
+    /// The bifurcation diagram (section points against the swept parameter, the way up and the
+    /// way down apart) and the chaos panels under it, on one parameter axis.
+    fn bifurcation(&self) -> Vec<Panel> {
+        let (d, f, y) = (self.d, self.f, self.y);
         let (pname, punit) = d.sweep.clone().unwrap_or_default();
         let mut up = Series {
             label: "way up".into(),
@@ -704,26 +424,26 @@ fn panels_for(d: &Data, f: &FigureSpec) -> Result<Vec<Panel>> {
             None => (1.0, punit),
         };
         for j in &d.jobs {
-            let pts = &j.sections[&section][y];
+            let pts = &j.sections[&self.section][y];
             let s_ = if j.up { &mut up } else { &mut down };
             s_.x.extend(std::iter::repeat_n(j.parameter * px, pts.len()));
-            s_.y.extend(pts.iter().map(|v| v * sy));
+            s_.y.extend(pts.iter().map(|v| v * self.sy));
         }
         let mut p = Panel::new(
             f.title
                 .clone()
-                .unwrap_or(format!("Bifurcation diagram of {y} ({sec_label})")),
+                .unwrap_or(format!("Bifurcation diagram of {y} ({})", self.sec_label)),
             if punit.is_empty() {
                 short(&pname).to_string()
             } else {
                 format!("{} ({punit})", short(&pname))
             },
-            label(y),
+            self.label(y),
             Vec::new(),
         );
         p.point_size = 1;
         if down.x.is_empty() {
-            up.label = sec_label.clone();
+            up.label = self.sec_label.clone();
             p.points = vec![up];
         } else {
             p.points = vec![up, down];
@@ -743,25 +463,16 @@ fn panels_for(d: &Data, f: &FigureSpec) -> Result<Vec<Panel>> {
                 p.x_range = Some((lo - pad, hi + pad));
             }
         }
-        return Ok(panels);
+        panels
     }
-    let jobs: Vec<&Job> = if f.values.is_empty() {
-        d.jobs.iter().take(6).collect()
-    } else {
-        f.values
-            .iter()
-            .filter_map(|v| {
-                d.jobs
-                    .iter()
-                    .find(|j| (j.parameter - v).abs() <= 1e-9 * v.abs().max(1e-300))
-            })
-            .collect()
-    };
-    let mut panels = Vec::new();
-    for j in jobs {
+
+    /// Job `j`'s panel of the figure's kind: its time history, phase portrait, Poincare map or
+    /// orbit.
+    fn job_panel(&self, j: &Job) -> Panel {
+        let (x, y, sx, sy) = (self.x, self.y, self.sx, self.sy);
         let hx = j.history.get(x).map(|v| scaled(v, sx)).unwrap_or_default();
         let hy = j.history.get(y).map(|v| scaled(v, sy)).unwrap_or_default();
-        let pts = j.sections.get(&section);
+        let pts = j.sections.get(&self.section);
         let px = pts
             .and_then(|m| m.get(x))
             .map(|v| scaled(v, sx))
@@ -770,11 +481,11 @@ fn panels_for(d: &Data, f: &FigureSpec) -> Result<Vec<Panel>> {
             .and_then(|m| m.get(y))
             .map(|v| scaled(v, sy))
             .unwrap_or_default();
-        let p = match f.kind {
+        match self.f.kind {
             FigureKind::Time => Panel::new(
-                title(format!("{y} against time"), j),
+                self.title(format!("{y} against time"), j),
                 "time (s)",
-                label(y),
+                self.label(y),
                 vec![Series {
                     label: y.into(),
                     x: j.history_time.clone(),
@@ -783,9 +494,9 @@ fn panels_for(d: &Data, f: &FigureSpec) -> Result<Vec<Panel>> {
             ),
             FigureKind::Phase => {
                 let mut p = Panel::new(
-                    title(format!("Phase portrait {y} against {x}"), j),
-                    label(x),
-                    label(y),
+                    self.title(format!("Phase portrait {y} against {x}"), j),
+                    self.label(x),
+                    self.label(y),
                     vec![Series {
                         label: "trajectory (kept periods)".into(),
                         x: hx,
@@ -793,97 +504,107 @@ fn panels_for(d: &Data, f: &FigureSpec) -> Result<Vec<Panel>> {
                     }],
                 );
                 p.points = vec![Series {
-                    label: sec_label.clone(),
+                    label: self.sec_label.clone(),
                     x: px,
                     y: py,
                 }];
                 p
             }
-            FigureKind::Poincare => {
-                let traj = bbox(&hx, &hy);
-                let mut p = Panel::new(
-                    title(format!("Poincare map {y} against {x}"), j),
-                    label(x),
-                    label(y),
-                    if hx.is_empty() {
-                        Vec::new()
-                    } else {
-                        vec![Series {
-                            label: "trajectory".into(),
-                            x: hx,
-                            y: hy,
-                        }]
-                    },
-                );
-                let pts = Series {
-                    label: sec_label.clone(),
-                    x: px.clone(),
-                    y: py.clone(),
-                };
-                if let (Some(t), Some(b)) = (traj, bbox(&px, &py)) {
-                    let (tw, th) = (t.1 - t.0, t.3 - t.2);
-                    let (bw, bh) = (b.1 - b.0, b.3 - b.2);
-                    if bw < 0.1 * tw && bh < 0.1 * th {
-                        let pad = |lo: f64, hi: f64, span: f64| {
-                            let w = (hi - lo).max(1e-6 * span).max(f64::MIN_POSITIVE);
-                            (lo - 0.25 * w, hi + 0.25 * w)
-                        };
-                        let mut inset = Panel::new("zoom", "", "", Vec::new());
-                        inset.points = vec![pts.clone()];
-                        inset.x_range = Some(pad(b.0, b.1, tw));
-                        inset.y_range = Some(pad(b.2, b.3, th));
-                        p.inset = Some(Box::new(inset));
-                        // Put the inset in the quarter away from the points.
-                        let (cx, cy) = (0.5 * (b.0 + b.1), 0.5 * (b.2 + b.3));
-                        p.inset_corner = (cx < 0.5 * (t.0 + t.1), cy < 0.5 * (t.2 + t.3));
-                    }
-                }
-                p.points = vec![pts];
-                p
-            }
-            FigureKind::Orbit => {
-                let r = if f.circle_from_parameter {
-                    Some(j.parameter * sx)
-                } else {
-                    f.circle.map(|c| c * sx)
-                };
-                let mut series = vec![Series {
-                    label: "centre".into(),
-                    x: hx.clone(),
-                    y: hy.clone(),
-                }];
-                let mut lim = hx.iter().chain(&hy).fold(0.0f64, |m, v| {
-                    if v.is_finite() { m.max(v.abs()) } else { m }
-                });
-                if let Some(r) = r {
-                    let a = (0..=360).map(|k| (k as f64).to_radians());
-                    series.push(Series {
-                        label: format!("clearance {}", crate::study::report::num(r)),
-                        x: a.clone().map(|t| r * t.cos()).collect(),
-                        y: a.map(|t| r * t.sin()).collect(),
-                    });
-                    lim = lim.max(r);
-                }
-                let lim = 1.1 * lim.max(f64::MIN_POSITIVE);
-                let mut p = Panel::new(
-                    title(format!("Orbit {y} against {x}"), j),
-                    label(x),
-                    label(y),
-                    series,
-                );
-                p.x_range = Some((-lim, lim));
-                p.y_range = Some((-lim, lim));
-                p.equal_aspect = true;
-                p
-            }
+            FigureKind::Poincare => self.poincare(j, hx, hy, px, py),
+            FigureKind::Orbit => self.orbit(j, hx, hy),
             FigureKind::Bifurcation | FigureKind::Branches => unreachable!("handled above"),
-        };
-        let mut p = p;
-        // Thin lines: long trajectories drawn 2 px wide show stroke artifacts.
-        p.line_width = 1;
-        panels.push(p);
+        }
     }
-    Ok(panels)
+
+    /// Job `j`'s Poincare map: the section points `(px, py)` over the faint trajectory
+    /// `(hx, hy)`, with a zoomed inset, away from the points, when they cluster within a tenth of
+    /// the trajectory's extent.
+    fn poincare(&self, j: &Job, hx: Vec<f64>, hy: Vec<f64>, px: Vec<f64>, py: Vec<f64>) -> Panel {
+        let (x, y) = (self.x, self.y);
+        let traj = bbox(&hx, &hy);
+        let mut p = Panel::new(
+            self.title(format!("Poincare map {y} against {x}"), j),
+            self.label(x),
+            self.label(y),
+            if hx.is_empty() {
+                Vec::new()
+            } else {
+                vec![Series {
+                    label: "trajectory".into(),
+                    x: hx,
+                    y: hy,
+                }]
+            },
+        );
+        let pts = Series {
+            label: self.sec_label.clone(),
+            x: px.clone(),
+            y: py.clone(),
+        };
+        if let (Some(t), Some(b)) = (traj, bbox(&px, &py)) {
+            let (tw, th) = (t.1 - t.0, t.3 - t.2);
+            let (bw, bh) = (b.1 - b.0, b.3 - b.2);
+            if bw < 0.1 * tw && bh < 0.1 * th {
+                let pad = |lo: f64, hi: f64, span: f64| {
+                    let w = (hi - lo).max(1e-6 * span).max(f64::MIN_POSITIVE);
+                    (lo - 0.25 * w, hi + 0.25 * w)
+                };
+                let mut inset = Panel::new("zoom", "", "", Vec::new());
+                inset.points = vec![pts.clone()];
+                inset.x_range = Some(pad(b.0, b.1, tw));
+                inset.y_range = Some(pad(b.2, b.3, th));
+                p.inset = Some(Box::new(inset));
+                // Put the inset in the quarter away from the points.
+                let (cx, cy) = (0.5 * (b.0 + b.1), 0.5 * (b.2 + b.3));
+                p.inset_corner = (cx < 0.5 * (t.0 + t.1), cy < 0.5 * (t.2 + t.3));
+            }
+        }
+        p.points = vec![pts];
+        p
+    }
+
+    /// Job `j`'s orbit `(hx, hy)` inside its clearance circle (the figure's, or the job's
+    /// parameter), on equal axes about the centre.
+    fn orbit(&self, j: &Job, hx: Vec<f64>, hy: Vec<f64>) -> Panel {
+        let (f, x, y, sx) = (self.f, self.x, self.y, self.sx);
+        let r = if f.circle_from_parameter {
+            Some(j.parameter * sx)
+        } else {
+            f.circle.map(|c| c * sx)
+        };
+        let mut series = vec![Series {
+            label: "centre".into(),
+            x: hx.clone(),
+            y: hy.clone(),
+        }];
+        let mut lim =
+            hx.iter().chain(&hy).fold(
+                0.0f64,
+                |m, v| {
+                    if v.is_finite() { m.max(v.abs()) } else { m }
+                },
+            );
+        if let Some(r) = r {
+            let a = (0..=360).map(|k| (k as f64).to_radians());
+            series.push(Series {
+                label: format!("clearance {}", crate::study::report::num(r)),
+                x: a.clone().map(|t| r * t.cos()).collect(),
+                y: a.map(|t| r * t.sin()).collect(),
+            });
+            lim = lim.max(r);
+        }
+        let lim = 1.1 * lim.max(f64::MIN_POSITIVE);
+        let mut p = Panel::new(
+            self.title(format!("Orbit {y} against {x}"), j),
+            self.label(x),
+            self.label(y),
+            series,
+        );
+        p.x_range = Some((-lim, lim));
+        p.y_range = Some((-lim, lim));
+        p.equal_aspect = true;
+        p
+    }
 }
 
 fn stem(d: &Data, f: &FigureSpec) -> String {
@@ -938,30 +659,7 @@ pub fn render(path: &Path, out: &Path, formats: &[Format]) -> Result<Vec<PathBuf
 
 #[cfg(test)]
 mod tests {
-    use super::{FIGURE_HISTORY, display_scale, read_tail, read_tail_rows};
-
-    #[test]
-    fn figures_read_the_last_history_samples_of_the_runs_that_are_done() {
-        let dir = tempfile::tempdir().unwrap();
-        let file = hdf5::File::create(dir.path().join("h.h5")).unwrap();
-        let n = FIGURE_HISTORY + 5_000;
-        let rows: Vec<f64> = (0..2 * n).map(|i| i as f64).collect();
-        let arr = ndarray::Array2::from_shape_vec((2, n), rows).unwrap();
-        file.new_dataset_builder()
-            .with_data(&arr)
-            .create("x")
-            .unwrap();
-        let got = read_tail_rows(&file, "x", &[1, 0]).unwrap();
-        let want: Vec<f64> = (5_000..n).map(|i| i as f64).collect();
-        assert_eq!(got, vec![want, Vec::new()]);
-        // A short run: every sample.
-        let short = ndarray::Array1::from(vec![1.0, 2.0, 3.0]);
-        file.new_dataset_builder()
-            .with_data(&short)
-            .create("t")
-            .unwrap();
-        assert_eq!(read_tail(&file, "t").unwrap(), vec![1.0, 2.0, 3.0]);
-    }
+    use super::display_scale;
 
     #[test]
     fn small_lengths_are_drawn_in_millimetres() {

@@ -20,6 +20,7 @@
 //! several run files in one panel.
 
 pub mod analysis;
+mod analysis_data;
 pub mod plot;
 pub mod precision;
 pub mod run;

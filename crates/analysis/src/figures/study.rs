@@ -25,41 +25,16 @@ pub fn orbit_plane(axes: &[(usize, &str)]) -> (usize, usize) {
 }
 
 /// Draws the study figures into `out` and returns the files written.
-pub fn study_figures<'a>(
+pub fn study_figures(
     out: &Path,
     name: &str,
     spec: &ReportSpec,
-    runs: &[(&str, &'a Recording)],
+    runs: &[(&str, &Recording)],
 ) -> Result<Vec<PathBuf>> {
     let mut files = Vec::new();
     let axes = spec.axis_list();
     if let Some(body) = &spec.body {
-        let mut panels = Vec::new();
-        for (what, ds, unit) in [
-            ("displacement", "position", "m"),
-            ("velocity", "velocity", "m/s"),
-            ("acceleration", "acceleration", "m/s^2"),
-        ] {
-            for &(a, ax) in &axes {
-                let series = runs
-                    .iter()
-                    .filter_map(|(label, rec)| {
-                        let v = rec.channel(&format!("bodies/{body}/{ds}"))?;
-                        (!v.values.is_empty()).then(|| Series {
-                            label: (*label).to_string(),
-                            x: rec.time.clone(),
-                            y: v.column(a),
-                        })
-                    })
-                    .collect::<Vec<_>>();
-                panels.push(Panel::new(
-                    format!("{body}: {what} along {}", ax.to_uppercase()),
-                    "time t (s)",
-                    format!("{what} {} ({unit})", ax.to_uppercase()),
-                    series,
-                ));
-            }
-        }
+        let panels = motion_panels(body, &axes, runs);
         files.extend(write(
             out,
             &format!("{name}-motion"),
@@ -71,103 +46,8 @@ pub fn study_figures<'a>(
     let mut force_panels = Vec::new();
     let mut orbit_panels = Vec::new();
     for j in &spec.joints {
-        let mut series = Vec::new();
-        for (label, rec) in runs {
-            let found = match rec.channel(&format!("joints/{j}/force_on_journal")) {
-                Some(c) => Some(("contact", c)),
-                None => rec
-                    .channel(&format!("joints/{j}/reaction_force"))
-                    .map(|c| ("ideal, reaction", c)),
-            };
-            if let Some((what, forces)) = found {
-                series.push(Series {
-                    label: format!("{label} ({what})"),
-                    x: rec.time.clone(),
-                    y: forces.vectors().iter().map(norm).collect(),
-                });
-            }
-        }
-        if !series.is_empty() {
-            force_panels.push(Panel::new(
-                format!("{j}: joint force magnitude"),
-                "time t (s)",
-                "force |F| (N)",
-                series,
-            ));
-        }
-        // Orbits, in mm.
-        let with: Vec<_> = runs
-            .iter()
-            .filter_map(|(label, rec)| {
-                rec.clearances
-                    .iter()
-                    .find(|c| &c.name == j)
-                    .map(|c| (*label, rec, c))
-            })
-            .collect();
-        // A channel of joint j that every run with clearance in it has.
-        let ch = |rec: &'a Recording, q: &str| -> &'a Channel {
-            rec.channel(&format!("joints/{j}/{q}"))
-                .unwrap_or_else(|| panic!("a clearance joint records {q}"))
-        };
-        let Some(cmax) = with
-            .iter()
-            .map(|(_, _, c)| c.radial_clearance)
-            .reduce(f64::max)
-        else {
-            continue;
-        };
-        let lim = 1.25 * cmax * 1e3;
-        let ends: Vec<(&str, Option<usize>)> = if with.iter().all(|(_, rec, _)| {
-            rec.channel(&format!("joints/{j}/end_eccentricity"))
-                .is_some_and(|c| !c.values.is_empty())
-        }) {
-            vec![("end at rim P", Some(0)), ("end at rim Q", Some(2))]
-        } else {
-            vec![("centre", None)]
-        };
-        let spherical = with.iter().all(|(_, _, c)| c.spherical);
-        let (p0, p1) = orbit_plane(&axes);
-        for (end, col) in ends {
-            let mut series: Vec<Series> = with
-                .iter()
-                .map(|(label, rec, _)| {
-                    let (e, kx, ky) = match col {
-                        Some(k) => (ch(rec, "end_eccentricity"), k, k + 1),
-                        None if spherical => (ch(rec, "eccentricity_global"), p0, p1),
-                        None => (ch(rec, "radial_eccentricity"), 0, 1),
-                    };
-                    let (x, y) = (mm(&e.column(kx)), mm(&e.column(ky)));
-                    Series {
-                        label: (*label).to_string(),
-                        x,
-                        y,
-                    }
-                })
-                .collect();
-            let mut radii: Vec<f64> = with.iter().map(|(_, _, c)| c.radial_clearance).collect();
-            radii.sort_by(f64::total_cmp);
-            radii.dedup_by(|a, b| (*a - *b).abs() < 1e-12);
-            series.extend(radii.iter().map(|r| circle(r * 1e3)));
-            let (xl, yl) = if spherical {
-                let n = |i: usize| ["X", "Y", "Z"][i];
-                (
-                    format!("eccentricity along global {} (mm)", n(p0)),
-                    format!("eccentricity along global {} (mm)", n(p1)),
-                )
-            } else {
-                (
-                    "eccentricity along bushing u (mm)".to_string(),
-                    "eccentricity along bushing w (mm)".to_string(),
-                )
-            };
-            orbit_panels.push(Panel {
-                x_range: Some((-lim, lim)),
-                y_range: Some((-lim, lim)),
-                equal_aspect: true,
-                ..Panel::new(format!("{j}: journal {end} orbit"), xl, yl, series)
-            });
-        }
+        force_panels.extend(force_panel(j, runs));
+        orbit_panels.extend(journal_orbits(j, &axes, runs));
     }
     files.extend(write(
         out,
@@ -184,6 +64,152 @@ pub fn study_figures<'a>(
         &PNG_AND_SVG,
     )?);
     Ok(files)
+}
+
+/// The displacement, velocity and acceleration of the report body along each report axis, a
+/// panel each, every run overlaid.
+fn motion_panels(body: &str, axes: &[(usize, &str)], runs: &[(&str, &Recording)]) -> Vec<Panel> {
+    let mut panels = Vec::new();
+    for (what, ds, unit) in [
+        ("displacement", "position", "m"),
+        ("velocity", "velocity", "m/s"),
+        ("acceleration", "acceleration", "m/s^2"),
+    ] {
+        for &(a, ax) in axes {
+            let series = runs
+                .iter()
+                .filter_map(|(label, rec)| {
+                    let v = rec.channel(&format!("bodies/{body}/{ds}"))?;
+                    (!v.values.is_empty()).then(|| Series {
+                        label: (*label).to_string(),
+                        x: rec.time.clone(),
+                        y: v.column(a),
+                    })
+                })
+                .collect::<Vec<_>>();
+            panels.push(Panel::new(
+                format!("{body}: {what} along {}", ax.to_uppercase()),
+                "time t (s)",
+                format!("{what} {} ({unit})", ax.to_uppercase()),
+                series,
+            ));
+        }
+    }
+    panels
+}
+
+/// The force magnitude of joint `j` in every run that records it (the contact force of a joint
+/// with clearance, else the reaction); None when no run does.
+fn force_panel(j: &str, runs: &[(&str, &Recording)]) -> Option<Panel> {
+    let mut series = Vec::new();
+    for (label, rec) in runs {
+        let found = match rec.channel(&format!("joints/{j}/force_on_journal")) {
+            Some(c) => Some(("contact", c)),
+            None => rec
+                .channel(&format!("joints/{j}/reaction_force"))
+                .map(|c| ("ideal, reaction", c)),
+        };
+        if let Some((what, forces)) = found {
+            series.push(Series {
+                label: format!("{label} ({what})"),
+                x: rec.time.clone(),
+                y: forces.vectors().iter().map(norm).collect(),
+            });
+        }
+    }
+    (!series.is_empty()).then(|| {
+        Panel::new(
+            format!("{j}: joint force magnitude"),
+            "time t (s)",
+            "force |F| (N)",
+            series,
+        )
+    })
+}
+
+/// The orbits of joint `j`'s journal in mm (its centre, or both ends of a spatial revolute)
+/// inside each run's clearance circle, every run with clearance in `j` overlaid; none when no
+/// run has clearance there.
+fn journal_orbits<'a>(
+    j: &str,
+    axes: &[(usize, &str)],
+    runs: &[(&str, &'a Recording)],
+) -> Vec<Panel> {
+    let mut panels = Vec::new();
+    // Orbits, in mm.
+    let with: Vec<_> = runs
+        .iter()
+        .filter_map(|(label, rec)| {
+            rec.clearances
+                .iter()
+                .find(|c| c.name == j)
+                .map(|c| (*label, rec, c))
+        })
+        .collect();
+    // A channel of joint j that every run with clearance in it has.
+    let ch = |rec: &'a Recording, q: &str| -> &'a Channel {
+        rec.channel(&format!("joints/{j}/{q}"))
+            .unwrap_or_else(|| panic!("a clearance joint records {q}"))
+    };
+    let Some(cmax) = with
+        .iter()
+        .map(|(_, _, c)| c.radial_clearance)
+        .reduce(f64::max)
+    else {
+        return Vec::new();
+    };
+    let lim = 1.25 * cmax * 1e3;
+    let ends: Vec<(&str, Option<usize>)> = if with.iter().all(|(_, rec, _)| {
+        rec.channel(&format!("joints/{j}/end_eccentricity"))
+            .is_some_and(|c| !c.values.is_empty())
+    }) {
+        vec![("end at rim P", Some(0)), ("end at rim Q", Some(2))]
+    } else {
+        vec![("centre", None)]
+    };
+    let spherical = with.iter().all(|(_, _, c)| c.spherical);
+    let (p0, p1) = orbit_plane(axes);
+    for (end, col) in ends {
+        let mut series: Vec<Series> = with
+            .iter()
+            .map(|(label, rec, _)| {
+                let (e, kx, ky) = match col {
+                    Some(k) => (ch(rec, "end_eccentricity"), k, k + 1),
+                    None if spherical => (ch(rec, "eccentricity_global"), p0, p1),
+                    None => (ch(rec, "radial_eccentricity"), 0, 1),
+                };
+                let (x, y) = (mm(&e.column(kx)), mm(&e.column(ky)));
+                Series {
+                    label: (*label).to_string(),
+                    x,
+                    y,
+                }
+            })
+            .collect();
+        let mut radii: Vec<f64> = with.iter().map(|(_, _, c)| c.radial_clearance).collect();
+        radii.sort_by(f64::total_cmp);
+        radii.dedup_by(|a, b| (*a - *b).abs() < 1e-12);
+        series.extend(radii.iter().map(|r| circle(r * 1e3)));
+        let (xl, yl) = if spherical {
+            let n = |i: usize| ["X", "Y", "Z"][i];
+            (
+                format!("eccentricity along global {} (mm)", n(p0)),
+                format!("eccentricity along global {} (mm)", n(p1)),
+            )
+        } else {
+            (
+                "eccentricity along bushing u (mm)".to_string(),
+                "eccentricity along bushing w (mm)".to_string(),
+            )
+        };
+        panels.push(Panel {
+            x_range: Some((-lim, lim)),
+            y_range: Some((-lim, lim)),
+            equal_aspect: true,
+            ..Panel::new(format!("{j}: journal {end} orbit"), xl, yl, series)
+        });
+    }
+    panels
 }
 
 /// The figures of a comparison study, drawn here so that studies never call figures.

@@ -202,6 +202,189 @@ fn pick(v: Vector3<f64>, comp: usize) -> f64 {
     if comp == 3 { v.norm() } else { v[comp] }
 }
 
+/// What an observable reads, and its unit.
+type Resolved = Result<(Source, &'static str), String>;
+
+/// `bodies.B.WHAT.C`: a component of body `b`'s position, orientation, velocity or acceleration.
+fn body_source(m: &Model, b: &str, what: &str, c: &str) -> Resolved {
+    let bi = m
+        .bodies
+        .iter()
+        .position(|x| x.name == *b)
+        .ok_or_else(|| format!("no body '{b}'"))?;
+    if what == "orientation" {
+        let comp = named("Euler parameter", c, &["w", "x", "y", "z"])?;
+        return Ok((Source::Orientation { b: bi, comp }, "1"));
+    }
+    let comp = component(c)?;
+    let (what, unit) = match what {
+        "position" => (BodyQ::Position, "m"),
+        "velocity" => (BodyQ::Velocity, "m/s"),
+        "acceleration" => (BodyQ::Acceleration, "m/s^2"),
+        "angular_velocity" => (BodyQ::AngularVelocity, "rad/s"),
+        "angular_acceleration" => (BodyQ::AngularAcceleration, "rad/s^2"),
+        other => {
+            return Err(format!(
+                "unknown body quantity '{other}': use position, orientation, velocity, acceleration, angular_velocity or angular_acceleration"
+            ));
+        }
+    };
+    Ok((Source::Body { b: bi, what, comp }, unit))
+}
+
+/// `joints.J.WHAT.C`: the reaction of a joint that keeps constraint rows, or a quantity of a
+/// joint with clearance ([`clearance_source`]).
+fn joint_source(m: &Model, j: &str, what: &str, c: &str) -> Resolved {
+    let ji = m
+        .joints
+        .iter()
+        .position(|x| x.name == *j)
+        .ok_or_else(|| format!("no joint '{j}'"))?;
+    if let Some(torque) = match what {
+        "reaction" | "reaction_force" => Some(false),
+        "reaction_torque" => Some(true),
+        _ => None,
+    } {
+        if m.joints[ji].rows.is_empty() {
+            return Err(format!(
+                "joint '{j}' has clearance: use contact_force instead of {what}"
+            ));
+        }
+        return Ok((
+            Source::Reaction {
+                j: ji,
+                torque,
+                comp: component(c)?,
+            },
+            if torque { "N m" } else { "N" },
+        ));
+    }
+    let ci = m.joints[ji]
+        .clearance
+        .ok_or_else(|| format!("joint '{j}' has no clearance, so it has no {what}"))?;
+    clearance_source(m, j, ci, what, c)
+}
+
+/// `joints.J.WHAT.C` of joint `j` with clearance `ci`: an eccentricity (housing or global axes,
+/// radial, at the journal ends), a resultant contact force or moment, or a per-contact quantity.
+fn clearance_source(m: &Model, j: &str, ci: usize, what: &str, c: &str) -> Resolved {
+    let ecc = |housing, rate| -> Resolved {
+        Ok((
+            Source::Ecc {
+                c: ci,
+                housing,
+                rate,
+                comp: component(c)?,
+            },
+            if rate { "m/s" } else { "m" },
+        ))
+    };
+    let resultant = |what, unit| -> Resolved {
+        Ok((
+            Source::Resultant {
+                c: ci,
+                what,
+                comp: component(c)?,
+            },
+            unit,
+        ))
+    };
+    let geometry = &m.clearances[ci].geometry;
+    match what {
+        "eccentricity" => ecc(true, false),
+        "eccentricity_rate" => ecc(true, true),
+        "eccentricity_global" => ecc(false, false),
+        "eccentricity_global_rate" => ecc(false, true),
+        "radial_eccentricity" => Ok((
+            Source::Radial {
+                c: ci,
+                comp: named("radial direction", c, &["u", "w"])?,
+            },
+            "m",
+        )),
+        "end_eccentricity" => {
+            if !matches!(
+                geometry,
+                jointplay_solver::clearance::Geometry::Revolute { .. }
+            ) {
+                return Err(format!(
+                    "joint '{j}' is not a spatial revolute, so it has no end_eccentricity"
+                ));
+            }
+            Ok((
+                Source::End {
+                    c: ci,
+                    comp: named("journal end", c, &["P_u", "P_w", "Q_u", "Q_w"])?,
+                },
+                "m",
+            ))
+        }
+        "contact_force" | "force_on_journal" => resultant(ResultantQ::ForceOnJournal, "N"),
+        "moment_on_journal" => resultant(ResultantQ::MomentOnJournal, "N m"),
+        "force_on_housing" => resultant(ResultantQ::ForceOnHousing, "N"),
+        "moment_on_housing" => resultant(ResultantQ::MomentOnHousing, "N m"),
+        "penetration" | "penetration_rate" | "normal_force" | "friction_force"
+        | "contact_state" => {
+            let names = geometry.contact_names();
+            let k = names.iter().position(|n| *n == c).ok_or_else(|| {
+                format!(
+                    "joint '{j}' has no contact '{c}' (it has {})",
+                    names.join(", ")
+                )
+            })?;
+            let (what, unit) = match what {
+                "penetration" => (ContactQ::Penetration, "m"),
+                "penetration_rate" => (ContactQ::PenetrationRate, "m/s"),
+                "normal_force" => (ContactQ::NormalForce, "N"),
+                "friction_force" => (ContactQ::FrictionForce, "N"),
+                _ => (ContactQ::State, "1"),
+            };
+            Ok((Source::Contact { c: ci, k, what }, unit))
+        }
+        other => Err(format!(
+            "unknown joint quantity '{other}': use eccentricity, eccentricity_rate, eccentricity_global, eccentricity_global_rate, radial_eccentricity, end_eccentricity, penetration, penetration_rate, normal_force, friction_force, contact_state, contact_force (force_on_journal), moment_on_journal, force_on_housing, moment_on_housing, reaction (reaction_force) or reaction_torque"
+        )),
+    }
+}
+
+/// `drives.D.WHAT`: drive `d`'s force or coordinate.
+fn drive_source(m: &Model, d: &str, what: &str) -> Resolved {
+    let di = m
+        .drives
+        .iter()
+        .position(|x| x.name == *d)
+        .ok_or_else(|| format!("no drive '{d}'"))?;
+    let rot = m.drives[di].coordinate == jointplay_solver::scene::DriveCoordinate::Rotation;
+    match what {
+        "force" => Ok((
+            Source::Drive { d: di, force: true },
+            if rot { "N m" } else { "N" },
+        )),
+        "coordinate" => Ok((
+            Source::Drive {
+                d: di,
+                force: false,
+            },
+            if rot { "rad" } else { "m" },
+        )),
+        other => Err(format!(
+            "unknown drive quantity '{other}': use force or coordinate"
+        )),
+    }
+}
+
+/// `diagnostics.WHAT`: a run diagnostic.
+fn diagnostic_source(what: &str) -> Resolved {
+    match what {
+        "constraint_drift" => Ok((Source::Diagnostic(DiagnosticQ::ConstraintDrift), "m, rad")),
+        "velocity_drift" => Ok((Source::Diagnostic(DiagnosticQ::VelocityDrift), "m/s, rad/s")),
+        "energy" => Ok((Source::Diagnostic(DiagnosticQ::Energy), "J")),
+        other => Err(format!(
+            "unknown diagnostic '{other}': use constraint_drift, velocity_drift or energy"
+        )),
+    }
+}
+
 impl Observable {
     /// Resolves `path` for a built-in system.
     pub fn for_system(sys: &Builtin, path: &str) -> Result<Observable, String> {
@@ -235,188 +418,22 @@ impl Observable {
     /// documentation, the `diagnostics.*` ones too.
     pub fn for_run(m: &Model, path: &str) -> Result<Observable, String> {
         let seg = segments(path);
-        let ok = |source, unit: &str| {
-            Ok(Observable {
-                path: path.into(),
-                unit: unit.into(),
-                source,
-            })
+        let (source, unit) = match seg.as_slice() {
+            ["bodies", b, what, c] => body_source(m, b, what, c)?,
+            ["joints", j, what, c] => joint_source(m, j, what, c)?,
+            ["drives", d, what] => drive_source(m, d, what)?,
+            ["diagnostics", what] => diagnostic_source(what)?,
+            _ => {
+                return Err(format!(
+                    "cannot read '{path}': use bodies.NAME.QUANTITY.COMPONENT, joints.NAME.QUANTITY.COMPONENT, drives.NAME.force|coordinate or diagnostics.QUANTITY"
+                ));
+            }
         };
-        match seg.as_slice() {
-            ["bodies", b, what, c] => {
-                let bi = m
-                    .bodies
-                    .iter()
-                    .position(|x| x.name == *b)
-                    .ok_or_else(|| format!("no body '{b}'"))?;
-                if *what == "orientation" {
-                    let comp = named("Euler parameter", c, &["w", "x", "y", "z"])?;
-                    return ok(Source::Orientation { b: bi, comp }, "1");
-                }
-                let comp = component(c)?;
-                let (what, unit) = match *what {
-                    "position" => (BodyQ::Position, "m"),
-                    "velocity" => (BodyQ::Velocity, "m/s"),
-                    "acceleration" => (BodyQ::Acceleration, "m/s^2"),
-                    "angular_velocity" => (BodyQ::AngularVelocity, "rad/s"),
-                    "angular_acceleration" => (BodyQ::AngularAcceleration, "rad/s^2"),
-                    other => {
-                        return Err(format!(
-                            "unknown body quantity '{other}': use position, orientation, velocity, acceleration, angular_velocity or angular_acceleration"
-                        ));
-                    }
-                };
-                ok(Source::Body { b: bi, what, comp }, unit)
-            }
-            ["joints", j, what, c] => {
-                let ji = m
-                    .joints
-                    .iter()
-                    .position(|x| x.name == *j)
-                    .ok_or_else(|| format!("no joint '{j}'"))?;
-                if let Some(torque) = match *what {
-                    "reaction" | "reaction_force" => Some(false),
-                    "reaction_torque" => Some(true),
-                    _ => None,
-                } {
-                    if m.joints[ji].rows.is_empty() {
-                        return Err(format!(
-                            "joint '{j}' has clearance: use contact_force instead of {what}"
-                        ));
-                    }
-                    return ok(
-                        Source::Reaction {
-                            j: ji,
-                            torque,
-                            comp: component(c)?,
-                        },
-                        if torque { "N m" } else { "N" },
-                    );
-                }
-                let ci = m.joints[ji]
-                    .clearance
-                    .ok_or_else(|| format!("joint '{j}' has no clearance, so it has no {what}"))?;
-                let ecc = |housing, rate| -> Result<Observable, String> {
-                    ok(
-                        Source::Ecc {
-                            c: ci,
-                            housing,
-                            rate,
-                            comp: component(c)?,
-                        },
-                        if rate { "m/s" } else { "m" },
-                    )
-                };
-                let resultant = |what, unit| -> Result<Observable, String> {
-                    ok(
-                        Source::Resultant {
-                            c: ci,
-                            what,
-                            comp: component(c)?,
-                        },
-                        unit,
-                    )
-                };
-                let geometry = &m.clearances[ci].geometry;
-                match *what {
-                    "eccentricity" => ecc(true, false),
-                    "eccentricity_rate" => ecc(true, true),
-                    "eccentricity_global" => ecc(false, false),
-                    "eccentricity_global_rate" => ecc(false, true),
-                    "radial_eccentricity" => ok(
-                        Source::Radial {
-                            c: ci,
-                            comp: named("radial direction", c, &["u", "w"])?,
-                        },
-                        "m",
-                    ),
-                    "end_eccentricity" => {
-                        if !matches!(
-                            geometry,
-                            jointplay_solver::clearance::Geometry::Revolute { .. }
-                        ) {
-                            return Err(format!(
-                                "joint '{j}' is not a spatial revolute, so it has no end_eccentricity"
-                            ));
-                        }
-                        ok(
-                            Source::End {
-                                c: ci,
-                                comp: named("journal end", c, &["P_u", "P_w", "Q_u", "Q_w"])?,
-                            },
-                            "m",
-                        )
-                    }
-                    "contact_force" | "force_on_journal" => {
-                        resultant(ResultantQ::ForceOnJournal, "N")
-                    }
-                    "moment_on_journal" => resultant(ResultantQ::MomentOnJournal, "N m"),
-                    "force_on_housing" => resultant(ResultantQ::ForceOnHousing, "N"),
-                    "moment_on_housing" => resultant(ResultantQ::MomentOnHousing, "N m"),
-                    "penetration" | "penetration_rate" | "normal_force" | "friction_force"
-                    | "contact_state" => {
-                        let names = geometry.contact_names();
-                        let k = names.iter().position(|n| n == c).ok_or_else(|| {
-                            format!(
-                                "joint '{j}' has no contact '{c}' (it has {})",
-                                names.join(", ")
-                            )
-                        })?;
-                        let (what, unit) = match *what {
-                            "penetration" => (ContactQ::Penetration, "m"),
-                            "penetration_rate" => (ContactQ::PenetrationRate, "m/s"),
-                            "normal_force" => (ContactQ::NormalForce, "N"),
-                            "friction_force" => (ContactQ::FrictionForce, "N"),
-                            _ => (ContactQ::State, "1"),
-                        };
-                        ok(Source::Contact { c: ci, k, what }, unit)
-                    }
-                    other => Err(format!(
-                        "unknown joint quantity '{other}': use eccentricity, eccentricity_rate, eccentricity_global, eccentricity_global_rate, radial_eccentricity, end_eccentricity, penetration, penetration_rate, normal_force, friction_force, contact_state, contact_force (force_on_journal), moment_on_journal, force_on_housing, moment_on_housing, reaction (reaction_force) or reaction_torque"
-                    )),
-                }
-            }
-            ["drives", d, what] => {
-                let di = m
-                    .drives
-                    .iter()
-                    .position(|x| x.name == *d)
-                    .ok_or_else(|| format!("no drive '{d}'"))?;
-                let rot =
-                    m.drives[di].coordinate == jointplay_solver::scene::DriveCoordinate::Rotation;
-                match *what {
-                    "force" => ok(
-                        Source::Drive { d: di, force: true },
-                        if rot { "N m" } else { "N" },
-                    ),
-                    "coordinate" => ok(
-                        Source::Drive {
-                            d: di,
-                            force: false,
-                        },
-                        if rot { "rad" } else { "m" },
-                    ),
-                    other => Err(format!(
-                        "unknown drive quantity '{other}': use force or coordinate"
-                    )),
-                }
-            }
-            ["diagnostics", what] => match *what {
-                "constraint_drift" => {
-                    ok(Source::Diagnostic(DiagnosticQ::ConstraintDrift), "m, rad")
-                }
-                "velocity_drift" => {
-                    ok(Source::Diagnostic(DiagnosticQ::VelocityDrift), "m/s, rad/s")
-                }
-                "energy" => ok(Source::Diagnostic(DiagnosticQ::Energy), "J"),
-                other => Err(format!(
-                    "unknown diagnostic '{other}': use constraint_drift, velocity_drift or energy"
-                )),
-            },
-            _ => Err(format!(
-                "cannot read '{path}': use bodies.NAME.QUANTITY.COMPONENT, joints.NAME.QUANTITY.COMPONENT, drives.NAME.force|coordinate or diagnostics.QUANTITY"
-            )),
-        }
+        Ok(Observable {
+            path: path.into(),
+            unit: unit.into(),
+            source,
+        })
     }
 
     /// True when evaluating it needs the accelerations, contact forces or multipliers (a full

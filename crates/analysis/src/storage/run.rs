@@ -169,6 +169,248 @@ impl Declare<'_> {
         });
         Ok(())
     }
+
+    /// The channels of every recorded body: position, orientation, velocities and, when
+    /// asked, accelerations (stage 0).
+    fn bodies(&mut self) -> Result<()> {
+        let model = self.model;
+        let out = &model.outputs;
+        self.group("bodies".into(), Vec::new());
+        for &b in &out.bodies {
+            let name = &model.bodies[b].name;
+            let p = |q: &str| format!("bodies.{name}.{q}");
+            self.group(format!("bodies/{name}"), Vec::new());
+            self.channel(&p("position"), &XYZ, "centre of mass, global axes", None)?;
+            self.channel(
+                &p("orientation"),
+                &["w", "x", "y", "z"],
+                "Euler parameters (w, x, y, z) of the rotation body -> global",
+                None,
+            )?;
+            self.channel(
+                &p("velocity"),
+                &XYZ,
+                "centre-of-mass velocity, global axes",
+                None,
+            )?;
+            self.channel(&p("angular_velocity"), &XYZ, "global axes", None)?;
+            if out.accelerations {
+                self.channel(
+                    &p("acceleration"),
+                    &XYZ,
+                    "centre-of-mass acceleration, global axes",
+                    Some(format!("acceleration of body '{name}'")),
+                )?;
+                self.channel(
+                    &p("angular_acceleration"),
+                    &XYZ,
+                    "global axes",
+                    Some(format!("angular acceleration of body '{name}'")),
+                )?;
+            }
+        }
+        Ok(())
+    }
+
+    /// The reaction force and torque of every recorded joint that keeps constraint rows
+    /// (stage 1).
+    fn joints(&mut self) -> Result<()> {
+        let model = self.model;
+        let out = &model.outputs;
+        self.group("joints".into(), Vec::new());
+        self.stage = 1;
+        for &j in out
+            .joints
+            .iter()
+            .filter(|&&j| !model.joints[j].rows.is_empty())
+        {
+            let name = &model.joints[j].name;
+            let p = |q: &str| format!("joints.{name}.{q}");
+            self.group(format!("joints/{name}"), Vec::new());
+            self.channel(
+                &p("reaction_force"),
+                &XYZ,
+                "force of the joint on its body_b, global axes",
+                Some(format!("reaction force of joint '{name}'")),
+            )?;
+            self.channel(
+                &p("reaction_torque"),
+                &XYZ,
+                "torque of the joint on its body_b about the joint point on body_b, global axes",
+                Some(format!("reaction torque of joint '{name}'")),
+            )?;
+        }
+        Ok(())
+    }
+
+    /// The groups and channels of every recorded joint with clearance (stage 3).
+    fn clearances(&mut self) -> Result<()> {
+        let model = self.model;
+        let out = &model.outputs;
+        self.stage = 3;
+        for c in out.joints.iter().filter_map(|&j| model.joints[j].clearance) {
+            self.clearance(c)?;
+        }
+        Ok(())
+    }
+
+    /// The group of clearance `c` (its contacts and radial clearance as attributes, added to the
+    /// joint's group when it has one) and its channels: eccentricities, per-contact quantities,
+    /// and the resultant contact forces and moments on journal and housing.
+    fn clearance(&mut self, c: usize) -> Result<()> {
+        let model = self.model;
+        let cl = &model.clearances[c];
+        let name = &cl.name;
+        let contacts: Vec<&str> = cl.geometry.contact_names().to_vec();
+        let attrs = vec![
+            ("contacts".to_string(), Attr::Str(contacts.join(","))),
+            (
+                "radial_clearance".to_string(),
+                Attr::F64(cl.geometry.radial_clearance()),
+            ),
+            ("radial_clearance_unit".to_string(), Attr::Str("m".into())),
+        ];
+        // A joint that keeps rows (a planar bearing's out-of-plane rows) has its group already.
+        let path = format!("joints/{name}");
+        match self.rec.groups.iter().position(|g| g.path == path) {
+            Some(i) => {
+                let g = self.rec.groups.remove(i);
+                self.rec.groups.push(Group {
+                    attrs: [g.attrs, attrs].concat(),
+                    ..g
+                });
+            }
+            None => self.group(path, attrs),
+        }
+        self.rec.clearances.push(Clearance {
+            name: name.clone(),
+            contacts: contacts.iter().map(|s| s.to_string()).collect(),
+            radial_clearance: cl.geometry.radial_clearance(),
+            spherical: matches!(cl.geometry, Geometry::Spherical { .. }),
+        });
+        let p = |q: &str| format!("joints.{name}.{q}");
+        self.channel(
+            &p("eccentricity"),
+            &XYZ,
+            "journal centre relative to the housing centre, housing axes",
+            None,
+        )?;
+        self.channel(
+            &p("eccentricity_global"),
+            &XYZ,
+            "journal centre relative to the housing centre, global axes",
+            None,
+        )?;
+        self.channel(
+            &p("radial_eccentricity"),
+            &["u", "w"],
+            "eccentricity along the two housing directions normal to its axis (u, w): the journal-centre orbit",
+            None,
+        )?;
+        if matches!(cl.geometry, Geometry::Revolute { .. }) {
+            self.channel(
+                &p("end_eccentricity"),
+                &["P_u", "P_w", "Q_u", "Q_w"],
+                "journal axis at the rim planes s = +L_B/2 (u, w) and s = -L_B/2 (u, w): the orbits of both journal ends",
+                None,
+            )?;
+        }
+        let per = |what: &str| format!("{what}, one column per contact ({})", contacts.join(", "));
+        for (q, what) in [
+            ("penetration", "penetration, negative while apart"),
+            ("penetration_rate", "penetration rate, approach positive"),
+            ("normal_force", "normal contact force"),
+            ("friction_force", "magnitude of the friction force"),
+            ("contact_state", "1 in contact, 0 free"),
+        ] {
+            self.channel(&p(q), &contacts, &per(what), None)?;
+        }
+        for (q, what, desc) in [
+            (
+                "force_on_journal",
+                "force",
+                "resultant contact force on the journal body (body_b), global axes",
+            ),
+            (
+                "moment_on_journal",
+                "moment",
+                "resultant contact moment on the journal body about its centre of mass, global axes",
+            ),
+            (
+                "force_on_housing",
+                "force",
+                "resultant contact force on the housing body (body_a), global axes",
+            ),
+            (
+                "moment_on_housing",
+                "moment",
+                "resultant contact moment on the housing body about its centre of mass, global axes",
+            ),
+        ] {
+            self.channel(
+                &p(q),
+                &XYZ,
+                desc,
+                Some(format!("contact {what} of clearance joint '{name}'")),
+            )?;
+        }
+        Ok(())
+    }
+
+    /// The coordinate and force of every recorded drive (stage 2).
+    fn drives(&mut self) -> Result<()> {
+        let model = self.model;
+        let out = &model.outputs;
+        self.group("drives".into(), Vec::new());
+        self.stage = 2;
+        for &dr in &out.drives {
+            let name = &model.drives[dr].name;
+            let p = |q: &str| format!("drives.{name}.{q}");
+            let checked = Some(format!("force of drive '{name}'"));
+            self.group(format!("drives/{name}"), Vec::new());
+            self.channel(&p("coordinate"), &[], "joint coordinate", checked.clone())?;
+            self.channel(
+                &p("force"),
+                &[],
+                "actuator force (torque) on body_b in the direction of increasing coordinate",
+                checked,
+            )?;
+        }
+        Ok(())
+    }
+
+    /// The constraint drifts and, when asked, the energy (stage 4), when diagnostics are
+    /// recorded.
+    fn diagnostics(&mut self) -> Result<()> {
+        let model = self.model;
+        let out = &model.outputs;
+        if out.diagnostics {
+            self.stage = 4;
+            let checked = Some("constraint drift or energy".to_string());
+            self.group("diagnostics".into(), Vec::new());
+            self.channel(
+                "diagnostics.constraint_drift",
+                &[],
+                "2-norm of the position constraint residuals",
+                checked.clone(),
+            )?;
+            self.channel(
+                "diagnostics.velocity_drift",
+                &[],
+                "2-norm of the velocity constraint residuals",
+                checked.clone(),
+            )?;
+            if out.energy {
+                self.channel(
+                    "diagnostics.energy",
+                    &[],
+                    "kinetic + gravitational + spring energy",
+                    checked,
+                )?;
+            }
+        }
+        Ok(())
+    }
 }
 
 const XYZ: [&str; 3] = ["x", "y", "z"];
@@ -177,208 +419,16 @@ impl Recording {
     /// The channels of `model`'s outputs (which bodies, joints and drives, whether accelerations,
     /// diagnostics and energy), with no sample yet.
     pub fn of(model: &Model) -> Result<Recording> {
-        let out = &model.outputs;
         let mut d = Declare {
             model,
             rec: Recording::default(),
             stage: 0,
         };
-        d.group("bodies".into(), Vec::new());
-        for &b in &out.bodies {
-            let name = &model.bodies[b].name;
-            let p = |q: &str| format!("bodies.{name}.{q}");
-            d.group(format!("bodies/{name}"), Vec::new());
-            d.channel(&p("position"), &XYZ, "centre of mass, global axes", None)?;
-            d.channel(
-                &p("orientation"),
-                &["w", "x", "y", "z"],
-                "Euler parameters (w, x, y, z) of the rotation body -> global",
-                None,
-            )?;
-            d.channel(
-                &p("velocity"),
-                &XYZ,
-                "centre-of-mass velocity, global axes",
-                None,
-            )?;
-            d.channel(&p("angular_velocity"), &XYZ, "global axes", None)?;
-            if out.accelerations {
-                d.channel(
-                    &p("acceleration"),
-                    &XYZ,
-                    "centre-of-mass acceleration, global axes",
-                    Some(format!("acceleration of body '{name}'")),
-                )?;
-                d.channel(
-                    &p("angular_acceleration"),
-                    &XYZ,
-                    "global axes",
-                    Some(format!("angular acceleration of body '{name}'")),
-                )?;
-            }
-        }
-        d.group("joints".into(), Vec::new());
-        d.stage = 1;
-        for &j in out
-            .joints
-            .iter()
-            .filter(|&&j| !model.joints[j].rows.is_empty())
-        {
-            let name = &model.joints[j].name;
-            let p = |q: &str| format!("joints.{name}.{q}");
-            d.group(format!("joints/{name}"), Vec::new());
-            d.channel(
-                &p("reaction_force"),
-                &XYZ,
-                "force of the joint on its body_b, global axes",
-                Some(format!("reaction force of joint '{name}'")),
-            )?;
-            d.channel(
-                &p("reaction_torque"),
-                &XYZ,
-                "torque of the joint on its body_b about the joint point on body_b, global axes",
-                Some(format!("reaction torque of joint '{name}'")),
-            )?;
-        }
-        d.stage = 3;
-        for c in out.joints.iter().filter_map(|&j| model.joints[j].clearance) {
-            let cl = &model.clearances[c];
-            let name = &cl.name;
-            let contacts: Vec<&str> = cl.geometry.contact_names().to_vec();
-            let attrs = vec![
-                ("contacts".to_string(), Attr::Str(contacts.join(","))),
-                (
-                    "radial_clearance".to_string(),
-                    Attr::F64(cl.geometry.radial_clearance()),
-                ),
-                ("radial_clearance_unit".to_string(), Attr::Str("m".into())),
-            ];
-            // A joint that keeps rows (a planar bearing's out-of-plane rows) has its group already.
-            let path = format!("joints/{name}");
-            match d.rec.groups.iter().position(|g| g.path == path) {
-                Some(i) => {
-                    let g = d.rec.groups.remove(i);
-                    d.rec.groups.push(Group {
-                        attrs: [g.attrs, attrs].concat(),
-                        ..g
-                    });
-                }
-                None => d.group(path, attrs),
-            }
-            d.rec.clearances.push(Clearance {
-                name: name.clone(),
-                contacts: contacts.iter().map(|s| s.to_string()).collect(),
-                radial_clearance: cl.geometry.radial_clearance(),
-                spherical: matches!(cl.geometry, Geometry::Spherical { .. }),
-            });
-            let p = |q: &str| format!("joints.{name}.{q}");
-            d.channel(
-                &p("eccentricity"),
-                &XYZ,
-                "journal centre relative to the housing centre, housing axes",
-                None,
-            )?;
-            d.channel(
-                &p("eccentricity_global"),
-                &XYZ,
-                "journal centre relative to the housing centre, global axes",
-                None,
-            )?;
-            d.channel(
-                &p("radial_eccentricity"),
-                &["u", "w"],
-                "eccentricity along the two housing directions normal to its axis (u, w): the journal-centre orbit",
-                None,
-            )?;
-            if matches!(cl.geometry, Geometry::Revolute { .. }) {
-                d.channel(
-                    &p("end_eccentricity"),
-                    &["P_u", "P_w", "Q_u", "Q_w"],
-                    "journal axis at the rim planes s = +L_B/2 (u, w) and s = -L_B/2 (u, w): the orbits of both journal ends",
-                    None,
-                )?;
-            }
-            let per =
-                |what: &str| format!("{what}, one column per contact ({})", contacts.join(", "));
-            for (q, what) in [
-                ("penetration", "penetration, negative while apart"),
-                ("penetration_rate", "penetration rate, approach positive"),
-                ("normal_force", "normal contact force"),
-                ("friction_force", "magnitude of the friction force"),
-                ("contact_state", "1 in contact, 0 free"),
-            ] {
-                d.channel(&p(q), &contacts, &per(what), None)?;
-            }
-            for (q, what, desc) in [
-                (
-                    "force_on_journal",
-                    "force",
-                    "resultant contact force on the journal body (body_b), global axes",
-                ),
-                (
-                    "moment_on_journal",
-                    "moment",
-                    "resultant contact moment on the journal body about its centre of mass, global axes",
-                ),
-                (
-                    "force_on_housing",
-                    "force",
-                    "resultant contact force on the housing body (body_a), global axes",
-                ),
-                (
-                    "moment_on_housing",
-                    "moment",
-                    "resultant contact moment on the housing body about its centre of mass, global axes",
-                ),
-            ] {
-                d.channel(
-                    &p(q),
-                    &XYZ,
-                    desc,
-                    Some(format!("contact {what} of clearance joint '{name}'")),
-                )?;
-            }
-        }
-        d.group("drives".into(), Vec::new());
-        d.stage = 2;
-        for &dr in &out.drives {
-            let name = &model.drives[dr].name;
-            let p = |q: &str| format!("drives.{name}.{q}");
-            let checked = Some(format!("force of drive '{name}'"));
-            d.group(format!("drives/{name}"), Vec::new());
-            d.channel(&p("coordinate"), &[], "joint coordinate", checked.clone())?;
-            d.channel(
-                &p("force"),
-                &[],
-                "actuator force (torque) on body_b in the direction of increasing coordinate",
-                checked,
-            )?;
-        }
-        if out.diagnostics {
-            d.stage = 4;
-            let checked = Some("constraint drift or energy".to_string());
-            d.group("diagnostics".into(), Vec::new());
-            d.channel(
-                "diagnostics.constraint_drift",
-                &[],
-                "2-norm of the position constraint residuals",
-                checked.clone(),
-            )?;
-            d.channel(
-                "diagnostics.velocity_drift",
-                &[],
-                "2-norm of the velocity constraint residuals",
-                checked.clone(),
-            )?;
-            if out.energy {
-                d.channel(
-                    "diagnostics.energy",
-                    &[],
-                    "kinetic + gravitational + spring energy",
-                    checked,
-                )?;
-            }
-        }
+        d.bodies()?;
+        d.joints()?;
+        d.clearances()?;
+        d.drives()?;
+        d.diagnostics()?;
         Ok(d.rec)
     }
 

@@ -47,91 +47,10 @@ pub fn of_file(path: &Path) -> Result<Option<Table>> {
     let Ok(sweep) = file.group("sweep") else {
         return Ok(None);
     };
-    let name = read_str(&file, "study_name").map_err(&e)?;
-    let text = read_str(&file, "study").map_err(&e)?;
-    let study: toml::Table = text.parse().map_err(|err| Error::Io {
-        file: path.to_path_buf(),
-        message: format!("the stored study text does not parse: {err}"),
-    })?;
-    let parameter_path = study
-        .get("sweep")
-        .and_then(|s| s.get("parameter"))
-        .and_then(|p| p.as_str())
-        .unwrap_or("parameter")
-        .to_string();
-    let observables: Vec<String> = study
-        .get("observables")
-        .and_then(|o| o.as_array())
-        .map(|a| {
-            a.iter()
-                .filter_map(|o| o.get("name").and_then(|n| n.as_str()).map(String::from))
-                .collect()
-        })
-        .unwrap_or_default();
-    let p = sweep.dataset("parameter").map_err(&e)?;
-    let parameter: Vec<f64> = p.read_raw().map_err(&e)?;
-    let p_unit = unit_of(&p);
-    let done: Vec<u8> = sweep
-        .dataset("done")
-        .and_then(|d| d.read_raw())
-        .map_err(&e)?;
-    let n = parameter.len();
-    let mut columns = Vec::new();
-    for o in &observables {
-        let Ok(d) = sweep.dataset(o) else { continue };
-        let a = d.read_2d::<f64>().map_err(&e)?;
-        columns.push(Column {
-            name: o.clone(),
-            unit: unit_of(&d),
-            rows: a.outer_iter().map(|r| r.to_vec()).collect(),
-        });
-    }
-    let chaos = sweep.group("chaos").ok();
-    let read1 = |g: &hdf5::Group, name: &str| -> Option<Vec<f64>> {
-        g.dataset(name).and_then(|d| d.read_raw::<f64>()).ok()
-    };
-    let class: Option<Vec<u8>> = chaos
-        .as_ref()
-        .and_then(|c| c.dataset("class").and_then(|d| d.read_raw()).ok());
-    let lambda: Option<(Vec<f64>, Vec<f64>)> = chaos.as_ref().and_then(|c| {
-        let ex = c
-            .dataset("exponents")
-            .and_then(|d| d.read_2d::<f64>())
-            .ok()?;
-        let se = c.dataset("stderr").and_then(|d| d.read_2d::<f64>()).ok()?;
-        Some((ex.column(0).to_vec(), se.column(0).to_vec()))
-    });
-    // The chaos indicators' numbers, each in the order of the registry.
-    let numbers: Vec<(Row, Vec<f64>)> = INDICATORS
-        .iter()
-        .filter_map(|i| {
-            let row = i.row();
-            chaos
-                .as_ref()
-                .and_then(|c| read1(c, row.name))
-                .map(|v| (row, v))
-        })
-        .collect();
-
-    let mut head: Vec<String> = vec![
-        format!("value ({p_unit})"),
-        "status".into(),
-        "period".into(),
-    ];
-    if class.is_some() {
-        head.push("class".into());
-    }
-    if lambda.is_some() {
-        head.push("lambda_1 (1/s)".into());
-        head.push("lambda_1 stderr (1/s)".into());
-    }
-    for (row, _) in &numbers {
-        head.push(row.column.into());
-    }
-    for c in &columns {
-        head.push(format!("{} min ({})", c.name, c.unit));
-        head.push(format!("{} max ({})", c.name, c.unit));
-    }
+    let s = Sweep::read(path, &file, &sweep)?;
+    let (name, parameter_path, p_unit) = (&s.name, &s.parameter_path, &s.p_unit);
+    let n = s.parameter.len();
+    let head = s.head();
     let mut csv = head
         .iter()
         .map(|h| csv_cell(h))
@@ -152,52 +71,7 @@ pub fn of_file(path: &Path) -> Result<Option<Table>> {
         "---|".repeat(head.len())
     );
     for i in 0..n {
-        let status = match done.get(i) {
-            Some(1) => "done",
-            Some(2) => "failed",
-            _ => "not run",
-        };
-        let ok = status == "done";
-        let period = columns
-            .first()
-            .filter(|_| ok)
-            .and_then(|c| strobe_period(&c.rows[i]));
-        // (markdown, csv) of each cell.
-        let mut cells: Vec<(String, String)> = vec![
-            (short(parameter[i]), parameter[i].to_string()),
-            (status.into(), status.into()),
-            (
-                period.map_or(String::new(), |p| p.to_string()),
-                period.map_or(String::new(), |p| p.to_string()),
-            ),
-        ];
-        if let Some(c) = &class {
-            let name = if ok {
-                CLASS_NAMES
-                    .get(c[i] as usize)
-                    .copied()
-                    .unwrap_or("undetermined")
-            } else {
-                ""
-            };
-            cells.push((name.into(), name.into()));
-        }
-        if let Some((ex, se)) = &lambda {
-            cells.push(number(ok, ex[i], 4));
-            cells.push(number(ok, se[i], 4));
-        }
-        for (row, v) in &numbers {
-            cells.push(number(ok, v[i], row.digits));
-        }
-        for c in &columns {
-            let finite = c.rows[i].iter().copied().filter(|v| v.is_finite());
-            let (lo, hi) = finite.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
-                (a.min(v), b.max(v))
-            });
-            let ok = ok && lo <= hi;
-            cells.push(exp(ok, lo));
-            cells.push(exp(ok, hi));
-        }
+        let cells = s.cells(i);
         md.push_str(&format!(
             "| {} |\n",
             cells
@@ -216,6 +90,183 @@ pub fn of_file(path: &Path) -> Result<Option<Table>> {
         csv.push('\n');
     }
     Ok(Some(Table { markdown: md, csv }))
+}
+
+/// What a sweep's table shows, read from its file.
+struct Sweep {
+    /// The study's name.
+    name: String,
+    /// The swept parameter's path.
+    parameter_path: String,
+    parameter: Vec<f64>,
+    p_unit: String,
+    done: Vec<u8>,
+    columns: Vec<Column>,
+    class: Option<Vec<u8>>,
+    /// lambda_1 and its standard error per row.
+    lambda: Option<(Vec<f64>, Vec<f64>)>,
+    /// The chaos indicators' numbers, each in the order of the registry.
+    numbers: Vec<(Row, Vec<f64>)>,
+}
+
+impl Sweep {
+    /// Reads the sweep group `sweep` of `file` (at `path`): the study's name, parameter and
+    /// observables, each value's status and strobe points, and the chaos measures computed.
+    fn read(path: &Path, file: &hdf5::File, sweep: &hdf5::Group) -> Result<Sweep> {
+        let e = h5err(path);
+        let name = read_str(file, "study_name").map_err(&e)?;
+        let text = read_str(file, "study").map_err(&e)?;
+        let study: toml::Table = text.parse().map_err(|err| Error::Io {
+            file: path.to_path_buf(),
+            message: format!("the stored study text does not parse: {err}"),
+        })?;
+        let parameter_path = study
+            .get("sweep")
+            .and_then(|s| s.get("parameter"))
+            .and_then(|p| p.as_str())
+            .unwrap_or("parameter")
+            .to_string();
+        let observables: Vec<String> = study
+            .get("observables")
+            .and_then(|o| o.as_array())
+            .map(|a| {
+                a.iter()
+                    .filter_map(|o| o.get("name").and_then(|n| n.as_str()).map(String::from))
+                    .collect()
+            })
+            .unwrap_or_default();
+        let p = sweep.dataset("parameter").map_err(&e)?;
+        let parameter: Vec<f64> = p.read_raw().map_err(&e)?;
+        let p_unit = unit_of(&p);
+        let done: Vec<u8> = sweep
+            .dataset("done")
+            .and_then(|d| d.read_raw())
+            .map_err(&e)?;
+        let mut columns = Vec::new();
+        for o in &observables {
+            let Ok(d) = sweep.dataset(o) else { continue };
+            let a = d.read_2d::<f64>().map_err(&e)?;
+            columns.push(Column {
+                name: o.clone(),
+                unit: unit_of(&d),
+                rows: a.outer_iter().map(|r| r.to_vec()).collect(),
+            });
+        }
+        let chaos = sweep.group("chaos").ok();
+        let read1 = |g: &hdf5::Group, name: &str| -> Option<Vec<f64>> {
+            g.dataset(name).and_then(|d| d.read_raw::<f64>()).ok()
+        };
+        let class: Option<Vec<u8>> = chaos
+            .as_ref()
+            .and_then(|c| c.dataset("class").and_then(|d| d.read_raw()).ok());
+        let lambda: Option<(Vec<f64>, Vec<f64>)> = chaos.as_ref().and_then(|c| {
+            let ex = c
+                .dataset("exponents")
+                .and_then(|d| d.read_2d::<f64>())
+                .ok()?;
+            let se = c.dataset("stderr").and_then(|d| d.read_2d::<f64>()).ok()?;
+            Some((ex.column(0).to_vec(), se.column(0).to_vec()))
+        });
+        // The chaos indicators' numbers, each in the order of the registry.
+        let numbers: Vec<(Row, Vec<f64>)> = INDICATORS
+            .iter()
+            .filter_map(|i| {
+                let row = i.row();
+                chaos
+                    .as_ref()
+                    .and_then(|c| read1(c, row.name))
+                    .map(|v| (row, v))
+            })
+            .collect();
+        Ok(Sweep {
+            name,
+            parameter_path,
+            parameter,
+            p_unit,
+            done,
+            columns,
+            class,
+            lambda,
+            numbers,
+        })
+    }
+
+    /// The column heads: value, status, period, the chaos measures computed, and each
+    /// observable's smallest and largest strobe point.
+    fn head(&self) -> Vec<String> {
+        let mut head: Vec<String> = vec![
+            format!("value ({})", self.p_unit),
+            "status".into(),
+            "period".into(),
+        ];
+        if self.class.is_some() {
+            head.push("class".into());
+        }
+        if self.lambda.is_some() {
+            head.push("lambda_1 (1/s)".into());
+            head.push("lambda_1 stderr (1/s)".into());
+        }
+        for (row, _) in &self.numbers {
+            head.push(row.column.into());
+        }
+        for c in &self.columns {
+            head.push(format!("{} min ({})", c.name, c.unit));
+            head.push(format!("{} max ({})", c.name, c.unit));
+        }
+        head
+    }
+
+    /// The cells of row `i`, each as (markdown, csv).
+    fn cells(&self, i: usize) -> Vec<(String, String)> {
+        let status = match self.done.get(i) {
+            Some(1) => "done",
+            Some(2) => "failed",
+            _ => "not run",
+        };
+        let ok = status == "done";
+        let period = self
+            .columns
+            .first()
+            .filter(|_| ok)
+            .and_then(|c| strobe_period(&c.rows[i]));
+        // (markdown, csv) of each cell.
+        let mut cells: Vec<(String, String)> = vec![
+            (short(self.parameter[i]), self.parameter[i].to_string()),
+            (status.into(), status.into()),
+            (
+                period.map_or(String::new(), |p| p.to_string()),
+                period.map_or(String::new(), |p| p.to_string()),
+            ),
+        ];
+        if let Some(c) = &self.class {
+            let name = if ok {
+                CLASS_NAMES
+                    .get(c[i] as usize)
+                    .copied()
+                    .unwrap_or("undetermined")
+            } else {
+                ""
+            };
+            cells.push((name.into(), name.into()));
+        }
+        if let Some((ex, se)) = &self.lambda {
+            cells.push(number(ok, ex[i], 4));
+            cells.push(number(ok, se[i], 4));
+        }
+        for (row, v) in &self.numbers {
+            cells.push(number(ok, v[i], row.digits));
+        }
+        for c in &self.columns {
+            let finite = c.rows[i].iter().copied().filter(|v| v.is_finite());
+            let (lo, hi) = finite.fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+                (a.min(v), b.max(v))
+            });
+            let ok = ok && lo <= hi;
+            cells.push(exp(ok, lo));
+            cells.push(exp(ok, hi));
+        }
+        cells
+    }
 }
 
 /// A number rounded to `digits` decimals for the Markdown and whole for the CSV; empty cells

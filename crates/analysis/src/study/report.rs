@@ -34,7 +34,7 @@ use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
 use crate::storage::h5::{h5err, read_attr, read_rows, read_str};
-use crate::study::spec::{Published, StudySpec};
+use crate::study::spec::{CaseSpec, Published, StudySpec};
 use crate::{Error, Result};
 
 /// One quantity's value per case (NaN where it does not apply).
@@ -163,23 +163,231 @@ pub fn compute(path: &Path) -> Result<Report> {
         message: format!("the stored study text does not parse: {err}"),
     })?;
     let tol = spec.report.settle_tolerance.unwrap_or(0.1);
-    let cases_g = file.group("cases").map_err(&e)?;
-    let mut labels = Vec::new();
-    let mut data = Vec::new();
-    let mut notes = Vec::new();
-    let mut walls = Vec::new();
-    for c in &spec.cases {
-        let g = cases_g.group(&c.label).map_err(|err| Error::Hdf5 {
-            file: path.to_path_buf(),
-            message: format!("case '{}' missing: {err}", c.label),
-        })?;
-        if let Ok(err) = read_str(&g, "error") {
+    let cases = Cases::read(path, &file, &spec)?;
+    let motion = cases.motion(path, &spec, tol)?;
+    let forces = cases.forces(&spec, tol);
+    Ok(Report {
+        study_name: spec.study.name.clone(),
+        description: spec.study.description.clone(),
+        file: path.to_path_buf(),
+        cases: cases.labels,
+        case_notes: cases.notes,
+        body: spec.report.body.clone(),
+        base_scene: spec.study.scene.display().to_string(),
+        motion,
+        forces,
+        published: spec.report.published.clone(),
+        wall_times: cases.walls,
+    })
+}
+
+/// The cases of a study file, in the study's order: label, recorded data (None for a failed
+/// case), note (its edits or its failure, and its reference case) and wall time.
+struct Cases {
+    labels: Vec<String>,
+    data: Vec<Option<CaseData>>,
+    notes: Vec<(String, Option<String>)>,
+    walls: Vec<f64>,
+}
+
+impl Cases {
+    /// Reads every case of the study `spec` from `file` (at `path`).
+    fn read(path: &Path, file: &hdf5::File, spec: &StudySpec) -> Result<Cases> {
+        let e = h5err(path);
+        let cases_g = file.group("cases").map_err(&e)?;
+        let mut labels = Vec::new();
+        let mut data = Vec::new();
+        let mut notes = Vec::new();
+        let mut walls = Vec::new();
+        for c in &spec.cases {
+            let g = cases_g.group(&c.label).map_err(|err| Error::Hdf5 {
+                file: path.to_path_buf(),
+                message: format!("case '{}' missing: {err}", c.label),
+            })?;
+            if let Ok(err) = read_str(&g, "error") {
+                labels.push(c.label.clone());
+                notes.push((format!("failed: {err}"), None));
+                walls.push(f64::NAN);
+                data.push(None);
+                continue;
+            }
+            let case = CaseData::read(path, &g, spec, &c.label)?;
+            notes.push(case_note(spec, c));
+            walls.push(read_attr::<f64>(&g, "wall_time_s").unwrap_or(f64::NAN));
             labels.push(c.label.clone());
-            notes.push((format!("failed: {err}"), None));
-            walls.push(f64::NAN);
-            data.push(None);
-            continue;
+            data.push(Some(case));
         }
+        Ok(Cases {
+            labels,
+            data,
+            notes,
+            walls,
+        })
+    }
+
+    /// The motion quantities of the report body along each report axis, per case against its
+    /// reference (none without a body; a quantity no case has is left out).
+    fn motion(&self, path: &Path, spec: &StudySpec, tol: f64) -> Result<Vec<Quantity>> {
+        let n = self.labels.len();
+        let mut motion: Vec<Quantity> = Vec::new();
+        if spec.report.body.is_some() {
+            let kinds: [(&str, &'static str); 6] = [
+                ("offset_max", "m"),
+                ("offset_settled", "m"),
+                ("velocity_fluctuation", "m/s"),
+                ("acceleration_jump", "m/s^2"),
+                ("acceleration_ripple", "m/s^2"),
+                ("acceleration_settling_time", "s"),
+            ];
+            for (a, ax) in spec.report.axis_list() {
+                for (kind, unit) in kinds {
+                    let mut values = vec![f64::NAN; n];
+                    for (k, c) in self.data.iter().enumerate() {
+                        let Some(c) = c else { continue };
+                        let Some(r) = self.notes[k]
+                            .1
+                            .as_ref()
+                            .and_then(|r| self.labels.iter().position(|l| l == r))
+                        else {
+                            continue;
+                        };
+                        let Some(rd) = self.data[r].as_ref() else {
+                            continue;
+                        };
+                        let (Some(b), Some(rb)) = (&c.body, &rd.body) else {
+                            continue;
+                        };
+                        if rd.time.len() != c.time.len()
+                            || rd
+                                .time
+                                .iter()
+                                .zip(&c.time)
+                                .any(|(x, y)| (x - y).abs() > 1e-9 * (1.0 + y.abs()))
+                        {
+                            return Err(Error::Hdf5 {
+                                file: path.to_path_buf(),
+                                message: format!(
+                                    "case '{}' and its reference '{}' are not sampled at the same times",
+                                    self.labels[k], self.labels[r]
+                                ),
+                            });
+                        }
+                        values[k] = motion_value(kind, a, c, b, rb, tol);
+                    }
+                    if values.iter().any(|v| !v.is_nan()) {
+                        motion.push(Quantity {
+                            name: format!("{kind}_{ax}"),
+                            unit,
+                            values,
+                        });
+                    }
+                }
+            }
+        }
+        Ok(motion)
+    }
+
+    /// The force quantities of each report joint, per case.
+    fn forces(&self, spec: &StudySpec, tol: f64) -> Vec<Quantity> {
+        let n = self.labels.len();
+        let mut forces = Vec::new();
+        for j in &spec.report.joints {
+            let kinds: [(&str, &'static str); 9] = [
+                ("peak_force", "N"),
+                ("peak_time", "s"),
+                ("startup_peak_force", "N"),
+                ("startup_peak_time", "s"),
+                ("settled_force", "N"),
+                ("settled_min", "N"),
+                ("settled_max", "N"),
+                ("ripple", "N"),
+                ("settling_time", "s"),
+            ];
+            let mut rows: Vec<Vec<f64>> = vec![vec![f64::NAN; n]; kinds.len()];
+            for (k, c) in self.data.iter().enumerate() {
+                let Some(c) = c else { continue };
+                let f = &c.forces[j];
+                let s = settled_start(c);
+                let (ip, peak) = argmax(f);
+                let win = &f[s..];
+                let mean = win.iter().sum::<f64>() / win.len() as f64;
+                let (lo, hi) = range(win);
+                let settle = settling(f, &c.time, s, mean, tol);
+                let (t0, t1) = (c.time[0], c.time[c.time.len() - 1]);
+                let su_end = t0 + 0.1 * c.period.unwrap_or(t1 - t0);
+                let n_su = c.time.partition_point(|&t| t <= su_end).max(1);
+                let (isu, su_peak) = argmax(&f[..n_su]);
+                for (row, v) in rows.iter_mut().zip([
+                    peak,
+                    c.time[ip],
+                    su_peak,
+                    c.time[isu],
+                    mean,
+                    lo,
+                    hi,
+                    0.5 * (hi - lo),
+                    settle,
+                ]) {
+                    row[k] = v;
+                }
+            }
+            for ((kind, unit), values) in kinds.iter().zip(rows) {
+                forces.push(Quantity {
+                    name: format!("{j}.{kind}"),
+                    unit,
+                    values,
+                });
+            }
+        }
+        forces
+    }
+}
+
+/// The motion quantity `kind` along axis `a` of case `c` whose body's position, velocity and
+/// acceleration are `b`, against its reference's `rb` (sampled at the same times).
+fn motion_value(
+    kind: &str,
+    a: usize,
+    c: &CaseData,
+    b: &[Vec<[f64; 3]>; 3],
+    rb: &[Vec<[f64; 3]>; 3],
+    tol: f64,
+) -> f64 {
+    let which = match kind {
+        "offset_max" | "offset_settled" => 0,
+        "velocity_fluctuation" => 1,
+        _ => 2,
+    };
+    let d: Vec<f64> = b[which]
+        .iter()
+        .zip(&rb[which])
+        .map(|(x, y)| x[a] - y[a])
+        .collect();
+    let s = settled_start(c);
+    match kind {
+        "offset_max" | "velocity_fluctuation" => d.iter().fold(0.0f64, |m, x| m.max(x.abs())),
+        "offset_settled" => d[s..].iter().sum::<f64>() / (d.len() - s) as f64,
+        "acceleration_jump" => d
+            .iter()
+            .copied()
+            .fold(0.0f64, |m, x| if x.abs() > m.abs() { x } else { m }),
+        "acceleration_settling_time" => {
+            let reference: Vec<f64> = rb[2][s..].iter().map(|x| x[a]).collect();
+            let (rlo, rhi) = range(&reference);
+            settling(&d, &c.time, s, 0.5 * (rhi - rlo), tol)
+        }
+        _ => {
+            let (lo, hi) = range(&d[s..]);
+            0.5 * (hi - lo)
+        }
+    }
+}
+
+impl CaseData {
+    /// Reads the case `label` of the study `spec` from its group `g`: its time (at least two
+    /// samples), drive period, report body's motion and report joints' force magnitudes.
+    fn read(path: &Path, g: &hdf5::Group, spec: &StudySpec, label: &str) -> Result<CaseData> {
+        let e = h5err(path);
         let time = g
             .dataset("time")
             .and_then(|d| d.read_raw::<f64>())
@@ -187,20 +395,20 @@ pub fn compute(path: &Path) -> Result<Report> {
         if time.len() < 2 {
             return Err(Error::Hdf5 {
                 file: path.to_path_buf(),
-                message: format!("case '{}' has fewer than two samples", c.label),
+                message: format!("case '{label}' has fewer than two samples"),
             });
         }
-        let period = read_attr::<f64>(&g, "drive_period").ok();
+        let period = read_attr::<f64>(g, "drive_period").ok();
         let body = match &spec.report.body {
             Some(b) => {
                 let bg = g.group(&format!("bodies/{b}")).map_err(|err| Error::Hdf5 {
                     file: path.to_path_buf(),
-                    message: format!("case '{}': body '{b}' not recorded: {err}", c.label),
+                    message: format!("case '{label}': body '{b}' not recorded: {err}"),
                 })?;
                 let get = |n: &str| {
                     read_vec3(&bg, n).ok_or_else(|| Error::Hdf5 {
                         file: path.to_path_buf(),
-                        message: format!("case '{}': bodies/{b}/{n} missing", c.label),
+                        message: format!("case '{label}': bodies/{b}/{n} missing"),
                     })
                 };
                 Some([get("position")?, get("velocity")?, get("acceleration")?])
@@ -217,181 +425,36 @@ pub fn compute(path: &Path) -> Result<Report> {
                 })
                 .ok_or_else(|| Error::Hdf5 {
                     file: path.to_path_buf(),
-                    message: format!("case '{}': no force recorded for joint '{j}'", c.label),
+                    message: format!("case '{label}': no force recorded for joint '{j}'"),
                 })?;
             forces.insert(j.clone(), f.iter().map(norm).collect::<Vec<_>>());
         }
-        let reference = spec.reference_of(c);
-        let mut edits: Vec<String> = Vec::new();
-        if let Some(sc) = &c.scene {
-            edits.push(format!("scene {}", sc.display()));
-        }
-        edits.extend(c.set.iter().map(|(k, v)| format!("{k} = {v}")));
-        edits.extend(c.remove.iter().map(|k| format!("remove {k}")));
-        notes.push((
-            if edits.is_empty() {
-                "base scene".to_string()
-            } else {
-                edits.join("; ")
-            },
-            reference,
-        ));
-        walls.push(read_attr::<f64>(&g, "wall_time_s").unwrap_or(f64::NAN));
-        labels.push(c.label.clone());
-        data.push(Some(CaseData {
+        Ok(CaseData {
             time,
             period,
             body,
             forces,
-        }));
+        })
     }
+}
 
-    let n = labels.len();
-    let mut motion: Vec<Quantity> = Vec::new();
-    if spec.report.body.is_some() {
-        let kinds: [(&str, &'static str); 6] = [
-            ("offset_max", "m"),
-            ("offset_settled", "m"),
-            ("velocity_fluctuation", "m/s"),
-            ("acceleration_jump", "m/s^2"),
-            ("acceleration_ripple", "m/s^2"),
-            ("acceleration_settling_time", "s"),
-        ];
-        for (a, ax) in spec.report.axis_list() {
-            for (kind, unit) in kinds {
-                let mut values = vec![f64::NAN; n];
-                for (k, c) in data.iter().enumerate() {
-                    let Some(c) = c else { continue };
-                    let Some(r) = notes[k]
-                        .1
-                        .as_ref()
-                        .and_then(|r| labels.iter().position(|l| l == r))
-                    else {
-                        continue;
-                    };
-                    let Some(rd) = data[r].as_ref() else { continue };
-                    let (Some(b), Some(rb)) = (&c.body, &rd.body) else {
-                        continue;
-                    };
-                    if rd.time.len() != c.time.len()
-                        || rd
-                            .time
-                            .iter()
-                            .zip(&c.time)
-                            .any(|(x, y)| (x - y).abs() > 1e-9 * (1.0 + y.abs()))
-                    {
-                        return Err(Error::Hdf5 {
-                            file: path.to_path_buf(),
-                            message: format!(
-                                "case '{}' and its reference '{}' are not sampled at the same times",
-                                labels[k], labels[r]
-                            ),
-                        });
-                    }
-                    let which = match kind {
-                        "offset_max" | "offset_settled" => 0,
-                        "velocity_fluctuation" => 1,
-                        _ => 2,
-                    };
-                    let d: Vec<f64> = b[which]
-                        .iter()
-                        .zip(&rb[which])
-                        .map(|(x, y)| x[a] - y[a])
-                        .collect();
-                    let s = settled_start(c);
-                    values[k] = match kind {
-                        "offset_max" | "velocity_fluctuation" => {
-                            d.iter().fold(0.0f64, |m, x| m.max(x.abs()))
-                        }
-                        "offset_settled" => d[s..].iter().sum::<f64>() / (d.len() - s) as f64,
-                        "acceleration_jump" => d
-                            .iter()
-                            .copied()
-                            .fold(0.0f64, |m, x| if x.abs() > m.abs() { x } else { m }),
-                        "acceleration_settling_time" => {
-                            let reference: Vec<f64> = rb[2][s..].iter().map(|x| x[a]).collect();
-                            let (rlo, rhi) = range(&reference);
-                            settling(&d, &c.time, s, 0.5 * (rhi - rlo), tol)
-                        }
-                        _ => {
-                            let (lo, hi) = range(&d[s..]);
-                            0.5 * (hi - lo)
-                        }
-                    };
-                }
-                if values.iter().any(|v| !v.is_nan()) {
-                    motion.push(Quantity {
-                        name: format!("{kind}_{ax}"),
-                        unit,
-                        values,
-                    });
-                }
-            }
-        }
+/// A case's note: its edits of the base scene ("base scene" without any), and its reference case.
+fn case_note(spec: &StudySpec, c: &CaseSpec) -> (String, Option<String>) {
+    let reference = spec.reference_of(c);
+    let mut edits: Vec<String> = Vec::new();
+    if let Some(sc) = &c.scene {
+        edits.push(format!("scene {}", sc.display()));
     }
-
-    let mut forces = Vec::new();
-    for j in &spec.report.joints {
-        let kinds: [(&str, &'static str); 9] = [
-            ("peak_force", "N"),
-            ("peak_time", "s"),
-            ("startup_peak_force", "N"),
-            ("startup_peak_time", "s"),
-            ("settled_force", "N"),
-            ("settled_min", "N"),
-            ("settled_max", "N"),
-            ("ripple", "N"),
-            ("settling_time", "s"),
-        ];
-        let mut rows: Vec<Vec<f64>> = vec![vec![f64::NAN; n]; kinds.len()];
-        for (k, c) in data.iter().enumerate() {
-            let Some(c) = c else { continue };
-            let f = &c.forces[j];
-            let s = settled_start(c);
-            let (ip, peak) = argmax(f);
-            let win = &f[s..];
-            let mean = win.iter().sum::<f64>() / win.len() as f64;
-            let (lo, hi) = range(win);
-            let settle = settling(f, &c.time, s, mean, tol);
-            let (t0, t1) = (c.time[0], c.time[c.time.len() - 1]);
-            let su_end = t0 + 0.1 * c.period.unwrap_or(t1 - t0);
-            let n_su = c.time.partition_point(|&t| t <= su_end).max(1);
-            let (isu, su_peak) = argmax(&f[..n_su]);
-            for (row, v) in rows.iter_mut().zip([
-                peak,
-                c.time[ip],
-                su_peak,
-                c.time[isu],
-                mean,
-                lo,
-                hi,
-                0.5 * (hi - lo),
-                settle,
-            ]) {
-                row[k] = v;
-            }
-        }
-        for ((kind, unit), values) in kinds.iter().zip(rows) {
-            forces.push(Quantity {
-                name: format!("{j}.{kind}"),
-                unit,
-                values,
-            });
-        }
-    }
-    Ok(Report {
-        study_name: spec.study.name.clone(),
-        description: spec.study.description.clone(),
-        file: path.to_path_buf(),
-        cases: labels,
-        case_notes: notes,
-        body: spec.report.body.clone(),
-        base_scene: spec.study.scene.display().to_string(),
-        motion,
-        forces,
-        published: spec.report.published.clone(),
-        wall_times: walls,
-    })
+    edits.extend(c.set.iter().map(|(k, v)| format!("{k} = {v}")));
+    edits.extend(c.remove.iter().map(|k| format!("remove {k}")));
+    (
+        if edits.is_empty() {
+            "base scene".to_string()
+        } else {
+            edits.join("; ")
+        },
+        reference,
+    )
 }
 
 /// Four significant digits, plain or scientific as fits.

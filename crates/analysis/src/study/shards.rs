@@ -185,83 +185,7 @@ pub fn merge(inputs: &[PathBuf], out: &Path, version: &str, partial: bool) -> Re
     let Some(first) = inputs.first() else {
         return Err(io(out, "no shard files given"));
     };
-    for p in inputs {
-        if same_file(p, out) {
-            return Err(io(
-                out,
-                "the output is one of the shard files: give another --out (the merged file is \
-                 DIR/<study>.h5)",
-            ));
-        }
-    }
-    let mut shards: Vec<ShardFile> = Vec::new();
-    for p in inputs {
-        let s = ShardFile::open(p)?;
-        if let Some(o) = shards.first() {
-            if s.version != o.version {
-                return Err(io(
-                    p,
-                    format!(
-                        "written by jointplay {} but {} by jointplay {}: every shard must come \
-                         from the same program version; rerun the shards with one version",
-                        s.version,
-                        o.path.display(),
-                        o.version
-                    ),
-                ));
-            }
-            if s.root.study != o.root.study {
-                return Err(io(
-                    p,
-                    format!(
-                        "comes from another study text than {} (its 'study' attribute differs): \
-                         shards of different studies, or of a study edited between runs, cannot \
-                         be merged; rerun the shards of the study as it is now",
-                        o.path.display()
-                    ),
-                ));
-            }
-            let diff = s.root.differences(&o.root);
-            if !diff.is_empty() || s.layout != o.layout {
-                return Err(io(
-                    p,
-                    format!(
-                        "differs from {} in {}: the shards were not computed from the same flow \
-                         (was the scene edited between runs?); rerun them",
-                        o.path.display(),
-                        if diff.is_empty() {
-                            "the shape of its datasets".to_string()
-                        } else {
-                            format!("the attribute(s) {}", diff.join(", "))
-                        }
-                    ),
-                ));
-            }
-            if s.shard.count != o.shard.count {
-                return Err(io(
-                    p,
-                    format!(
-                        "is shard {} but {} is shard {}: every shard must come from one split \
-                         of the sweep",
-                        s.shard,
-                        o.path.display(),
-                        o.shard
-                    ),
-                ));
-            }
-            if let Some(d) = shards.iter().find(|d| d.shard == s.shard) {
-                return Err(io(
-                    p,
-                    format!(
-                        "shard {} is given twice (also {})",
-                        s.shard,
-                        d.path.display()
-                    ),
-                ));
-            }
-        }
-        shards.push(s);
-    }
+    let shards = open_shards(inputs, out)?;
     let o = &shards[0];
     let shards_layout = o.layout.clone();
     if o.version != version {
@@ -284,8 +208,131 @@ pub fn merge(inputs: &[PathBuf], out: &Path, version: &str, partial: bool) -> Re
             format!("{n} shards of a sweep of {} values", jobs.len()),
         ));
     }
-    // Every shard holds exactly its jobs, with the values the study gives them.
-    for s in &shards {
+    check_rows(&shards, &jobs)?;
+    let pname = spec
+        .sweep
+        .as_ref()
+        .map(|s| s.parameter.clone())
+        .unwrap_or_default();
+    let (lines, not_done) = missing(&shards, &jobs, &pname, first);
+    if !not_done.is_empty() && !partial {
+        return Err(io(
+            out,
+            format!(
+                "not written: {} of {} values are missing or failed; rerun the shards named \
+                 below (a rerun computes only what its file lacks) and merge again, or merge \
+                 with --partial and finish the merged file with `jointplay run {} --out {} \
+                 --resume`:\n  {}",
+                not_done.len(),
+                jobs.len(),
+                o.root.study_file,
+                out.parent()
+                    .filter(|d| !d.as_os_str().is_empty())
+                    .unwrap_or(Path::new("."))
+                    .display(),
+                lines.join("\n  ")
+            ),
+        ));
+    }
+    write_merged(shards, &shards_layout, &jobs, out, version, not_done)
+}
+
+/// Opens the shard files `inputs` in order, refusing the output among them and a shard that does
+/// not match the first (program version, study text, flow, split) or is given twice.
+fn open_shards(inputs: &[PathBuf], out: &Path) -> Result<Vec<ShardFile>> {
+    for p in inputs {
+        if same_file(p, out) {
+            return Err(io(
+                out,
+                "the output is one of the shard files: give another --out (the merged file is \
+                 DIR/<study>.h5)",
+            ));
+        }
+    }
+    let mut shards: Vec<ShardFile> = Vec::new();
+    for p in inputs {
+        let s = ShardFile::open(p)?;
+        if let Some(o) = shards.first() {
+            s.check_matches(p, o, &shards)?;
+        }
+        shards.push(s);
+    }
+    Ok(shards)
+}
+
+impl ShardFile {
+    /// Refuses this shard (read from `p`) unless it comes from the same program version, study
+    /// text, flow and split as the first shard `o`, and is not one of `shards` already.
+    fn check_matches(&self, p: &Path, o: &ShardFile, shards: &[ShardFile]) -> Result<()> {
+        let s = self;
+        if s.version != o.version {
+            return Err(io(
+                p,
+                format!(
+                    "written by jointplay {} but {} by jointplay {}: every shard must come \
+                     from the same program version; rerun the shards with one version",
+                    s.version,
+                    o.path.display(),
+                    o.version
+                ),
+            ));
+        }
+        if s.root.study != o.root.study {
+            return Err(io(
+                p,
+                format!(
+                    "comes from another study text than {} (its 'study' attribute differs): \
+                     shards of different studies, or of a study edited between runs, cannot \
+                     be merged; rerun the shards of the study as it is now",
+                    o.path.display()
+                ),
+            ));
+        }
+        let diff = s.root.differences(&o.root);
+        if !diff.is_empty() || s.layout != o.layout {
+            return Err(io(
+                p,
+                format!(
+                    "differs from {} in {}: the shards were not computed from the same flow \
+                     (was the scene edited between runs?); rerun them",
+                    o.path.display(),
+                    if diff.is_empty() {
+                        "the shape of its datasets".to_string()
+                    } else {
+                        format!("the attribute(s) {}", diff.join(", "))
+                    }
+                ),
+            ));
+        }
+        if s.shard.count != o.shard.count {
+            return Err(io(
+                p,
+                format!(
+                    "is shard {} but {} is shard {}: every shard must come from one split \
+                     of the sweep",
+                    s.shard,
+                    o.path.display(),
+                    o.shard
+                ),
+            ));
+        }
+        if let Some(d) = shards.iter().find(|d| d.shard == s.shard) {
+            return Err(io(
+                p,
+                format!(
+                    "shard {} is given twice (also {})",
+                    s.shard,
+                    d.path.display()
+                ),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Refuses a shard that does not hold exactly its jobs, with the values the study gives them.
+fn check_rows(shards: &[ShardFile], jobs: &[(f64, i8)]) -> Result<()> {
+    for s in shards {
         let e = h5err(&s.path);
         let expect = s.shard.jobs(jobs.len());
         let g = s.file.group("sweep").map_err(&e)?;
@@ -317,12 +364,20 @@ pub fn merge(inputs: &[PathBuf], out: &Path, version: &str, partial: bool) -> Re
             ));
         }
     }
-    // What is missing, shard by shard.
-    let pname = spec
-        .sweep
-        .as_ref()
-        .map(|s| s.parameter.clone())
-        .unwrap_or_default();
+    Ok(())
+}
+
+/// What is missing, shard by shard: a line for each shard not given, each row that does not
+/// check, the values not run and each failed value (with the command that reruns the shard,
+/// its files in the directory of the first shard, `first`), and the jobs not done, sorted.
+fn missing(
+    shards: &[ShardFile],
+    jobs: &[(f64, i8)],
+    pname: &str,
+    first: &Path,
+) -> (Vec<String>, Vec<usize>) {
+    let o = &shards[0];
+    let n = o.shard.count;
     let dir = first
         .parent()
         .filter(|d| !d.as_os_str().is_empty())
@@ -341,7 +396,7 @@ pub fn merge(inputs: &[PathBuf], out: &Path, version: &str, partial: bool) -> Re
         let js = sh.jobs(jobs.len());
         let values = |idx: &[usize]| {
             let v: Vec<f64> = idx.iter().map(|&j| jobs[j].0).collect();
-            some_values(&pname, &v)
+            some_values(pname, &v)
         };
         match shards.iter().find(|s| s.shard == sh) {
             None => {
@@ -388,26 +443,20 @@ pub fn merge(inputs: &[PathBuf], out: &Path, version: &str, partial: bool) -> Re
         }
     }
     not_done.sort_unstable();
-    if !not_done.is_empty() && !partial {
-        return Err(io(
-            out,
-            format!(
-                "not written: {} of {} values are missing or failed; rerun the shards named \
-                 below (a rerun computes only what its file lacks) and merge again, or merge \
-                 with --partial and finish the merged file with `jointplay run {} --out {} \
-                 --resume`:\n  {}",
-                not_done.len(),
-                jobs.len(),
-                o.root.study_file,
-                out.parent()
-                    .filter(|d| !d.as_os_str().is_empty())
-                    .unwrap_or(Path::new("."))
-                    .display(),
-                lines.join("\n  ")
-            ),
-        ));
-    }
-    // The study file, written from the shards' values as a single process writes it.
+    (lines, not_done)
+}
+
+/// Writes the study file `out` from the shards' values as a single process writes it (under the
+/// output's lock), then its table beside it; `not_done` are the jobs written as not done.
+fn write_merged(
+    shards: Vec<ShardFile>,
+    shards_layout: &SweepLayout,
+    jobs: &[(f64, i8)],
+    out: &Path,
+    version: &str,
+    not_done: Vec<usize>,
+) -> Result<Merged> {
+    let n = shards[0].shard.count;
     crate::storage::durable::create_dir(crate::storage::durable::parent(out))?;
     let _lock = crate::storage::lock::Lock::acquire(out)?;
     let mut values = Vec::new();
@@ -439,7 +488,7 @@ pub fn merge(inputs: &[PathBuf], out: &Path, version: &str, partial: bool) -> Re
         .map(|w| w.1)
         .filter(|w| w.is_finite())
         .sum();
-    crate::storage::sweep::write_file(out, &shards_layout, version, &jobs, None, &by_row, total)?;
+    crate::storage::sweep::write_file(out, shards_layout, version, jobs, None, &by_row, total)?;
     let tables = crate::storage::table::write_beside(out)?;
     shard_walls.sort_by_key(|w| w.0.index);
     Ok(Merged {

@@ -205,163 +205,12 @@ impl Study {
         if spec.cases.is_empty() {
             return Err(invalid(path, "cases", "a study needs at least one case"));
         }
-        let mut seen = BTreeMap::new();
-        for (i, c) in spec.cases.iter().enumerate() {
-            let field = format!("cases[{i}].label");
-            if !crate::plain_name(&c.label, "-_.") {
-                return Err(invalid(
-                    path,
-                    field,
-                    format!(
-                        "'{}': use letters, digits, '-', '_' or '.' (it names an HDF5 group)",
-                        c.label
-                    ),
-                ));
-            }
-            if seen.insert(c.label.clone(), i).is_some() {
-                return Err(invalid(
-                    path,
-                    field,
-                    format!("duplicate label '{}'", c.label),
-                ));
-            }
-        }
-        let labels = |r: &str| seen.contains_key(r);
-        if let Some(r) = &spec.report.reference
-            && !labels(r)
-        {
-            return Err(invalid(path, "report.reference", format!("no case '{r}'")));
-        }
-        for (i, c) in spec.cases.iter().enumerate() {
-            if let Some(r) = &c.reference
-                && !labels(r)
-            {
-                return Err(invalid(
-                    path,
-                    format!("cases[{i}].reference"),
-                    format!("no case '{r}'"),
-                ));
-            }
-        }
-        for (i, p) in spec.report.published.iter().enumerate() {
-            if !labels(&p.case) {
-                return Err(invalid(
-                    path,
-                    format!("report.published[{i}].case"),
-                    format!("no case '{}'", p.case),
-                ));
-            }
-            if !p.value.is_finite() {
-                return Err(invalid(
-                    path,
-                    format!("report.published[{i}].value"),
-                    "must be finite",
-                ));
-            }
-            if let Some(b) = p.band
-                && !(b.is_finite() && b > 0.0)
-            {
-                return Err(invalid(
-                    path,
-                    format!("report.published[{i}].band"),
-                    format!("{b}: must be a positive fraction (0.04 for ±4 %)"),
-                ));
-            }
-        }
-        let mut names = std::collections::BTreeSet::new();
-        for (i, g) in spec.report.figures.iter().enumerate() {
-            if !crate::plain_name(&g.name, "-_") {
-                return Err(invalid(
-                    path,
-                    format!("report.figures[{i}].name"),
-                    format!("'{}': use letters, digits, '-' and '_'", g.name),
-                ));
-            }
-            if !names.insert(g.name.as_str()) {
-                return Err(invalid(
-                    path,
-                    format!("report.figures[{i}].name"),
-                    format!("duplicate name '{}'", g.name),
-                ));
-            }
-            if g.cases.is_empty() {
-                return Err(invalid(
-                    path,
-                    format!("report.figures[{i}].cases"),
-                    "name at least one case",
-                ));
-            }
-            if let Some(c) = g.cases.iter().find(|c| !labels(c)) {
-                return Err(invalid(
-                    path,
-                    format!("report.figures[{i}].cases"),
-                    format!("no case '{c}'"),
-                ));
-            }
-        }
-        for (i, a) in spec.report.axes.iter().enumerate() {
-            if !["x", "y", "z"].contains(&a.as_str()) {
-                return Err(invalid(
-                    path,
-                    format!("report.axes[{i}]"),
-                    format!("'{a}': use \"x\", \"y\" or \"z\""),
-                ));
-            }
-        }
-        if let Some(tol) = spec.report.settle_tolerance
-            && !(tol.is_finite() && tol > 0.0)
-        {
-            return Err(invalid(
-                path,
-                "report.settle_tolerance",
-                "must be a positive number",
-            ));
-        }
+        let seen = case_labels(&spec, path)?;
+        check_references(&spec, path, &seen)?;
+        check_report(&spec.report, path, &seen)?;
         let mut cases = Vec::new();
         for (i, c) in spec.cases.iter().enumerate() {
-            let scene_path = dir.join(c.scene.as_ref().unwrap_or(&spec.study.scene));
-            let read_field = if c.scene.is_some() {
-                format!("cases[{i}].scene")
-            } else {
-                "study.scene".into()
-            };
-            let (text, tree) = edited_scene(
-                path,
-                &scene_path,
-                &read_field,
-                &[
-                    ("study", &spec.study.set, &spec.study.remove),
-                    (&format!("cases[{i}]"), &c.set, &c.remove),
-                ],
-            )?;
-            let edited = if c.set.is_empty()
-                && c.remove.is_empty()
-                && spec.study.set.is_empty()
-                && spec.study.remove.is_empty()
-            {
-                text
-            } else {
-                toml::to_string(&tree)
-                    .map_err(|e| invalid(path, format!("cases[{i}]"), e.to_string()))?
-            };
-            let named = PathBuf::from(format!(
-                "{} (case '{}' of {})",
-                scene_path.display(),
-                c.label,
-                path.display()
-            ));
-            let scene_spec = SceneSpec::parse(&edited, &named)?;
-            // The report reads these from every case's file: a name no case records would be
-            // found only once the whole study had run.
-            check_recorded(path, &spec.report, &c.label, &scene_spec)?;
-            cases.push(Case {
-                label: c.label.clone(),
-                scene: SceneFile {
-                    path: named,
-                    text: edited,
-                    spec: scene_spec,
-                },
-            });
+            cases.push(load_case(&spec, path, dir, i, c)?);
         }
         Ok(Study {
             path: path.to_path_buf(),
@@ -370,6 +219,183 @@ impl Study {
             cases,
         })
     }
+}
+
+/// The study's case labels (to their index), checked: each a plain name, none twice.
+fn case_labels(spec: &StudySpec, path: &Path) -> Result<BTreeMap<String, usize>> {
+    let mut seen = BTreeMap::new();
+    for (i, c) in spec.cases.iter().enumerate() {
+        let field = format!("cases[{i}].label");
+        if !crate::plain_name(&c.label, "-_.") {
+            return Err(invalid(
+                path,
+                field,
+                format!(
+                    "'{}': use letters, digits, '-', '_' or '.' (it names an HDF5 group)",
+                    c.label
+                ),
+            ));
+        }
+        if seen.insert(c.label.clone(), i).is_some() {
+            return Err(invalid(
+                path,
+                field,
+                format!("duplicate label '{}'", c.label),
+            ));
+        }
+    }
+    Ok(seen)
+}
+
+/// Checks that the report's reference, each case's reference and each published value name
+/// cases of the study (`seen`), and the published values and bands.
+fn check_references(spec: &StudySpec, path: &Path, seen: &BTreeMap<String, usize>) -> Result<()> {
+    let labels = |r: &str| seen.contains_key(r);
+    if let Some(r) = &spec.report.reference
+        && !labels(r)
+    {
+        return Err(invalid(path, "report.reference", format!("no case '{r}'")));
+    }
+    for (i, c) in spec.cases.iter().enumerate() {
+        if let Some(r) = &c.reference
+            && !labels(r)
+        {
+            return Err(invalid(
+                path,
+                format!("cases[{i}].reference"),
+                format!("no case '{r}'"),
+            ));
+        }
+    }
+    for (i, p) in spec.report.published.iter().enumerate() {
+        if !labels(&p.case) {
+            return Err(invalid(
+                path,
+                format!("report.published[{i}].case"),
+                format!("no case '{}'", p.case),
+            ));
+        }
+        if !p.value.is_finite() {
+            return Err(invalid(
+                path,
+                format!("report.published[{i}].value"),
+                "must be finite",
+            ));
+        }
+        if let Some(b) = p.band
+            && !(b.is_finite() && b > 0.0)
+        {
+            return Err(invalid(
+                path,
+                format!("report.published[{i}].band"),
+                format!("{b}: must be a positive fraction (0.04 for ±4 %)"),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Checks the report's figures (plain names, each once, of cases of the study `seen`), its axes
+/// and its settling tolerance.
+fn check_report(report: &ReportSpec, path: &Path, seen: &BTreeMap<String, usize>) -> Result<()> {
+    let labels = |r: &str| seen.contains_key(r);
+    let mut names = std::collections::BTreeSet::new();
+    for (i, g) in report.figures.iter().enumerate() {
+        if !crate::plain_name(&g.name, "-_") {
+            return Err(invalid(
+                path,
+                format!("report.figures[{i}].name"),
+                format!("'{}': use letters, digits, '-' and '_'", g.name),
+            ));
+        }
+        if !names.insert(g.name.as_str()) {
+            return Err(invalid(
+                path,
+                format!("report.figures[{i}].name"),
+                format!("duplicate name '{}'", g.name),
+            ));
+        }
+        if g.cases.is_empty() {
+            return Err(invalid(
+                path,
+                format!("report.figures[{i}].cases"),
+                "name at least one case",
+            ));
+        }
+        if let Some(c) = g.cases.iter().find(|c| !labels(c)) {
+            return Err(invalid(
+                path,
+                format!("report.figures[{i}].cases"),
+                format!("no case '{c}'"),
+            ));
+        }
+    }
+    for (i, a) in report.axes.iter().enumerate() {
+        if !["x", "y", "z"].contains(&a.as_str()) {
+            return Err(invalid(
+                path,
+                format!("report.axes[{i}]"),
+                format!("'{a}': use \"x\", \"y\" or \"z\""),
+            ));
+        }
+    }
+    if let Some(tol) = report.settle_tolerance
+        && !(tol.is_finite() && tol > 0.0)
+    {
+        return Err(invalid(
+            path,
+            "report.settle_tolerance",
+            "must be a positive number",
+        ));
+    }
+    Ok(())
+}
+
+/// Case `i`, `c`: its scene (the case's or the study's, relative to `dir`) with the study's and
+/// the case's edits, parsed, and recording what the report reads.
+fn load_case(spec: &StudySpec, path: &Path, dir: &Path, i: usize, c: &CaseSpec) -> Result<Case> {
+    let scene_path = dir.join(c.scene.as_ref().unwrap_or(&spec.study.scene));
+    let read_field = if c.scene.is_some() {
+        format!("cases[{i}].scene")
+    } else {
+        "study.scene".into()
+    };
+    let (text, tree) = edited_scene(
+        path,
+        &scene_path,
+        &read_field,
+        &[
+            ("study", &spec.study.set, &spec.study.remove),
+            (&format!("cases[{i}]"), &c.set, &c.remove),
+        ],
+    )?;
+    let edited = if c.set.is_empty()
+        && c.remove.is_empty()
+        && spec.study.set.is_empty()
+        && spec.study.remove.is_empty()
+    {
+        text
+    } else {
+        toml::to_string(&tree).map_err(|e| invalid(path, format!("cases[{i}]"), e.to_string()))?
+    };
+    let named = PathBuf::from(format!(
+        "{} (case '{}' of {})",
+        scene_path.display(),
+        c.label,
+        path.display()
+    ));
+    let scene_spec = SceneSpec::parse(&edited, &named)?;
+    // The report reads these from every case's file: a name no case records would be
+    // found only once the whole study had run.
+    check_recorded(path, &spec.report, &c.label, &scene_spec)?;
+    Ok(Case {
+        label: c.label.clone(),
+        scene: SceneFile {
+            path: named,
+            text: edited,
+            spec: scene_spec,
+        },
+    })
 }
 
 /// Refuses a `report.joints` entry or `report.body` that the scene of case `label` does not

@@ -58,175 +58,12 @@ impl Loaded {
     /// Parses study text; scene paths are relative to `path`'s directory.
     pub fn parse(text: &str, path: &Path) -> Result<Loaded> {
         let spec = AnalysisStudy::parse_spec(text, path)?;
-        let a = &spec.analysis;
         check_name(path, "study.name", &spec.study.name)?;
-        if a.periods == 0 {
-            return Err(invalid(path, "analysis.periods", "must be at least 1"));
-        }
-        if a.transient >= a.periods {
-            return Err(invalid(
-                path,
-                "analysis.transient",
-                format!(
-                    "must be less than analysis.periods ({}), so that some periods are kept",
-                    a.periods
-                ),
-            ));
-        }
-        if let Some(b) = a.significant_bits
-            && !(1..=52).contains(&b)
-        {
-            return Err(invalid(
-                path,
-                "analysis.significant_bits",
-                format!("{b} is not between 1 and 52 (the mantissa bits of a double)"),
-            ));
-        }
-        finite(path, "analysis.phase", a.phase)?;
-        if a.phase < 0.0 {
-            return Err(invalid(path, "analysis.phase", "must not be negative"));
-        }
-        if let Some(p) = a.period
-            && !(p.is_finite() && p > 0.0)
-        {
-            return Err(invalid(
-                path,
-                "analysis.period",
-                "must be a positive number of seconds",
-            ));
-        }
-        if spec.observables.is_empty() {
-            return Err(invalid(
-                path,
-                "observables",
-                "name at least one observable ([[observables]] with name and path; only a \
-                 built-in system has a default, its state)",
-            ));
-        }
-        let mut names = BTreeMap::new();
-        for (i, o) in spec.observables.iter().enumerate() {
-            check_name(path, &format!("observables[{i}].name"), &o.name)?;
-            if names.insert(o.name.clone(), i).is_some() {
-                return Err(invalid(
-                    path,
-                    format!("observables[{i}].name"),
-                    format!("duplicate name '{}'", o.name),
-                ));
-            }
-        }
-        let mut planes = Vec::new();
-        for (i, s) in spec.sections.iter().enumerate() {
-            check_name(path, &format!("sections[{i}].name"), &s.name)?;
-            if s.name == "strobe" || spec.sections[..i].iter().any(|o| o.name == s.name) {
-                return Err(invalid(
-                    path,
-                    format!("sections[{i}].name"),
-                    format!(
-                        "'{}' is taken ('strobe' is the stroboscopic section)",
-                        s.name
-                    ),
-                ));
-            }
-            finite(path, &format!("sections[{i}].value"), s.value)?;
-            if s.terms.is_empty() {
-                return Err(invalid(
-                    path,
-                    format!("sections[{i}].terms"),
-                    "give at least one term",
-                ));
-            }
-            let mut terms = Vec::new();
-            for (k, c) in &s.terms {
-                let j = *names.get(k).ok_or_else(|| {
-                    invalid(
-                        path,
-                        format!("sections[{i}].terms.{k}"),
-                        "not an observable of this study",
-                    )
-                })?;
-                finite(path, &format!("sections[{i}].terms.{k}"), *c)?;
-                terms.push((j, *c));
-            }
-            planes.push(Hyperplane {
-                name: s.name.clone(),
-                terms,
-                value: s.value,
-                direction: s.direction,
-            });
-        }
-        for asked in spec.asked() {
-            let (key, z) = (asked.key, &asked.series);
-            let indicator = crate::measures::registry::find(key).expect("registered");
-            if !names.contains_key(&z.observable) {
-                return Err(invalid(
-                    path,
-                    format!("{key}.observable"),
-                    format!("'{}' is not an observable of this study", z.observable),
-                ));
-            }
-            if z.section != "strobe" && !planes.iter().any(|p| p.name == z.section) {
-                return Err(invalid(
-                    path,
-                    format!("{key}.section"),
-                    format!(
-                        "'{}' is neither 'strobe' nor a section of this study",
-                        z.section
-                    ),
-                ));
-            }
-            let kept = a.periods - a.transient;
-            let least = indicator.least_samples();
-            if z.section == "strobe" && kept < least {
-                return Err(invalid(
-                    path,
-                    key,
-                    format!(
-                        "the strobe section keeps {kept} samples (analysis.periods - analysis.transient), but the {} needs at least {least}",
-                        indicator.title()
-                    ),
-                ));
-            }
-        }
-        let dir = path.parent().unwrap_or(Path::new("."));
-        let base = match (&spec.study.scene, &spec.study.system) {
-            (Some(scene), None) => {
-                let sp = dir.join(scene);
-                let (_, tree) = edited_scene(
-                    path,
-                    &sp,
-                    "study.scene",
-                    &[("study", &spec.study.set, &spec.study.remove)],
-                )?;
-                Base::Scene { path: sp, tree }
-            }
-            (None, Some(sys)) => {
-                if spec.sweep.as_ref().is_some_and(|s| !s.also.is_empty()) {
-                    return Err(invalid(
-                        path,
-                        "sweep.also",
-                        "applies to scenes, not to systems",
-                    ));
-                }
-                if !spec.study.set.is_empty() || !spec.study.remove.is_empty() {
-                    return Err(invalid(
-                        path,
-                        "study.set",
-                        "edits apply to scenes; give a system's parameters in study.system",
-                    ));
-                }
-                // The base table must be valid even where a sweep overrides a value.
-                SystemSpec::parse(sys)
-                    .map_err(|(k, m)| invalid(path, format!("study.system.{k}"), m))?;
-                Base::System(sys.clone())
-            }
-            _ => {
-                return Err(invalid(
-                    path,
-                    "study",
-                    "give either scene = \"FILE\" or system = { kind = ... }",
-                ));
-            }
-        };
+        check_analysis(&spec.analysis, path)?;
+        let names = observable_names(&spec, path)?;
+        let planes = section_planes(&spec, path, &names)?;
+        check_indicators(&spec, path, &names, &planes)?;
+        let base = base_of(&spec, path)?;
         let jobs = sweep_jobs(&spec, path)?;
         let loaded = Loaded {
             path: path.to_path_buf(),
@@ -245,99 +82,109 @@ impl Loaded {
             loaded.check_continuation(c)?;
         }
         for (i, f) in loaded.spec.figures.iter().enumerate() {
-            for (k, &v) in f.values.iter().enumerate() {
-                finite(&loaded.path, &format!("figures[{i}].values[{k}]"), v)?;
-                // A panel is drawn for each value the sweep has: one it lacks would be left out
-                // without a word.
-                if loaded.spec.sweep.is_none() {
-                    return Err(invalid(
-                        &loaded.path,
-                        format!("figures[{i}].values"),
-                        "the study has no [sweep] whose values it could pick",
-                    ));
-                }
-                if !loaded
-                    .jobs
-                    .iter()
-                    .any(|j| (j.0 - v).abs() <= 1e-9 * v.abs().max(1e-300))
-                {
-                    let shown: Vec<String> = loaded
-                        .jobs
-                        .iter()
-                        .take(8)
-                        .map(|j| j.0.to_string())
-                        .collect();
-                    return Err(invalid(
-                        &loaded.path,
-                        format!("figures[{i}].values[{k}]"),
-                        format!(
-                            "{v} is not a value of the sweep ({}{})",
-                            shown.join(", "),
-                            if loaded.jobs.len() > 8 { ", ..." } else { "" }
-                        ),
-                    ));
-                }
-            }
-            if let Some(c) = f.circle {
-                finite(&loaded.path, &format!("figures[{i}].circle"), c)?;
-            }
-            if let Some(sc) = f.scale
-                && !(sc.is_finite() && sc != 0.0)
+            loaded.check_figure(i, f)?;
+        }
+        Ok(loaded)
+    }
+
+    /// Checks `figures[i]`: its picked sweep values, circle and scale, its observables, and
+    /// what its kind needs (x, a [continuation], a [sweep], a section of this study).
+    fn check_figure(&self, i: usize, f: &FigureSpec) -> Result<()> {
+        self.check_figure_values(i, f)?;
+        if let Some(c) = f.circle {
+            finite(&self.path, &format!("figures[{i}].circle"), c)?;
+        }
+        if let Some(sc) = f.scale
+            && !(sc.is_finite() && sc != 0.0)
+        {
+            return Err(invalid(
+                &self.path,
+                format!("figures[{i}].scale"),
+                format!("{sc}: must be a finite, non-zero factor"),
+            ));
+        }
+        for (what, name) in [("x", f.x.as_deref()), ("y", Some(f.y.as_str()))] {
+            if let Some(n) = name
+                && self.spec.observable(n).is_none()
             {
                 return Err(invalid(
-                    &loaded.path,
-                    format!("figures[{i}].scale"),
-                    format!("{sc}: must be a finite, non-zero factor"),
-                ));
-            }
-            for (what, name) in [("x", f.x.as_deref()), ("y", Some(f.y.as_str()))] {
-                if let Some(n) = name
-                    && loaded.spec.observable(n).is_none()
-                {
-                    return Err(invalid(
-                        &loaded.path,
-                        format!("figures[{i}].{what}"),
-                        format!("'{n}' is not an observable of this study"),
-                    ));
-                }
-            }
-            let needs_x = matches!(
-                f.kind,
-                FigureKind::Phase | FigureKind::Poincare | FigureKind::Orbit
-            );
-            if needs_x && f.x.is_none() {
-                return Err(invalid(
-                    &loaded.path,
-                    format!("figures[{i}].x"),
-                    "this kind needs x",
-                ));
-            }
-            if f.kind == FigureKind::Branches && loaded.spec.continuation.is_none() {
-                return Err(invalid(
-                    &loaded.path,
-                    format!("figures[{i}].kind"),
-                    "a branches figure needs a [continuation]",
-                ));
-            }
-            if f.kind == FigureKind::Bifurcation && loaded.spec.sweep.is_none() {
-                return Err(invalid(
-                    &loaded.path,
-                    format!("figures[{i}].kind"),
-                    "a bifurcation diagram needs a [sweep]",
-                ));
-            }
-            if let Some(s) = &f.section
-                && !loaded.planes.iter().any(|p| &p.name == s)
-                && s != "strobe"
-            {
-                return Err(invalid(
-                    &loaded.path,
-                    format!("figures[{i}].section"),
-                    format!("no section '{s}'"),
+                    &self.path,
+                    format!("figures[{i}].{what}"),
+                    format!("'{n}' is not an observable of this study"),
                 ));
             }
         }
-        Ok(loaded)
+        let needs_x = matches!(
+            f.kind,
+            FigureKind::Phase | FigureKind::Poincare | FigureKind::Orbit
+        );
+        if needs_x && f.x.is_none() {
+            return Err(invalid(
+                &self.path,
+                format!("figures[{i}].x"),
+                "this kind needs x",
+            ));
+        }
+        if f.kind == FigureKind::Branches && self.spec.continuation.is_none() {
+            return Err(invalid(
+                &self.path,
+                format!("figures[{i}].kind"),
+                "a branches figure needs a [continuation]",
+            ));
+        }
+        if f.kind == FigureKind::Bifurcation && self.spec.sweep.is_none() {
+            return Err(invalid(
+                &self.path,
+                format!("figures[{i}].kind"),
+                "a bifurcation diagram needs a [sweep]",
+            ));
+        }
+        if let Some(s) = &f.section
+            && !self.planes.iter().any(|p| &p.name == s)
+            && s != "strobe"
+        {
+            return Err(invalid(
+                &self.path,
+                format!("figures[{i}].section"),
+                format!("no section '{s}'"),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Checks the sweep values `figures[i]` picks: each finite, in a study with a sweep, and a
+    /// value of it.
+    fn check_figure_values(&self, i: usize, f: &FigureSpec) -> Result<()> {
+        for (k, &v) in f.values.iter().enumerate() {
+            finite(&self.path, &format!("figures[{i}].values[{k}]"), v)?;
+            // A panel is drawn for each value the sweep has: one it lacks would be left out
+            // without a word.
+            if self.spec.sweep.is_none() {
+                return Err(invalid(
+                    &self.path,
+                    format!("figures[{i}].values"),
+                    "the study has no [sweep] whose values it could pick",
+                ));
+            }
+            if !self
+                .jobs
+                .iter()
+                .any(|j| (j.0 - v).abs() <= 1e-9 * v.abs().max(1e-300))
+            {
+                let shown: Vec<String> =
+                    self.jobs.iter().take(8).map(|j| j.0.to_string()).collect();
+                return Err(invalid(
+                    &self.path,
+                    format!("figures[{i}].values[{k}]"),
+                    format!(
+                        "{v} is not a value of the sweep ({}{})",
+                        shown.join(", "),
+                        if self.jobs.len() > 8 { ", ..." } else { "" }
+                    ),
+                ));
+            }
+        }
+        Ok(())
     }
 
     /// Refuses a run that could never finish, as scenes do (`solver.step`): `analysis.periods`
@@ -636,4 +483,210 @@ impl Loaded {
         crate::study::continuation::start::read_start(&self.path, spec, s, &mut flow, t_strobe)
             .map(Some)
     }
+}
+
+/// Checks the `[analysis]` table: periods and transient, significant bits, phase and period.
+fn check_analysis(a: &AnalysisSpec, path: &Path) -> Result<()> {
+    if a.periods == 0 {
+        return Err(invalid(path, "analysis.periods", "must be at least 1"));
+    }
+    if a.transient >= a.periods {
+        return Err(invalid(
+            path,
+            "analysis.transient",
+            format!(
+                "must be less than analysis.periods ({}), so that some periods are kept",
+                a.periods
+            ),
+        ));
+    }
+    if let Some(b) = a.significant_bits
+        && !(1..=52).contains(&b)
+    {
+        return Err(invalid(
+            path,
+            "analysis.significant_bits",
+            format!("{b} is not between 1 and 52 (the mantissa bits of a double)"),
+        ));
+    }
+    finite(path, "analysis.phase", a.phase)?;
+    if a.phase < 0.0 {
+        return Err(invalid(path, "analysis.phase", "must not be negative"));
+    }
+    if let Some(p) = a.period
+        && !(p.is_finite() && p > 0.0)
+    {
+        return Err(invalid(
+            path,
+            "analysis.period",
+            "must be a positive number of seconds",
+        ));
+    }
+    Ok(())
+}
+
+/// The study's observables by name (to their index), checked: at least one, each well named
+/// and named once.
+fn observable_names(spec: &AnalysisStudy, path: &Path) -> Result<BTreeMap<String, usize>> {
+    if spec.observables.is_empty() {
+        return Err(invalid(
+            path,
+            "observables",
+            "name at least one observable ([[observables]] with name and path; only a \
+             built-in system has a default, its state)",
+        ));
+    }
+    let mut names = BTreeMap::new();
+    for (i, o) in spec.observables.iter().enumerate() {
+        check_name(path, &format!("observables[{i}].name"), &o.name)?;
+        if names.insert(o.name.clone(), i).is_some() {
+            return Err(invalid(
+                path,
+                format!("observables[{i}].name"),
+                format!("duplicate name '{}'", o.name),
+            ));
+        }
+    }
+    Ok(names)
+}
+
+/// The study's `[[sections]]` as hyperplanes over observable indices, checked: names free
+/// ('strobe' and earlier sections taken), finite values, at least one term, each term an
+/// observable of the study with a finite coefficient.
+fn section_planes(
+    spec: &AnalysisStudy,
+    path: &Path,
+    names: &BTreeMap<String, usize>,
+) -> Result<Vec<Hyperplane>> {
+    let mut planes = Vec::new();
+    for (i, s) in spec.sections.iter().enumerate() {
+        check_name(path, &format!("sections[{i}].name"), &s.name)?;
+        if s.name == "strobe" || spec.sections[..i].iter().any(|o| o.name == s.name) {
+            return Err(invalid(
+                path,
+                format!("sections[{i}].name"),
+                format!(
+                    "'{}' is taken ('strobe' is the stroboscopic section)",
+                    s.name
+                ),
+            ));
+        }
+        finite(path, &format!("sections[{i}].value"), s.value)?;
+        if s.terms.is_empty() {
+            return Err(invalid(
+                path,
+                format!("sections[{i}].terms"),
+                "give at least one term",
+            ));
+        }
+        let mut terms = Vec::new();
+        for (k, c) in &s.terms {
+            let j = *names.get(k).ok_or_else(|| {
+                invalid(
+                    path,
+                    format!("sections[{i}].terms.{k}"),
+                    "not an observable of this study",
+                )
+            })?;
+            finite(path, &format!("sections[{i}].terms.{k}"), *c)?;
+            terms.push((j, *c));
+        }
+        planes.push(Hyperplane {
+            name: s.name.clone(),
+            terms,
+            value: s.value,
+            direction: s.direction,
+        });
+    }
+    Ok(planes)
+}
+
+/// Checks each chaos indicator the study asks for: its observable and section exist, and the
+/// strobe section keeps as many samples as the indicator needs.
+fn check_indicators(
+    spec: &AnalysisStudy,
+    path: &Path,
+    names: &BTreeMap<String, usize>,
+    planes: &[Hyperplane],
+) -> Result<()> {
+    let a = &spec.analysis;
+    for asked in spec.asked() {
+        let (key, z) = (asked.key, &asked.series);
+        let indicator = crate::measures::registry::find(key).expect("registered");
+        if !names.contains_key(&z.observable) {
+            return Err(invalid(
+                path,
+                format!("{key}.observable"),
+                format!("'{}' is not an observable of this study", z.observable),
+            ));
+        }
+        if z.section != "strobe" && !planes.iter().any(|p| p.name == z.section) {
+            return Err(invalid(
+                path,
+                format!("{key}.section"),
+                format!(
+                    "'{}' is neither 'strobe' nor a section of this study",
+                    z.section
+                ),
+            ));
+        }
+        let kept = a.periods - a.transient;
+        let least = indicator.least_samples();
+        if z.section == "strobe" && kept < least {
+            return Err(invalid(
+                path,
+                key,
+                format!(
+                    "the strobe section keeps {kept} samples (analysis.periods - analysis.transient), but the {} needs at least {least}",
+                    indicator.title()
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// The study's base tree: its scene (relative to the study file, with the study's edits) or
+/// its system table (checked, and without scene-only sweeps and edits).
+fn base_of(spec: &AnalysisStudy, path: &Path) -> Result<Base> {
+    let dir = path.parent().unwrap_or(Path::new("."));
+    Ok(match (&spec.study.scene, &spec.study.system) {
+        (Some(scene), None) => {
+            let sp = dir.join(scene);
+            let (_, tree) = edited_scene(
+                path,
+                &sp,
+                "study.scene",
+                &[("study", &spec.study.set, &spec.study.remove)],
+            )?;
+            Base::Scene { path: sp, tree }
+        }
+        (None, Some(sys)) => {
+            if spec.sweep.as_ref().is_some_and(|s| !s.also.is_empty()) {
+                return Err(invalid(
+                    path,
+                    "sweep.also",
+                    "applies to scenes, not to systems",
+                ));
+            }
+            if !spec.study.set.is_empty() || !spec.study.remove.is_empty() {
+                return Err(invalid(
+                    path,
+                    "study.set",
+                    "edits apply to scenes; give a system's parameters in study.system",
+                ));
+            }
+            // The base table must be valid even where a sweep overrides a value.
+            SystemSpec::parse(sys)
+                .map_err(|(k, m)| invalid(path, format!("study.system.{k}"), m))?;
+            Base::System(sys.clone())
+        }
+        _ => {
+            return Err(invalid(
+                path,
+                "study",
+                "give either scene = \"FILE\" or system = { kind = ... }",
+            ));
+        }
+    })
 }

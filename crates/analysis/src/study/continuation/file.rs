@@ -405,6 +405,9 @@ fn read_branch(g: &hdf5::Group, obs: &[&str]) -> hdf5::Result<Branch> {
     })
 }
 
+/// Writes branch `b` into its group `g`: its attributes, each point's orbit and stability, what a
+/// resumed continuation needs, the grazing gap (in `gap_unit`) when computed, and the observables
+/// `obs` (in `units`) at the strobe points; `unit` is the parameter's.
 fn write_branch(
     g: &hdf5::Group,
     b: &Branch,
@@ -413,9 +416,7 @@ fn write_branch(
     unit: &str,
     gap_unit: &str,
 ) -> hdf5::Result<()> {
-    use crate::storage::h5::{
-        f64_attr, str_attr, u8_attr_set, u64_attr, write_column, write_table, write1,
-    };
+    use crate::storage::h5::{f64_attr, str_attr, u8_attr_set, u64_attr, write_table, write1};
     u64_attr(g, "orbit_periods", b.k as u64)?;
     str_attr(g, "origin", &b.origin)?;
     str_attr(g, "end", &b.end)?;
@@ -425,6 +426,42 @@ fn write_branch(
         f64_attr(g, "period", p.orbit.period)?;
         u64_attr(g, "spurious", p.orbit.spurious as u64)?;
     }
+    write_points(g, b, unit)?;
+    write_stability(g, b)?;
+    write_resume(g, b)?;
+    let col = |f: &dyn Fn(&Point) -> f64| b.points.iter().map(f).collect::<Vec<f64>>();
+    if b.points.iter().any(|p| p.gap.is_some()) {
+        write1(
+            g,
+            "gap",
+            &col(&|p| p.gap.unwrap_or(f64::NAN)),
+            gap_unit,
+            "grazing level minus the largest value of the contact observable along the orbit",
+        )?;
+    }
+    let s = g.create_group("strobe")?;
+    for (j, name) in obs.iter().enumerate() {
+        let v: Vec<f64> = b
+            .points
+            .iter()
+            .flat_map(|p| p.strobe.iter().map(|row| row[j]))
+            .collect();
+        let u = units.get(j).map_or("", String::as_str);
+        write_table(
+            &s,
+            name,
+            &v,
+            b.k,
+            u,
+            "the observable at the orbit's strobe points, one column per drive period",
+        )?;
+    }
+    Ok(())
+}
+
+/// Each point's parameter (in `unit`), strobe state and Floquet multipliers.
+fn write_points(g: &hdf5::Group, b: &Branch, unit: &str) -> hdf5::Result<()> {
+    use crate::storage::h5::{write_table, write1};
     let col = |f: &dyn Fn(&Point) -> f64| b.points.iter().map(f).collect::<Vec<f64>>();
     write1(
         g,
@@ -474,6 +511,14 @@ fn write_branch(
         "1",
         "their imaginary parts",
     )?;
+    Ok(())
+}
+
+/// Each point's stability, multipliers outside the unit circle, residual, corrector iterations and
+/// impacts.
+fn write_stability(g: &hdf5::Group, b: &Branch) -> hdf5::Result<()> {
+    use crate::storage::h5::{write_column, write1};
+    let col = |f: &dyn Fn(&Point) -> f64| b.points.iter().map(f).collect::<Vec<f64>>();
     let stable: Vec<u8> = b
         .points
         .iter()
@@ -515,6 +560,15 @@ fn write_branch(
     )?;
     let ev: Vec<u64> = b.points.iter().map(|p| p.orbit.events).collect();
     write_column(g, "events", &ev, None, "impacts along one orbit")?;
+    Ok(())
+}
+
+/// What a resumed continuation needs of each point: the scaled parameter, the tangent and the
+/// contacts' onset memory.
+fn write_resume(g: &hdf5::Group, b: &Branch) -> hdf5::Result<()> {
+    use crate::storage::h5::{write_table, write1};
+    let col = |f: &dyn Fn(&Point) -> f64| b.points.iter().map(f).collect::<Vec<f64>>();
+    let n = b.points.first().map_or(0, |p| p.orbit.state.y.len());
     // What a resumed continuation needs: the scaled parameter, the tangent and the contacts'
     // onset memory of each point.
     write1(
@@ -551,32 +605,6 @@ fn write_branch(
             nc,
             "m/s",
             "approach velocity at the onset of each contact at the strobe point (NaN: out of contact)",
-        )?;
-    }
-    if b.points.iter().any(|p| p.gap.is_some()) {
-        write1(
-            g,
-            "gap",
-            &col(&|p| p.gap.unwrap_or(f64::NAN)),
-            gap_unit,
-            "grazing level minus the largest value of the contact observable along the orbit",
-        )?;
-    }
-    let s = g.create_group("strobe")?;
-    for (j, name) in obs.iter().enumerate() {
-        let v: Vec<f64> = b
-            .points
-            .iter()
-            .flat_map(|p| p.strobe.iter().map(|row| row[j]))
-            .collect();
-        let u = units.get(j).map_or("", String::as_str);
-        write_table(
-            &s,
-            name,
-            &v,
-            b.k,
-            u,
-            "the observable at the orbit's strobe points, one column per drive period",
         )?;
     }
     Ok(())

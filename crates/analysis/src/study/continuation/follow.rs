@@ -458,76 +458,142 @@ pub fn resume(
 /// then the queue.
 fn follow(
     ctx: &Ctx,
-    mut out: Continuation,
-    mut open: Option<(Branch, Point, f64)>,
-    mut queue: Vec<Pending>,
-    mut done_points: usize,
+    out: Continuation,
+    open: Option<(Branch, Point, f64)>,
+    queue: Vec<Pending>,
+    done_points: usize,
     progress: &mut dyn FnMut(&mut Report) -> bool,
 ) -> Result<Continuation> {
-    let t0 = std::time::Instant::now();
-    let wall0 = out.wall;
     let set = ctx.set;
-    let total = (set.max_branches * set.max_points) as f64;
-    let (hmin, hmax) = (set.min_step / ctx.range(), set.max_step / ctx.range());
-    loop {
-        let (mut branch, mut h, mut cur) = if let Some(open) = open.take() {
-            (open.0, open.2, open.1)
-        } else {
-            let Some(Pending {
-                start: p0,
-                k,
-                origin,
-                switch,
-            }) = (!queue.is_empty()).then(|| queue.remove(0))
-            else {
-                break;
+    let wall0 = out.wall;
+    Follower {
+        ctx,
+        t0: std::time::Instant::now(),
+        wall0,
+        total: (set.max_branches * set.max_points) as f64,
+        hmin: set.min_step / ctx.range(),
+        hmax: set.max_step / ctx.range(),
+        out,
+        queue,
+        done_points,
+        progress,
+    }
+    .run(open)
+}
+
+/// A continuation under way: the branches and special points so far, the branches waiting,
+/// the points done, and the step bounds in scaled parameter units.
+struct Follower<'a, 'p> {
+    ctx: &'a Ctx<'a>,
+    out: Continuation,
+    queue: Vec<Pending>,
+    done_points: usize,
+    t0: std::time::Instant,
+    /// The wall time of the work resumed (s).
+    wall0: f64,
+    /// Points at most: `max_branches * max_points`.
+    total: f64,
+    hmin: f64,
+    hmax: f64,
+    progress: &'p mut dyn FnMut(&mut Report) -> bool,
+}
+
+impl Follower<'_, '_> {
+    /// Follows `open`, then each branch of the queue in turn, until the queue is empty or
+    /// `max_branches` are done (or `progress` asks to stop: then the snapshot it was given).
+    fn run(mut self, mut open: Option<(Branch, Point, f64)>) -> Result<Continuation> {
+        loop {
+            let (mut branch, h, cur) = if let Some(open) = open.take() {
+                (open.0, open.2, open.1)
+            } else {
+                let Some(pending) = (!self.queue.is_empty()).then(|| self.queue.remove(0)) else {
+                    break;
+                };
+                if self.out.branches.len() >= self.ctx.set.max_branches {
+                    break;
+                }
+                match self.start_branch(pending)? {
+                    Some(started) => started,
+                    None => continue,
+                }
             };
-            if out.branches.len() >= set.max_branches {
-                break;
+            if let Some(stopped) = self.follow_branch(&mut branch, h, cur)? {
+                return Ok(stopped);
             }
-            let mut branch = Branch {
-                k,
-                origin,
-                points: Vec::new(),
-                end: String::new(),
-                failed: false,
-            };
-            let h = set.step / ctx.range();
-            // The first step of a switched branch: from the special point along its tangent.
-            let mut current = if let Some((ty, ts)) = switch {
-                let mut trial = h;
-                loop {
-                    match ctx.correct(k, &p0, &ty, ts, trial) {
-                        Ok(c) => {
-                            let tan = ctx.tangent(&c, &ty, ts);
-                            match tan {
-                                Some(tan) => break Some(ctx.point(k, c, tan)?),
-                                None => break None,
-                            }
-                        }
-                        Err(_) if trial / 2.0 >= hmin => trial /= 2.0,
-                        Err(e) => {
-                            branch.end = format!("could not leave the branch point: {e}");
-                            branch.failed = true;
-                            break None;
+            self.out.branches.push(branch);
+        }
+        self.out.wall = self.wall0 + self.t0.elapsed().as_secs_f64();
+        Ok(self.out)
+    }
+
+    /// Starts the branch `pending` asks for: its first point, the start itself or (for a
+    /// switched branch) the first step from the special point along its tangent, halved down to
+    /// the smallest step. Returns the branch with that point, the step and the point; or None
+    /// when the branch ends before its first point (pushed, with why, to the branches).
+    fn start_branch(&mut self, pending: Pending) -> Result<Option<(Branch, f64, Point)>> {
+        let ctx = self.ctx;
+        let Pending {
+            start: p0,
+            k,
+            origin,
+            switch,
+        } = pending;
+        let mut branch = Branch {
+            k,
+            origin,
+            points: Vec::new(),
+            end: String::new(),
+            failed: false,
+        };
+        let h = ctx.set.step / ctx.range();
+        // The first step of a switched branch: from the special point along its tangent.
+        let mut current = if let Some((ty, ts)) = switch {
+            let mut trial = h;
+            loop {
+                match ctx.correct(k, &p0, &ty, ts, trial) {
+                    Ok(c) => {
+                        let tan = ctx.tangent(&c, &ty, ts);
+                        match tan {
+                            Some(tan) => break Some(ctx.point(k, c, tan)?),
+                            None => break None,
                         }
                     }
+                    Err(_) if trial / 2.0 >= self.hmin => trial /= 2.0,
+                    Err(e) => {
+                        branch.end = format!("could not leave the branch point: {e}");
+                        branch.failed = true;
+                        break None;
+                    }
                 }
-            } else {
-                Some(p0)
-            };
-            let Some(cur) = current.take() else {
-                if branch.end.is_empty() {
-                    branch.end = "no tangent at the branch point".into();
-                    branch.failed = true;
-                }
-                out.branches.push(branch);
-                continue;
-            };
-            branch.points.push(cur.clone());
-            (branch, h, cur)
+            }
+        } else {
+            Some(p0)
         };
-        let bi = out.branches.len();
+        let Some(cur) = current.take() else {
+            if branch.end.is_empty() {
+                branch.end = "no tangent at the branch point".into();
+                branch.failed = true;
+            }
+            self.out.branches.push(branch);
+            return Ok(None);
+        };
+        branch.points.push(cur.clone());
+        Ok(Some((branch, h, cur)))
+    }
+
+    /// Follows `branch` from its last point `cur` with the step `h` until it ends (its `end`
+    /// says why): each step corrected (halved when the corrector fails), the special points
+    /// between two points located, a step past the range's end shortened onto it. Returns the
+    /// snapshot `progress` was given when it asks to stop.
+    fn follow_branch(
+        &mut self,
+        branch: &mut Branch,
+        mut h: f64,
+        mut cur: Point,
+    ) -> Result<Option<Continuation>> {
+        let ctx = self.ctx;
+        let set = ctx.set;
+        let bi = self.out.branches.len();
         let k = branch.k;
         let zero = vec![0.0; cur.orbit.state.y.len()];
         loop {
@@ -558,7 +624,7 @@ fn follow(
                 Ok(p) => p,
                 Err(e) => {
                     h /= 2.0;
-                    if h < hmin {
+                    if h < self.hmin {
                         branch.end =
                             format!("the step fell below continuation.min_step after: {e}");
                         branch.failed = true;
@@ -567,80 +633,7 @@ fn follow(
                     continue;
                 }
             };
-            // Special points between cur and next.
-            let mut graze = false;
-            for kind in Kind::ALL {
-                if kind == Kind::Grazing && set.grazing.is_none() {
-                    continue;
-                }
-                if !changes(kind, &cur, &next) {
-                    continue;
-                }
-                let Some(sp) = locate(ctx, kind, k, &cur, &next, h) else {
-                    continue;
-                };
-                if kind == Kind::NeimarkSacker && !is_neimark_sacker(&sp.1) {
-                    continue;
-                }
-                let (bracket, at, far) = sp;
-                let special = Special {
-                    kind,
-                    branch: bi,
-                    after: branch.points.len() - 1,
-                    parameter: at.parameter,
-                    bracket,
-                    state: at.orbit.state.y.clone(),
-                    multipliers: at.orbit.multipliers.clone(),
-                    strobe: at.strobe.clone(),
-                };
-                let parameter = grazing_parameter(kind, &cur, &at).unwrap_or(at.parameter);
-                // The step that passes `to` finds what lies beyond it too: not asked for.
-                if !ctx.in_range(parameter) {
-                    continue;
-                }
-                let special = Special {
-                    parameter,
-                    ..special
-                };
-                if kind == Kind::PeriodDoubling && set.switch_period_doubling {
-                    let v = at.orbit.eigenvector(-1.0);
-                    queue.push(Pending {
-                        start: at.clone(),
-                        k: 2 * k,
-                        origin: format!(
-                            "period doubling of branch {bi} at parameter {}",
-                            special.parameter
-                        ),
-                        switch: Some((v, 0.0)),
-                    });
-                }
-                if kind == Kind::Grazing {
-                    graze = true;
-                    // The other side: shooting a tenth of the first step past the grazing, from the
-                    // converged orbit nearest it there, heading on away from the grazing; or the
-                    // step's own point when that fails.
-                    let dir = if cur.tangent_s >= 0.0 { 1.0 } else { -1.0 };
-                    let s_past = ctx_s(ctx, special.parameter) + dir * 0.1 * set.step / ctx.range();
-                    let other = ctx
-                        .start_point(k, s_past, &far.orbit.state, &zero, dir)
-                        .ok()
-                        .filter(|p| test(kind, p).is_none_or(|g| g <= 0.0))
-                        .or_else(|| test(kind, &next).is_none().then(|| next.clone()));
-                    if let Some(other) = other {
-                        queue.push(Pending {
-                            start: other,
-                            k,
-                            origin: format!(
-                                "the other side of the grazing of branch {bi} at parameter {}",
-                                special.parameter
-                            ),
-                            switch: None,
-                        });
-                    }
-                }
-                out.specials.push(special);
-            }
-            if graze {
+            if self.specials_between(bi, branch, &cur, &next, h, &zero) {
                 branch.end = "grazing: the contact changes (the other side is a new branch)".into();
                 break;
             }
@@ -675,41 +668,140 @@ fn follow(
                 break;
             }
             if next.iterations <= 3 {
-                h = (h * 1.5).min(hmax);
+                h = (h * 1.5).min(self.hmax);
             }
             branch.points.push(next.clone());
             cur = next;
-            done_points += 1;
-            let mut snapshot = Continuation {
-                branches: out.branches.clone(),
-                specials: out.specials.clone(),
-                wall: wall0 + t0.elapsed().as_secs_f64(),
-                units: Vec::new(),
-                unfinished: Some(Unfinished {
-                    step: h,
-                    queue: queue.clone(),
-                    points_done: done_points,
-                }),
-            };
-            snapshot.branches.push(branch.clone());
-            let mut report = Report {
-                fraction: (done_points as f64 / total).min(1.0),
-                line: point_line(
-                    bi,
-                    branch.points.len() - 1,
-                    &cur,
-                    t0.elapsed().as_secs_f64(),
-                ),
-                snapshot,
-            };
-            if !progress(&mut report) {
-                return Ok(report.snapshot);
+            self.done_points += 1;
+            if let Some(stopped) = self.report(bi, branch, &cur, h) {
+                return Ok(Some(stopped));
             }
         }
-        out.branches.push(branch);
+        Ok(None)
     }
-    out.wall = wall0 + t0.elapsed().as_secs_f64();
-    Ok(out)
+
+    /// Locates the special points of each kind between `cur` and `next` (a step `h` apart) on
+    /// branch `bi`, keeps those in the parameter range, and queues the branches they start: the
+    /// period-doubled branch when asked, the other side of a grazing. True at a grazing (the
+    /// branch ends there).
+    fn specials_between(
+        &mut self,
+        bi: usize,
+        branch: &Branch,
+        cur: &Point,
+        next: &Point,
+        h: f64,
+        zero: &[f64],
+    ) -> bool {
+        let ctx = self.ctx;
+        let set = ctx.set;
+        let k = branch.k;
+        let mut graze = false;
+        for kind in Kind::ALL {
+            if kind == Kind::Grazing && set.grazing.is_none() {
+                continue;
+            }
+            if !changes(kind, cur, next) {
+                continue;
+            }
+            let Some(sp) = locate(ctx, kind, k, cur, next, h) else {
+                continue;
+            };
+            if kind == Kind::NeimarkSacker && !is_neimark_sacker(&sp.1) {
+                continue;
+            }
+            let (bracket, at, far) = sp;
+            let special = Special {
+                kind,
+                branch: bi,
+                after: branch.points.len() - 1,
+                parameter: at.parameter,
+                bracket,
+                state: at.orbit.state.y.clone(),
+                multipliers: at.orbit.multipliers.clone(),
+                strobe: at.strobe.clone(),
+            };
+            let parameter = grazing_parameter(kind, cur, &at).unwrap_or(at.parameter);
+            // The step that passes `to` finds what lies beyond it too: not asked for.
+            if !ctx.in_range(parameter) {
+                continue;
+            }
+            let special = Special {
+                parameter,
+                ..special
+            };
+            if kind == Kind::PeriodDoubling && set.switch_period_doubling {
+                let v = at.orbit.eigenvector(-1.0);
+                self.queue.push(Pending {
+                    start: at.clone(),
+                    k: 2 * k,
+                    origin: format!(
+                        "period doubling of branch {bi} at parameter {}",
+                        special.parameter
+                    ),
+                    switch: Some((v, 0.0)),
+                });
+            }
+            if kind == Kind::Grazing {
+                graze = true;
+                // The other side: shooting a tenth of the first step past the grazing, from the
+                // converged orbit nearest it there, heading on away from the grazing; or the
+                // step's own point when that fails.
+                let dir = if cur.tangent_s >= 0.0 { 1.0 } else { -1.0 };
+                let s_past = ctx_s(ctx, special.parameter) + dir * 0.1 * set.step / ctx.range();
+                let other = ctx
+                    .start_point(k, s_past, &far.orbit.state, zero, dir)
+                    .ok()
+                    .filter(|p| test(kind, p).is_none_or(|g| g <= 0.0))
+                    .or_else(|| test(kind, next).is_none().then(|| next.clone()));
+                if let Some(other) = other {
+                    self.queue.push(Pending {
+                        start: other,
+                        k,
+                        origin: format!(
+                            "the other side of the grazing of branch {bi} at parameter {}",
+                            special.parameter
+                        ),
+                        switch: None,
+                    });
+                }
+            }
+            self.out.specials.push(special);
+        }
+        graze
+    }
+
+    /// Reports the point `cur` just added to `branch` (number `bi`, next step `h`) with a
+    /// snapshot of everything so far, marked unfinished; returns the snapshot when `progress`
+    /// asks to stop.
+    fn report(&mut self, bi: usize, branch: &Branch, cur: &Point, h: f64) -> Option<Continuation> {
+        let mut snapshot = Continuation {
+            branches: self.out.branches.clone(),
+            specials: self.out.specials.clone(),
+            wall: self.wall0 + self.t0.elapsed().as_secs_f64(),
+            units: Vec::new(),
+            unfinished: Some(Unfinished {
+                step: h,
+                queue: self.queue.clone(),
+                points_done: self.done_points,
+            }),
+        };
+        snapshot.branches.push(branch.clone());
+        let mut report = Report {
+            fraction: (self.done_points as f64 / self.total).min(1.0),
+            line: point_line(
+                bi,
+                branch.points.len() - 1,
+                cur,
+                self.t0.elapsed().as_secs_f64(),
+            ),
+            snapshot,
+        };
+        if !(self.progress)(&mut report) {
+            return Some(report.snapshot);
+        }
+        None
+    }
 }
 
 /// A line on point `i` of branch `bi`.

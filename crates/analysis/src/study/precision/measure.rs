@@ -242,6 +242,185 @@ pub struct Precision {
     min_time: f64,
 }
 
+/// The position and force observables of a work-precision run (indices into the study's
+/// observables `obs`): those `[precision]` names, or by default every observable in m (else rad,
+/// else the first one's unit) and every one in N. The position observables share one unit.
+fn pick_observables(
+    study: &Loaded,
+    spec: &PrecisionSpec,
+    obs: &[Observable],
+) -> Result<(Vec<usize>, Vec<usize>)> {
+    let path = &study.path;
+    let names: Vec<&str> = study
+        .spec
+        .observables
+        .iter()
+        .map(|o| o.name.as_str())
+        .collect();
+    let pick = |field: &str, list: &[String]| -> Result<Vec<usize>> {
+        list.iter()
+            .enumerate()
+            .map(|(i, n)| {
+                names.iter().position(|m| m == n).ok_or_else(|| {
+                    invalid(
+                        path,
+                        format!("precision.{field}[{i}]"),
+                        format!("'{n}' is not an observable of this study"),
+                    )
+                })
+            })
+            .collect()
+    };
+    let mut position = pick("position", &spec.position)?;
+    if position.is_empty() {
+        // Every observable in m, else in rad, else in the first observable's unit: one unit.
+        let unit = ["m", "rad"]
+            .into_iter()
+            .find(|u| obs.iter().any(|o| o.unit == *u))
+            .unwrap_or(obs[0].unit.as_str());
+        position = (0..obs.len()).filter(|&i| obs[i].unit == unit).collect();
+    }
+    let units: Vec<&str> = position.iter().map(|&i| obs[i].unit.as_str()).collect();
+    if units.iter().any(|u| *u != units[0]) {
+        return Err(invalid(
+            path,
+            "precision.position",
+            format!(
+                "the position observables mix units ({}): their largest error has no one unit",
+                units.join(", ")
+            ),
+        ));
+    }
+    let mut force = pick("force", &spec.force)?;
+    if spec.force.is_empty() {
+        force = (0..obs.len()).filter(|&i| obs[i].unit == "N").collect();
+    }
+    Ok((position, force))
+}
+
+/// The integrators a work-precision study names, each checked as the field that names it.
+struct Methods<'a> {
+    path: &'a Path,
+    /// The span of a run (s): `analysis.periods` periods and the phase.
+    span: f64,
+    /// Absolute tolerance per relative tolerance (`precision.atol_scale`).
+    atol_scale: f64,
+}
+
+impl Methods<'_> {
+    /// The integrator `name` at the step or tolerance `setting` (given by `field`): the setting
+    /// positive and finite, a fixed step taking at most 1e12 steps, the integrator known.
+    fn method(&self, field: &str, name: &str, setting: f64) -> Result<Method> {
+        let (path, atol_scale) = (self.path, self.atol_scale);
+        if !(setting.is_finite() && setting > 0.0) {
+            return Err(invalid(
+                path,
+                field,
+                format!("{setting}: a step or tolerance must be positive and finite"),
+            ));
+        }
+        // As for scenes: a fixed step that needs more than 1e12 steps would never finish.
+        let span = self.span;
+        if Method::of_family(name, setting, 1.0).is_some_and(|m| m.fixed_step().is_some())
+            && span / setting > 1e12
+        {
+            return Err(invalid(
+                path,
+                field,
+                format!(
+                    "{setting:e} s over a span of {span} s means {:.3e} steps; at most 1e12 are allowed",
+                    span / setting
+                ),
+            ));
+        }
+        // Rounded to 12 digits so that 1e-4 * 1e-3 reads 1e-7, not 1.0000000000000001e-7.
+        let atol = format!("{:.12e}", setting * atol_scale)
+            .parse()
+            .unwrap_or(setting * atol_scale);
+        Method::of_family(name, setting, atol).ok_or_else(|| {
+            invalid(
+                path,
+                field,
+                format!(
+                    "unknown integrator '{name}' (known: {})",
+                    Method::families().collect::<Vec<_>>().join(", ")
+                ),
+            )
+        })
+    }
+
+    /// The reference method (by default DOP853 at 1e-12) and the check that confirms it (by
+    /// default DOPRI5 at 1e-12, or at a tenfold looser tolerance when the reference is DOPRI5),
+    /// which must differ.
+    fn reference_and_check(&self, spec: &PrecisionSpec) -> Result<(Method, Method)> {
+        let (rname, rset) = spec
+            .reference
+            .as_ref()
+            .map(|m| (m.integrator.clone(), m.setting))
+            .unwrap_or(("dop853".to_string(), 1e-12));
+        let reference = self.method("precision.reference", &rname, rset)?;
+        // The default check is a second method at the same tolerance; when the reference is
+        // that method, the same method at a tenfold looser tolerance.
+        let (cname, cset) = spec
+            .check
+            .as_ref()
+            .map(|m| (m.integrator.clone(), m.setting))
+            .unwrap_or(if reference.family() == "dopri5" {
+                ("dopri5".to_string(), rset * 10.0)
+            } else {
+                ("dopri5".to_string(), 1e-12)
+            });
+        let check = self.method("precision.check", &cname, cset)?;
+        if check == reference {
+            return Err(invalid(
+                self.path,
+                "precision.check",
+                "must differ from the reference: it confirms it",
+            ));
+        }
+        Ok((reference, check))
+    }
+
+    /// The tested runs, family by family: `precision.methods`, or by default every registered
+    /// integrator at settings about `base_step`.
+    fn families(&self, spec: &PrecisionSpec, base_step: f64) -> Result<Vec<(String, Vec<Method>)>> {
+        let mut families = Vec::new();
+        if spec.methods.is_empty() {
+            for (f, settings) in default_runs(base_step) {
+                let ms = settings
+                    .iter()
+                    .map(|s| self.method("precision.methods", f, *s))
+                    .collect::<Result<Vec<_>>>()?;
+                families.push((f.to_string(), ms));
+            }
+        } else {
+            for (i, f) in spec.methods.iter().enumerate() {
+                if f.settings.is_empty() {
+                    return Err(invalid(
+                        self.path,
+                        format!("precision.methods[{i}].settings"),
+                        "give at least one step or tolerance",
+                    ));
+                }
+                let ms = f
+                    .settings
+                    .iter()
+                    .enumerate()
+                    .map(|(j, s)| {
+                        self.method(
+                            &format!("precision.methods[{i}].settings[{j}]"),
+                            &f.integrator,
+                            *s,
+                        )
+                    })
+                    .collect::<Result<Vec<_>>>()?;
+                families.push((f.integrator.clone(), ms));
+            }
+        }
+        Ok(families)
+    }
+}
+
 impl Precision {
     /// Reads the work-precision settings of an analysis study (its `[precision]` table, or the
     /// defaults) and prepares the flow.
@@ -283,94 +462,13 @@ impl Precision {
             transient: a.transient,
             spp: a.samples_per_period,
         };
-        let obs = runner.obs();
-        let names: Vec<&str> = study
-            .spec
-            .observables
-            .iter()
-            .map(|o| o.name.as_str())
-            .collect();
-        let pick = |field: &str, list: &[String]| -> Result<Vec<usize>> {
-            list.iter()
-                .enumerate()
-                .map(|(i, n)| {
-                    names.iter().position(|m| m == n).ok_or_else(|| {
-                        invalid(
-                            &path,
-                            format!("precision.{field}[{i}]"),
-                            format!("'{n}' is not an observable of this study"),
-                        )
-                    })
-                })
-                .collect()
-        };
-        let mut position = pick("position", &spec.position)?;
-        if position.is_empty() {
-            // Every observable in m, else in rad, else in the first observable's unit: one unit.
-            let unit = ["m", "rad"]
-                .into_iter()
-                .find(|u| obs.iter().any(|o| o.unit == *u))
-                .unwrap_or(obs[0].unit.as_str());
-            position = (0..obs.len()).filter(|&i| obs[i].unit == unit).collect();
-        }
-        let units: Vec<&str> = position.iter().map(|&i| obs[i].unit.as_str()).collect();
-        if units.iter().any(|u| *u != units[0]) {
-            return Err(invalid(
-                &path,
-                "precision.position",
-                format!(
-                    "the position observables mix units ({}): their largest error has no one unit",
-                    units.join(", ")
-                ),
-            ));
-        }
-        let mut force = pick("force", &spec.force)?;
-        if spec.force.is_empty() {
-            force = (0..obs.len()).filter(|&i| obs[i].unit == "N").collect();
-        }
+        let (position, force) = pick_observables(&study, &spec, runner.obs())?;
         let kept = a.periods - a.transient;
         let restarts = spec.restarts.unwrap_or(kept.min(10)).min(kept);
         // Restart periods spread evenly over the kept window: from strobe k to k + 1.
         let restart_at: Vec<usize> = (0..restarts)
             .map(|j| a.transient + (j * kept) / restarts.max(1))
             .collect();
-        let method_of = |field: &str, name: &str, setting: f64, atol_scale: f64| {
-            if !(setting.is_finite() && setting > 0.0) {
-                return Err(invalid(
-                    &path,
-                    field,
-                    format!("{setting}: a step or tolerance must be positive and finite"),
-                ));
-            }
-            // As for scenes: a fixed step that needs more than 1e12 steps would never finish.
-            let span = period * a.periods as f64 + a.phase;
-            if Method::of_family(name, setting, 1.0).is_some_and(|m| m.fixed_step().is_some())
-                && span / setting > 1e12
-            {
-                return Err(invalid(
-                    &path,
-                    field,
-                    format!(
-                        "{setting:e} s over a span of {span} s means {:.3e} steps; at most 1e12 are allowed",
-                        span / setting
-                    ),
-                ));
-            }
-            // Rounded to 12 digits so that 1e-4 * 1e-3 reads 1e-7, not 1.0000000000000001e-7.
-            let atol = format!("{:.12e}", setting * atol_scale)
-                .parse()
-                .unwrap_or(setting * atol_scale);
-            Method::of_family(name, setting, atol).ok_or_else(|| {
-                invalid(
-                    &path,
-                    field,
-                    format!(
-                        "unknown integrator '{name}' (known: {})",
-                        Method::families().collect::<Vec<_>>().join(", ")
-                    ),
-                )
-            })
-        };
         let atol_scale = spec.atol_scale.unwrap_or(1e-3);
         if !(atol_scale.is_finite() && atol_scale > 0.0) {
             return Err(invalid(&path, "precision.atol_scale", "must be positive"));
@@ -379,66 +477,14 @@ impl Precision {
         if !(min_time.is_finite() && min_time >= 0.0) {
             return Err(invalid(&path, "precision.min_time", "must not be negative"));
         }
-        let (rname, rset) = spec
-            .reference
-            .as_ref()
-            .map(|m| (m.integrator.clone(), m.setting))
-            .unwrap_or(("dop853".to_string(), 1e-12));
-        let reference = method_of("precision.reference", &rname, rset, atol_scale)?;
-        // The default check is a second method at the same tolerance; when the reference is
-        // that method, the same method at a tenfold looser tolerance.
-        let (cname, cset) = spec
-            .check
-            .as_ref()
-            .map(|m| (m.integrator.clone(), m.setting))
-            .unwrap_or(if reference.family() == "dopri5" {
-                ("dopri5".to_string(), rset * 10.0)
-            } else {
-                ("dopri5".to_string(), 1e-12)
-            });
-        let check = method_of("precision.check", &cname, cset, atol_scale)?;
-        if check == reference {
-            return Err(invalid(
-                &path,
-                "precision.check",
-                "must differ from the reference: it confirms it",
-            ));
-        }
+        let methods = Methods {
+            path: &path,
+            span: period * a.periods as f64 + a.phase,
+            atol_scale,
+        };
+        let (reference, check) = methods.reference_and_check(&spec)?;
         let base_step = runner.own_method().fixed_step().unwrap_or(period / 1000.0);
-        let mut families = Vec::new();
-        if spec.methods.is_empty() {
-            for (f, settings) in default_runs(base_step) {
-                let ms = settings
-                    .iter()
-                    .map(|s| method_of("precision.methods", f, *s, atol_scale))
-                    .collect::<Result<Vec<_>>>()?;
-                families.push((f.to_string(), ms));
-            }
-        } else {
-            for (i, f) in spec.methods.iter().enumerate() {
-                if f.settings.is_empty() {
-                    return Err(invalid(
-                        &path,
-                        format!("precision.methods[{i}].settings"),
-                        "give at least one step or tolerance",
-                    ));
-                }
-                let ms = f
-                    .settings
-                    .iter()
-                    .enumerate()
-                    .map(|(j, s)| {
-                        method_of(
-                            &format!("precision.methods[{i}].settings[{j}]"),
-                            &f.integrator,
-                            *s,
-                            atol_scale,
-                        )
-                    })
-                    .collect::<Result<Vec<_>>>()?;
-                families.push((f.integrator.clone(), ms));
-            }
-        }
+        let families = methods.families(&spec, base_step)?;
         Ok(Precision {
             study,
             runner,
