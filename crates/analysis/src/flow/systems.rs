@@ -161,175 +161,11 @@ impl SystemSpec {
                     .to_string(),
             )
         })?;
-        let (builtin, allowed, dim): (Builtin, &[&str], usize) = match kind {
-            "duffing" => (
-                Builtin::Duffing {
-                    delta: param(t, "delta", 0.3)?,
-                    alpha: param(t, "alpha", -1.0)?,
-                    beta: param(t, "beta", 1.0)?,
-                    gamma: param(t, "gamma", 0.3)?,
-                    omega: param(t, "omega", 1.2)?,
-                },
-                &["delta", "alpha", "beta", "gamma", "omega"],
-                2,
-            ),
-            "pendulum" => (
-                Builtin::Pendulum {
-                    damping: param(t, "damping", 0.5)?,
-                    omega0: param(t, "omega0", 1.0)?,
-                    forcing: param(t, "forcing", 1.5)?,
-                    omega: param(t, "omega", 2.0 / 3.0)?,
-                },
-                &["damping", "omega0", "forcing", "omega"],
-                2,
-            ),
-            "lorenz" => (
-                Builtin::Lorenz {
-                    sigma: param(t, "sigma", 10.0)?,
-                    rho: param(t, "rho", 28.0)?,
-                    beta: param(t, "beta", 8.0 / 3.0)?,
-                },
-                &["sigma", "rho", "beta"],
-                3,
-            ),
-            "impact" => (
-                Builtin::Impact {
-                    damping: param(t, "damping", 0.1)?,
-                    stiffness: param(t, "stiffness", 1.0)?,
-                    forcing: param(t, "forcing", 0.2)?,
-                    omega: param(t, "omega", 1.0)?,
-                    stop: param(t, "stop", 1.0)?,
-                    restitution: param(t, "restitution", 0.8)?,
-                },
-                &[
-                    "damping",
-                    "stiffness",
-                    "forcing",
-                    "omega",
-                    "stop",
-                    "restitution",
-                ],
-                2,
-            ),
-            "van_der_pol" => (
-                Builtin::VanDerPol {
-                    mu: param(t, "mu", 0.4)?,
-                    forcing: param(t, "forcing", 0.6)?,
-                    omega: param(t, "omega", 1.15)?,
-                },
-                &["mu", "forcing", "omega"],
-                2,
-            ),
-            other => {
-                return Err((
-                    "kind".into(),
-                    format!(
-                        "unknown system '{other}': use \"duffing\", \"pendulum\", \"lorenz\", \"impact\" or \"van_der_pol\""
-                    ),
-                ));
-            }
-        };
-        for key in t.keys() {
-            if !allowed.contains(&key.as_str())
-                && !["kind", "initial", "solver", "start_time"].contains(&key.as_str())
-            {
-                return Err((
-                    key.clone(),
-                    format!(
-                        "unknown key for the {kind} system (its parameters: {})",
-                        allowed.join(", ")
-                    ),
-                ));
-            }
-        }
-        if let Builtin::Duffing { omega, .. }
-        | Builtin::Pendulum { omega, .. }
-        | Builtin::Impact { omega, .. }
-        | Builtin::VanDerPol { omega, .. } = builtin
-            && omega <= 0.0
-        {
-            return Err(("omega".into(), "must be positive".into()));
-        }
-        if let Builtin::Impact { restitution, .. } = builtin
-            && !(0.0..=1.0).contains(&restitution)
-        {
-            return Err((
-                "restitution".into(),
-                "must be between 0 and 1 (Newton's coefficient of restitution)".into(),
-            ));
-        }
-        let initial = match t.get("initial") {
-            None => vec![if dim == 3 { 1.0 } else { 0.0 }; dim],
-            Some(v) => {
-                let a = v
-                    .as_array()
-                    .ok_or(("initial".to_string(), "must be an array".to_string()))?;
-                let x: Option<Vec<f64>> = a
-                    .iter()
-                    .map(|v| v.as_float().or_else(|| v.as_integer().map(|i| i as f64)))
-                    .collect();
-                let x = x.ok_or(("initial".to_string(), "must hold numbers".to_string()))?;
-                if x.len() != dim || x.iter().any(|v| !v.is_finite()) {
-                    return Err((
-                        "initial".into(),
-                        format!(
-                            "must hold {dim} finite numbers ({})",
-                            state_names(kind).join(", ")
-                        ),
-                    ));
-                }
-                x
-            }
-        };
-        if let Builtin::Impact { stop, .. } = builtin
-            && initial[0] > stop
-        {
-            return Err((
-                "initial".into(),
-                format!("x = {} starts beyond the stop at {stop}", initial[0]),
-            ));
-        }
-        let solver: OdeSolverSpec = match t.get("solver") {
-            None => OdeSolverSpec::default(),
-            Some(v) => v
-                .clone()
-                .try_into()
-                .map_err(|e: toml::de::Error| ("solver".to_string(), e.message().to_string()))?,
-        };
-        // A fixed-step integrator needs its step; the adaptive ones share their settings and
-        // checks.
-        let max_step = solver.max_step.unwrap_or(f64::INFINITY);
-        let integrator = solver.integrator.0;
-        let step = if integrator.adaptive.is_none() {
-            let step = solver.step.ok_or((
-                "solver.step".to_string(),
-                format!("{} needs a step", integrator.name),
-            ))?;
-            if !(step > 0.0 && step.is_finite()) {
-                return Err(("solver.step".into(), "must be positive".into()));
-            }
-            step
-        } else {
-            // An infinite tolerance was taken: every step accepted, whatever its error.
-            for (field, v) in [("solver.rtol", solver.rtol), ("solver.atol", solver.atol)] {
-                if !(v > 0.0 && v.is_finite()) {
-                    return Err((
-                        field.to_string(),
-                        format!("{v}: tolerances must be positive and finite"),
-                    ));
-                }
-            }
-            if max_step <= 0.0 || max_step.is_nan() {
-                return Err((
-                    "solver.max_step".to_string(),
-                    "must be positive".to_string(),
-                ));
-            }
-            f64::NAN
-        };
-        let method = solver
-            .integrator
-            .method(step, solver.rtol, solver.atol, max_step);
+        let (builtin, allowed, dim) = builtin_of(kind, t)?;
+        check_keys(t, kind, allowed)?;
+        check_parameters(&builtin)?;
+        let initial = initial_state(t, kind, dim, &builtin)?;
+        let method = solver_method(t)?;
         Ok(SystemSpec {
             builtin,
             initial,
@@ -337,6 +173,205 @@ impl SystemSpec {
             start_time: param(t, "start_time", 0.0)?,
         })
     }
+}
+
+type Field = (String, String);
+
+/// The system of `kind` with its parameters from `t` (defaults where absent), the keys it
+/// takes and the size of its state.
+fn builtin_of(kind: &str, t: &Table) -> Result<(Builtin, &'static [&'static str], usize), Field> {
+    let (builtin, allowed, dim): (Builtin, &'static [&'static str], usize) = match kind {
+        "duffing" => (
+            Builtin::Duffing {
+                delta: param(t, "delta", 0.3)?,
+                alpha: param(t, "alpha", -1.0)?,
+                beta: param(t, "beta", 1.0)?,
+                gamma: param(t, "gamma", 0.3)?,
+                omega: param(t, "omega", 1.2)?,
+            },
+            &["delta", "alpha", "beta", "gamma", "omega"],
+            2,
+        ),
+        "pendulum" => (
+            Builtin::Pendulum {
+                damping: param(t, "damping", 0.5)?,
+                omega0: param(t, "omega0", 1.0)?,
+                forcing: param(t, "forcing", 1.5)?,
+                omega: param(t, "omega", 2.0 / 3.0)?,
+            },
+            &["damping", "omega0", "forcing", "omega"],
+            2,
+        ),
+        "lorenz" => (
+            Builtin::Lorenz {
+                sigma: param(t, "sigma", 10.0)?,
+                rho: param(t, "rho", 28.0)?,
+                beta: param(t, "beta", 8.0 / 3.0)?,
+            },
+            &["sigma", "rho", "beta"],
+            3,
+        ),
+        "impact" => (
+            Builtin::Impact {
+                damping: param(t, "damping", 0.1)?,
+                stiffness: param(t, "stiffness", 1.0)?,
+                forcing: param(t, "forcing", 0.2)?,
+                omega: param(t, "omega", 1.0)?,
+                stop: param(t, "stop", 1.0)?,
+                restitution: param(t, "restitution", 0.8)?,
+            },
+            &[
+                "damping",
+                "stiffness",
+                "forcing",
+                "omega",
+                "stop",
+                "restitution",
+            ],
+            2,
+        ),
+        "van_der_pol" => (
+            Builtin::VanDerPol {
+                mu: param(t, "mu", 0.4)?,
+                forcing: param(t, "forcing", 0.6)?,
+                omega: param(t, "omega", 1.15)?,
+            },
+            &["mu", "forcing", "omega"],
+            2,
+        ),
+        other => {
+            return Err((
+                "kind".into(),
+                format!(
+                    "unknown system '{other}': use \"duffing\", \"pendulum\", \"lorenz\", \"impact\" or \"van_der_pol\""
+                ),
+            ));
+        }
+    };
+    Ok((builtin, allowed, dim))
+}
+
+/// Refuses a key that is neither a parameter of the system nor a key every system takes.
+fn check_keys(t: &Table, kind: &str, allowed: &[&str]) -> Result<(), Field> {
+    for key in t.keys() {
+        if !allowed.contains(&key.as_str())
+            && !["kind", "initial", "solver", "start_time"].contains(&key.as_str())
+        {
+            return Err((
+                key.clone(),
+                format!(
+                    "unknown key for the {kind} system (its parameters: {})",
+                    allowed.join(", ")
+                ),
+            ));
+        }
+    }
+    Ok(())
+}
+
+/// Refuses parameters out of their range: a drive frequency that is not positive, a coefficient
+/// of restitution outside [0, 1].
+fn check_parameters(builtin: &Builtin) -> Result<(), Field> {
+    if let Builtin::Duffing { omega, .. }
+    | Builtin::Pendulum { omega, .. }
+    | Builtin::Impact { omega, .. }
+    | Builtin::VanDerPol { omega, .. } = *builtin
+        && omega <= 0.0
+    {
+        return Err(("omega".into(), "must be positive".into()));
+    }
+    if let Builtin::Impact { restitution, .. } = *builtin
+        && !(0.0..=1.0).contains(&restitution)
+    {
+        return Err((
+            "restitution".into(),
+            "must be between 0 and 1 (Newton's coefficient of restitution)".into(),
+        ));
+    }
+    Ok(())
+}
+
+/// The initial state: `initial`, checked against the system's size (and the impact
+/// oscillator's stop), or the system's default.
+fn initial_state(t: &Table, kind: &str, dim: usize, builtin: &Builtin) -> Result<Vec<f64>, Field> {
+    let initial = match t.get("initial") {
+        None => vec![if dim == 3 { 1.0 } else { 0.0 }; dim],
+        Some(v) => {
+            let a = v
+                .as_array()
+                .ok_or(("initial".to_string(), "must be an array".to_string()))?;
+            let x: Option<Vec<f64>> = a
+                .iter()
+                .map(|v| v.as_float().or_else(|| v.as_integer().map(|i| i as f64)))
+                .collect();
+            let x = x.ok_or(("initial".to_string(), "must hold numbers".to_string()))?;
+            if x.len() != dim || x.iter().any(|v| !v.is_finite()) {
+                return Err((
+                    "initial".into(),
+                    format!(
+                        "must hold {dim} finite numbers ({})",
+                        state_names(kind).join(", ")
+                    ),
+                ));
+            }
+            x
+        }
+    };
+    if let Builtin::Impact { stop, .. } = *builtin
+        && initial[0] > stop
+    {
+        return Err((
+            "initial".into(),
+            format!("x = {} starts beyond the stop at {stop}", initial[0]),
+        ));
+    }
+    Ok(initial)
+}
+
+/// The integrator and its settings from the `solver` table: a fixed-step integrator needs its
+/// step; the adaptive ones share their settings and checks.
+fn solver_method(t: &Table) -> Result<Method, Field> {
+    let solver: OdeSolverSpec = match t.get("solver") {
+        None => OdeSolverSpec::default(),
+        Some(v) => v
+            .clone()
+            .try_into()
+            .map_err(|e: toml::de::Error| ("solver".to_string(), e.message().to_string()))?,
+    };
+    // A fixed-step integrator needs its step; the adaptive ones share their settings and
+    // checks.
+    let max_step = solver.max_step.unwrap_or(f64::INFINITY);
+    let integrator = solver.integrator.0;
+    let step = if integrator.adaptive.is_none() {
+        let step = solver.step.ok_or((
+            "solver.step".to_string(),
+            format!("{} needs a step", integrator.name),
+        ))?;
+        if !(step > 0.0 && step.is_finite()) {
+            return Err(("solver.step".into(), "must be positive".into()));
+        }
+        step
+    } else {
+        // An infinite tolerance was taken: every step accepted, whatever its error.
+        for (field, v) in [("solver.rtol", solver.rtol), ("solver.atol", solver.atol)] {
+            if !(v > 0.0 && v.is_finite()) {
+                return Err((
+                    field.to_string(),
+                    format!("{v}: tolerances must be positive and finite"),
+                ));
+            }
+        }
+        if max_step <= 0.0 || max_step.is_nan() {
+            return Err((
+                "solver.max_step".to_string(),
+                "must be positive".to_string(),
+            ));
+        }
+        f64::NAN
+    };
+    Ok(solver
+        .integrator
+        .method(step, solver.rtol, solver.atol, max_step))
 }
 
 fn state_names(kind: &str) -> &'static [&'static str] {
