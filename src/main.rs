@@ -139,6 +139,7 @@ fn main() {
                 ..Options::default()
             },
             true,
+            false,
         ),
         Command::Compare {
             files,
@@ -178,7 +179,7 @@ fn run(path: &Path, o: Options, from: Option<&Path>) -> Result<()> {
         );
     }
     if kind != Input::Scene {
-        return study(path, o, false);
+        return study(path, o, false, kind == Input::Comparison);
     }
     // A scene takes none of a study's options.
     check_options(path, kind, &exec_options(&o, false))?;
@@ -203,8 +204,7 @@ fn exec_options(o: &Options, precision: bool) -> ExecOptions<'static> {
 
 /// A study run (`jointplay run STUDY`), or the work-precision of a study or a scene (`jointplay
 /// precision`), with its progress on standard error and what it wrote on standard output.
-fn study(path: &Path, o: Options, precision: bool) -> Result<()> {
-    let comparison = !precision && Input::read(path)?.0 == Input::Comparison;
+fn study(path: &Path, o: Options, precision: bool, comparison: bool) -> Result<()> {
     let reporter = print::Reporter::new(path, o.quiet, precision, comparison);
     let res = execute(
         &Source::File(path.to_path_buf()),
