@@ -5,6 +5,8 @@
 //! crate to it and to having no import cycle):
 //!
 //! ```text
+//! execute    the one entry point of the program and the Python package: a study run, the
+//!            options that apply to it, and what it wrote, as data
 //! figures    drawn from written files and the outcomes studies return, over figures::plot
 //! study      what a user asks for in a file: specs, loading, one run, the sweep executor,
 //!            continuation, work-precision, comparison studies, shards and Slurm
@@ -30,6 +32,8 @@
 //!   single runs ([`study::run`]), analysis studies and their sweeps ([`study::analysis`]),
 //!   continuation ([`study::continuation`]), work-precision ([`study::precision`]), shards
 //!   ([`study::shards`]) and Slurm batch scripts ([`study::slurm`]).
+//! * [`execute`]: what `jointplay run STUDY`, `jointplay precision` and Python's `run_study`
+//!   call ([`execute::execute`]); it returns what they print or convert ([`execute::Outcome`]).
 //! * [`figures`]: every figure (runs, studies, analysis files, work-precision) as PNG and SVG
 //!   over [`figures::plot`], with an embedded font (no system fonts needed).
 //!
@@ -39,6 +43,7 @@
 //! complete or absent, and the same run writes the same bits); errors that name the file and
 //! the field.
 
+pub mod execute;
 pub mod figures;
 pub mod flow;
 pub mod measures;
@@ -72,6 +77,9 @@ pub enum Error {
     /// A periodic orbit could not be found or followed: what failed.
     #[error("periodic orbit: {0}")]
     Orbit(String),
+    /// What was being done when `inner` happened ("running STUDY", "work-precision of FILE").
+    #[error("{what}: {inner}")]
+    Context { what: String, inner: Box<Error> },
     #[error("case '{label}': {inner}")]
     Case { label: String, inner: Box<Error> },
     #[error("{file}: plot: {message}")]

@@ -5,8 +5,9 @@
 //! study paths of [`jointplay_analysis::study::spec`] and checked against the scene format on every
 //! edit; `Scene::run` compiles and simulates it (`jointplay_analysis::study::run::simulate_until`)
 //! and hands its recording over as numpy arrays that view the run's own memory (no copy);
-//! `run_study` runs a comparison, analysis (sweep) or work-precision study as `jointplay run`
-//! and `jointplay precision` do, writes the same files and loads the result (`H5`).
+//! `run_study` runs a comparison, analysis (sweep) or work-precision study through the program's
+//! own entry point ([`jointplay_analysis::execute`]), so it writes the same files, and loads the
+//! result (`H5`, read by [`jointplay_analysis::storage::read`]). This crate only converts.
 //!
 //! Long computations run on a thread of their own with the GIL released, while the calling
 //! thread draws the progress bar (`jointplay._progress`, tqdm when installed) and checks for
@@ -17,23 +18,19 @@
 //! Every error of the program comes back as `jointplay.JointplayError` with the program's own
 //! message (file, field or path, value, time).
 
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::sync::Mutex;
 use std::time::{Duration, Instant};
 
-use hdf5::types::{TypeDescriptor, VarLenUnicode};
-use jointplay_analysis::figures::plot::Format;
-use jointplay_analysis::figures::redraw;
+use jointplay_analysis::execute::{Caller, ExecOptions, Outcome, Report, Source, execute};
 use jointplay_analysis::flow::summary::Summary;
 use jointplay_analysis::progress::{Progress, Stop, Tally};
 use jointplay_analysis::storage::inputs::Input;
+use jointplay_analysis::storage::read::{Attr, Data, Reader};
 use jointplay_analysis::storage::run::RunResult;
 use jointplay_analysis::storage::run_file::{Meta, write_run};
-use jointplay_analysis::study::analysis::{Loaded, Options, execute_until};
-use jointplay_analysis::study::comparison::Comparison;
-use jointplay_analysis::study::precision;
 use jointplay_analysis::study::run::simulate_until;
-use jointplay_analysis::study::spec::{Study, edit, lookup};
+use jointplay_analysis::study::spec::{edit, lookup};
 use jointplay_solver::model::Model;
 use jointplay_solver::scene::{SceneFile, SceneSpec};
 use numpy::PyArray;
@@ -757,163 +754,95 @@ impl Run {
 /// ``f.units`` each dataset's SI unit.
 #[pyclass(module = "jointplay", frozen)]
 struct H5 {
-    path: PathBuf,
+    reader: Reader,
 }
 
-fn h5e(path: &Path) -> impl Fn(hdf5::Error) -> PyErr + '_ {
-    move |e| err(format!("{}: HDF5: {e}", path.display()))
-}
-
-fn attr_value<'py>(
-    py: Python<'py>,
-    a: &hdf5::Attribute,
-) -> hdf5::Result<Option<Bound<'py, PyAny>>> {
-    if !a.is_scalar() {
-        return Ok(None);
-    }
-    Ok(match a.dtype()?.to_descriptor()? {
-        TypeDescriptor::VarLenUnicode => {
-            Some(PyString::new(py, a.read_scalar::<VarLenUnicode>()?.as_str()).into_any())
-        }
-        TypeDescriptor::Float(_) => Some(PyFloat::new(py, a.read_scalar::<f64>()?).into_any()),
-        TypeDescriptor::Unsigned(_) | TypeDescriptor::Integer(_) => a
-            .read_scalar::<i64>()?
-            .into_pyobject(py)
-            .ok()
-            .map(|v| v.into_any()),
-        _ => None,
-    })
-}
-
-fn attrs<'py>(py: Python<'py>, loc: &hdf5::Location) -> hdf5::Result<Bound<'py, PyDict>> {
+fn attrs_to_py<'py>(py: Python<'py>, attrs: Vec<(String, Attr)>) -> PyResult<Bound<'py, PyDict>> {
     let d = PyDict::new(py);
-    for n in loc.attr_names()? {
-        if let Some(v) = attr_value(py, &loc.attr(&n)?)? {
-            let _ = d.set_item(n, v);
+    for (name, a) in attrs {
+        match a {
+            Attr::Text(s) => d.set_item(name, s)?,
+            Attr::Float(x) => d.set_item(name, x)?,
+            Attr::Integer(i) => d.set_item(name, i)?,
         }
     }
     Ok(d)
-}
-
-fn walk_datasets(
-    g: &hdf5::Group,
-    prefix: &str,
-    out: &mut Vec<(String, hdf5::Dataset)>,
-) -> hdf5::Result<()> {
-    for ds in g.datasets()? {
-        let name = ds.name();
-        let short = name.rsplit('/').next().unwrap_or(&name).to_string();
-        out.push((format!("{prefix}{short}"), ds));
-    }
-    for sub in g.groups()? {
-        let name = sub.name();
-        let short = name.rsplit('/').next().unwrap_or(&name).to_string();
-        walk_datasets(&sub, &format!("{prefix}{short}/"), out)?;
-    }
-    Ok(())
-}
-
-impl H5 {
-    fn open(&self) -> PyResult<hdf5::File> {
-        hdf5::File::open(&self.path).map_err(h5e(&self.path))
-    }
 }
 
 #[pymethods]
 impl H5 {
     #[new]
     fn py_new(path: PathBuf) -> PyResult<H5> {
-        let f = H5 { path };
-        f.open()?;
-        Ok(f)
+        Ok(H5 {
+            reader: Reader::open(&path).map_err(err)?,
+        })
     }
 
     /// The file's path.
     #[getter]
     fn path(&self) -> String {
-        self.path.display().to_string()
+        self.reader.path().display().to_string()
     }
 
     /// Every dataset's path, groups first to last (``cases/ideal/bodies/platform/position``).
     #[getter]
     fn datasets(&self) -> PyResult<Vec<String>> {
-        let f = self.open()?;
-        let mut out = Vec::new();
-        walk_datasets(&f, "", &mut out).map_err(h5e(&self.path))?;
-        Ok(out.into_iter().map(|d| d.0).collect())
+        self.reader.datasets().map_err(err)
     }
 
     /// The root attributes (program, units, study, complete, ...).
     #[getter]
     fn attrs<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let f = self.open()?;
-        attrs(py, &f).map_err(h5e(&self.path))
+        let a = self
+            .reader
+            .attributes(None)
+            .map_err(err)?
+            .unwrap_or_default();
+        attrs_to_py(py, a)
     }
 
     /// The attributes of a group or dataset by its path.
     fn attributes<'py>(&self, py: Python<'py>, path: &str) -> PyResult<Bound<'py, PyDict>> {
-        let f = self.open()?;
-        let e = h5e(&self.path);
-        if let Ok(d) = f.dataset(path) {
-            return attrs(py, &d).map_err(e);
-        }
-        let g = f.group(path).map_err(|_| {
-            PyKeyError::new_err(format!(
+        match self.reader.attributes(Some(path)).map_err(err)? {
+            Some(a) => attrs_to_py(py, a),
+            None => Err(PyKeyError::new_err(format!(
                 "{path}: no group or dataset in {}",
-                self.path.display()
-            ))
-        })?;
-        attrs(py, &g).map_err(e)
+                self.reader.path().display()
+            ))),
+        }
     }
 
     /// The SI unit of every dataset that states one.
     #[getter]
     fn units<'py>(&self, py: Python<'py>) -> PyResult<Bound<'py, PyDict>> {
-        let f = self.open()?;
-        let e = h5e(&self.path);
-        let mut all = Vec::new();
-        walk_datasets(&f, "", &mut all).map_err(&e)?;
         let d = PyDict::new(py);
-        for (p, ds) in all {
-            if let Ok(a) = ds.attr("unit")
-                && let Ok(u) = a.read_scalar::<VarLenUnicode>()
-            {
-                d.set_item(p, u.as_str())?;
-            }
+        for (p, u) in self.reader.units().map_err(err)? {
+            d.set_item(p, u)?;
         }
         Ok(d)
     }
 
     /// A dataset: numbers as a numpy float64 array of its shape, text as a list of str.
     fn __getitem__<'py>(&self, py: Python<'py>, path: &str) -> PyResult<Bound<'py, PyAny>> {
-        let f = self.open()?;
-        let ds = f.dataset(path).map_err(|_| {
-            PyKeyError::new_err(format!(
+        match self.reader.dataset(path).map_err(err)? {
+            None => Err(PyKeyError::new_err(format!(
                 "{path}: no dataset in {} (see .datasets)",
-                self.path.display()
-            ))
-        })?;
-        let bad = |e: hdf5::Error| err(format!("{}: {path}: {e}", self.path.display()));
-        match ds.dtype().and_then(|t| t.to_descriptor()).map_err(bad)? {
-            TypeDescriptor::VarLenUnicode => {
-                let v = ds.read_raw::<VarLenUnicode>().map_err(bad)?;
-                let items: Vec<&str> = v.iter().map(|s| s.as_str()).collect();
-                Ok(PyList::new(py, items)?.into_any())
-            }
-            _ => {
-                let a: ArrayD<f64> = ds.read_dyn::<f64>().map_err(bad)?;
-                let a = a.into_shape_with_order(IxDyn(&ds.shape())).map_err(err)?;
+                self.reader.path().display()
+            ))),
+            Some(Data::Text(items)) => Ok(PyList::new(py, items)?.into_any()),
+            Some(Data::Numbers { shape, values }) => {
+                let a = ArrayD::from_shape_vec(IxDyn(&shape), values).map_err(err)?;
                 Ok(PyArray::from_owned_array(py, a).into_any())
             }
         }
     }
 
     fn __contains__(&self, path: &str) -> PyResult<bool> {
-        Ok(self.open()?.dataset(path).is_ok())
+        self.reader.contains(path).map_err(err)
     }
 
     fn __repr__(&self) -> String {
-        format!("<jointplay.H5 {}>", self.path.display())
+        format!("<jointplay.H5 {}>", self.reader.path().display())
     }
 }
 
@@ -971,235 +900,61 @@ impl StudyResult {
     }
 }
 
-/// What a study computation returns before it becomes a ``StudyResult``.
-struct Done {
-    kind: &'static str,
-    file: PathBuf,
-    complete: bool,
-    failed: Vec<(String, String)>,
-    table: Option<(String, PathBuf)>,
-    figures: Vec<PathBuf>,
-    warnings: Vec<String>,
-    /// Stopped on request with values left that `resume` runs.
-    resumable: bool,
-}
-
-fn study_result(py: Python<'_>, d: &Done) -> PyResult<StudyResult> {
+fn study_result(py: Python<'_>, o: &Outcome) -> PyResult<StudyResult> {
     Ok(StudyResult {
-        kind: d.kind.to_string(),
-        file: d.file.display().to_string(),
+        kind: o.kind.name().to_string(),
+        file: o.file.display().to_string(),
         data: Py::new(
             py,
             H5 {
-                path: d.file.clone(),
+                reader: Reader::new(&o.file),
             },
         )?,
-        complete: d.complete,
-        failed: d.failed.clone(),
-        table: d.table.as_ref().map(|t| t.0.clone()),
-        table_file: d.table.as_ref().map(|t| t.1.display().to_string()),
-        figures: d.figures.iter().map(|p| p.display().to_string()).collect(),
-        warnings: d.warnings.clone(),
-    })
-}
-
-type AnyResult<T> = Result<T, String>;
-
-fn comparison(
-    path: &Path,
-    text: &str,
-    out: &Path,
-    plots: bool,
-    progress: &(dyn Fn(Progress) + Sync),
-    stop: &Stop,
-) -> AnyResult<Done> {
-    let study = Study::parse(text, path).map_err(|e| e.to_string())?;
-    let cases = Comparison::run_until(&study, progress, stop).map_err(|e| e.to_string())?;
-    let file = cases.write(out, VERSION).map_err(|e| e.to_string())?;
-    let table_file = cases.write_table(&file, out).map_err(|e| e.to_string())?;
-    let table = std::fs::read_to_string(&table_file)
-        .map_err(|e| format!("{}: {e}", table_file.display()))?;
-    let figures = if plots {
-        cases.figures(out).map_err(|e| e.to_string())?
-    } else {
-        Vec::new()
-    };
-    Ok(Done {
-        kind: "comparison",
-        file,
-        complete: cases.failed.is_empty(),
-        failed: cases.failed.clone(),
-        table: Some((table, table_file)),
-        figures,
-        warnings: cases.warnings(),
-        resumable: false,
-    })
-}
-
-#[allow(clippy::too_many_arguments)]
-fn analysis(
-    path: &Path,
-    text: &str,
-    out: &Path,
-    plots: bool,
-    opts: Options,
-    progress: &(dyn Fn(Progress) + Sync),
-    stop: &Stop,
-) -> AnyResult<Done> {
-    use jointplay_analysis::study::continuation::{self, Begin};
-    let st = Loaded::parse(text, path).map_err(|e| e.to_string())?;
-    // Without a sweep, resume and max_jobs apply to a continuation (its points).
-    let continuation_only = st.spec.sweep.is_none() && st.spec.continuation.is_some();
-    if st.spec.sweep.is_none() && !continuation_only && (opts.resume || opts.max_jobs.is_some()) {
-        return Err(format!(
-            "{}: resume and max_jobs apply to studies with a [sweep] or a [continuation]",
-            path.display()
-        ));
-    }
-    // The continuation's start state is read before the analysis rewrites the output file.
-    let start = st.continuation_start().map_err(|e| e.to_string())?;
-    let (file, begin, mut done) = if continuation_only && opts.resume {
-        let file = out.join(format!("{}.h5", st.spec.study.name));
-        let prior = continuation::read_unfinished(&file, &st)
-            .map_err(|e| e.to_string())?
-            .ok_or_else(|| {
-                format!(
-                    "{}: nothing to resume: {} has no unfinished continuation",
-                    path.display(),
-                    file.display()
-                )
-            })?;
-        let done = Done {
-            kind: "analysis",
-            file: file.clone(),
-            complete: true,
-            failed: Vec::new(),
-            table: None,
-            figures: Vec::new(),
-            warnings: Vec::new(),
-            resumable: false,
-        };
-        (file, Some(Begin::Resume(prior)), done)
-    } else {
-        let o = execute_until(&st, out, opts, VERSION, progress, stop)
-            .map_err(|e| format!("running {}: {e}", path.display()))?;
-        let failed = o
+        complete: o.complete,
+        failed: o
             .failed
             .iter()
-            .map(|(j, m)| {
-                let label = match st.jobs.get(*j) {
-                    Some(v) if st.spec.sweep.is_some() => format!("{j} ({})", v.0),
-                    _ => j.to_string(),
-                };
-                (label, m.clone())
-            })
-            .collect();
-        // Periodic orbits are followed once the analysis is complete (as `jointplay run`).
-        let follow = st.spec.continuation.is_some() && o.complete && o.failed.is_empty();
-        let done = Done {
-            kind: "analysis",
-            file: o.file.clone(),
-            complete: o.complete && o.failed.is_empty(),
-            failed,
-            table: None,
-            figures: Vec::new(),
-            warnings: o.warnings,
-            resumable: o.interrupted && st.spec.sweep.is_some(),
-        };
-        (o.file, follow.then_some(Begin::Fresh(start)), done)
-    };
-    if let Some(begin) = begin {
-        // Written after every point, so that a stop keeps what was computed.
-        let limit = opts.max_jobs.filter(|_| continuation_only);
-        let total = st
-            .spec
-            .continuation
+            .map(|f| (f.label.clone(), f.message.clone()))
+            .collect(),
+        table: o.table.clone(),
+        table_file: o
+            .table
             .as_ref()
-            .map_or(1, |c| c.max_branches * c.max_points);
-        let mut points = 0usize;
-        let res = continuation::run_into(&st, &file, begin, limit, &mut |r| {
-            progress(Progress::Run {
-                done: points,
-                total,
-                what: &r.line,
-            });
-            points += 1;
-            !stop.requested()
-        })
-        .map_err(|e| format!("writing the continuation of {}: {e}", file.display()))?;
-        match res {
-            Ok(c) if c.unfinished.is_some() => {
-                done.complete = false;
-                done.resumable = true;
-            }
-            Ok(_) => {}
-            Err(e) => {
-                return Err(format!(
-                    "{}: the continuation could not start: {e} (the analysis is in {})",
-                    path.display(),
-                    file.display()
-                ));
-            }
-        }
-    }
-    if plots {
-        done.figures =
-            redraw(&file, out, &[Format::Png, Format::Svg]).map_err(|e| e.to_string())?;
-    }
-    Ok(done)
+            .and(o.tables.first())
+            .map(|t| t.display().to_string()),
+        figures: o.figures.iter().map(|p| p.display().to_string()).collect(),
+        warnings: o.warnings.clone(),
+    })
 }
 
-fn work_precision(
-    path: &Path,
-    text: &str,
-    kind: Input,
-    out: &Path,
-    plots: bool,
-    progress: &(dyn Fn(Progress) + Sync),
-    stop: &Stop,
-) -> AnyResult<Done> {
-    let study = match kind {
-        Input::Scene => precision::scene_study(path),
-        _ => Loaded::parse(text, path),
+/// The error of a study that wrote its files but failed in part: the failure and, for a
+/// sweep, every failed value.
+fn failure(o: &Outcome, f: &str) -> PyErr {
+    let mut m = f.to_string();
+    if o.analysed.as_ref().is_some_and(|a| a.sweep.is_some()) {
+        for x in &o.failed {
+            m.push_str(&format!("\n  value {}: {}", x.label, x.message));
+        }
     }
-    .map_err(|e| e.to_string())?;
-    let mut p = precision::Precision::new(study).map_err(|e| e.to_string())?;
-    let o = p
-        .execute_until(&mut |pr| progress(pr), stop)
-        .map_err(|e| format!("work-precision of {}: {e}", path.display()))?;
-    let file = o.write(out, p.study()).map_err(|e| e.to_string())?;
-    let md = out.join(format!("{}.md", o.name));
-    let table = o.markdown();
-    std::fs::write(&md, &table).map_err(|e| format!("writing {}: {e}", md.display()))?;
-    let figures = if plots {
-        redraw(&file, out, &[Format::Png, Format::Svg]).map_err(|e| e.to_string())?
-    } else {
-        Vec::new()
-    };
-    Ok(Done {
-        kind: "precision",
-        file,
-        complete: true,
-        failed: Vec::new(),
-        table: Some((table, md)),
-        figures,
-        warnings: Vec::new(),
-        resumable: false,
-    })
+    err(m)
 }
 
 /// Runs a study as ``jointplay run STUDY --out OUT`` does (as ``jointplay precision`` with
 /// ``precision=True``: an analysis study with or without a ``[precision]`` table, or a scene)
-/// and returns a ``StudyResult`` with the HDF5 file loaded.
+/// and returns a ``StudyResult`` with the HDF5 file loaded. The program and this function call
+/// the same code: they write the same files.
 ///
 /// ``source`` is a study file or its TOML text (scene paths in text are relative to the current
 /// directory). ``threads`` sets the cases or sweep values run at once (default: every core).
 /// ``resume`` keeps a sweep's finished values in an existing file and ``max_jobs`` stops after
 /// that many; for a ``[continuation]`` without a sweep they go on from where its branches
-/// stopped and stop after that many points. ``plots`` draws the figures as the program does.
-/// Ctrl-C stops cleanly: a sweep keeps its finished values (``resume=True`` later runs the
-/// rest), a continuation its points, and a single run is written with what it computed, marked
-/// incomplete; ``jointplay.Interrupted`` then carries the result.
+/// stopped and stop after that many points (a continuation already finished is returned as it
+/// is, complete, with nothing run; they do not apply with ``precision=True``). A study's ``[continuation]`` is followed after its sweep
+/// even when values failed or are left to run, as the program does (the failed values are then
+/// raised as ``JointplayError`` after the file is written). ``plots`` draws the figures as the
+/// program does. Ctrl-C stops cleanly: a sweep keeps its finished values (``resume=True`` later
+/// runs the rest), a continuation its points, and a single run is written with what it
+/// computed, marked incomplete; ``jointplay.Interrupted`` then carries the result.
 #[pyfunction]
 #[pyo3(signature = (source, out = PathBuf::from("out"), threads = None, progress = true, resume = false, max_jobs = None, plots = false, precision = false))]
 #[allow(clippy::too_many_arguments)]
@@ -1232,30 +987,21 @@ fn run_study(
             source.display()
         )));
     };
-    if kind == Input::Scene && !precision {
-        return Err(err(format!(
-            "{}: a scene, not a study: use jointplay.load_scene(...).run(), or precision=True",
-            path.display()
-        )));
-    }
-    if kind == Input::Comparison && precision {
-        return Err(err(format!(
-            "{}: a comparison study has several cases; give one scene or an analysis study",
-            path.display()
-        )));
-    }
-    if (resume || max_jobs.is_some()) && !kind.is_analysis() {
-        return Err(err(format!(
-            "{}: resume and max_jobs apply to analysis studies with a [sweep] or a [continuation]",
-            path.display()
-        )));
-    }
     let tally = Mutex::new(Tally::default());
     let shown = Mutex::new(Shown::default());
-    let report = |p: Progress| {
+    let report = |r: Report| {
+        let mut s = shown.lock().unwrap_or_else(|e| e.into_inner());
+        let p = match r {
+            Report::Progress(p) => p,
+            Report::Point { fraction, line } => {
+                s.fraction = fraction;
+                s.message = line.to_string();
+                return;
+            }
+            Report::Analysed(_) | Report::Resuming { .. } => return,
+        };
         let mut t = tally.lock().unwrap_or_else(|e| e.into_inner());
         t.update(p);
-        let mut s = shown.lock().unwrap_or_else(|e| e.into_inner());
         match p {
             Progress::Reference => s.message = "reference".into(),
             Progress::Check => s.message = "check of the reference".into(),
@@ -1285,56 +1031,45 @@ fn run_study(
         .and_then(|t| t.get("study")?.get("name")?.as_str().map(str::to_string))
         .or_else(|| path.file_stem().map(|s| s.to_string_lossy().to_string()))
         .unwrap_or_default();
-    let opts = Options {
+    let options = ExecOptions {
+        out,
+        plots,
+        precision,
         resume,
         max_jobs,
         shard: None,
+        env: None,
+        version: VERSION,
+        caller: Caller::Python,
+    };
+    let source = Source::Text {
+        text,
+        path: path.clone(),
     };
     let (res, signal) = drive(py, progress, &label, Duration::ZERO, &shown, |stop| {
-        let work = || {
-            if precision {
-                work_precision(&path, &text, kind, &out, plots, &report, stop)
-            } else if kind == Input::Comparison {
-                comparison(&path, &text, &out, plots, &report, stop)
-            } else {
-                analysis(&path, &text, &out, plots, opts, &report, stop)
-            }
-        };
+        let work = || execute(&source, &options, &report, stop);
         match &pool {
             Some(p) => p.install(work),
             None => work(),
         }
     })?;
     match (res, signal) {
-        (Ok(done), None) => {
-            if !done.failed.is_empty() {
-                let lines: Vec<String> = done
-                    .failed
-                    .iter()
-                    .map(|(l, m)| format!("{l}: {m}"))
-                    .collect();
-                return Err(err(format!(
-                    "{} of the study {} failed (the others are in {}):\n  {}",
-                    done.failed.len(),
-                    path.display(),
-                    done.file.display(),
-                    lines.join("\n  ")
-                )));
-            }
-            study_result(py, &done)
-        }
-        (Ok(done), Some(s)) => {
+        (Ok(o), None) => match &o.failure {
+            Some(f) => Err(failure(&o, f)),
+            None => study_result(py, &o),
+        },
+        (Ok(o), Some(s)) => {
             let message = format!(
                 "{}: interrupted; {} keeps what was computed{}",
                 path.display(),
-                done.file.display(),
-                if done.resumable {
+                o.file.display(),
+                if o.resumable {
                     " (resume=True runs the rest)"
                 } else {
                     ""
                 }
             );
-            let partial = Py::new(py, study_result(py, &done)?)?.into_any();
+            let partial = Py::new(py, study_result(py, &o)?)?.into_any();
             Err(interrupted(py, s, &message, partial))
         }
         (Err(m), Some(s)) => Err(interrupted(

@@ -21,6 +21,9 @@
 //! * A **continuation** writes its state after every point into a file of its own
 //!   (`<study>.continuation.h5`), replaced atomically, and the study file once at the end.
 //! * A **single run** is written under `<name>.h5.partial` and moved into place once complete.
+//!
+//! Any file written is read back generically (datasets by path, units, attributes) by
+//! [`read::Reader`], what the Python package shows of a file.
 
 pub mod analysis_file;
 pub mod bitround;
@@ -32,6 +35,7 @@ pub mod hybrid;
 pub mod inputs;
 pub mod journal;
 pub mod lock;
+pub mod read;
 pub mod rows;
 pub mod run;
 pub mod run_file;

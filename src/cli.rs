@@ -1,0 +1,177 @@
+//! The command line: the commands, their arguments and their help texts (`jointplay --help`,
+//! reproduced in book/src/reference/cli-help.md).
+
+use std::path::PathBuf;
+
+use clap::{Parser, Subcommand};
+use jointplay_analysis::storage::analysis_file::Shard;
+
+#[derive(Parser)]
+#[command(
+    name = "jointplay",
+    version,
+    about = "Nonlinear dynamics of mechanisms with joint clearance"
+)]
+pub struct Cli {
+    /// The oldest HDF5 library the files written must open in: 1.10 (default; smaller files:
+    /// chunk indexes and object headers of the 1.10 format) or 1.8 (the oldest format).
+    #[arg(long, global = true, value_name = "VERSION", default_value = "1.10")]
+    pub hdf5_format: jointplay_analysis::storage::h5::Format,
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+#[derive(Subcommand)]
+pub enum Command {
+    /// Validate a scene and print its compiled summary: bodies, constraints, rank, degrees of
+    /// freedom, redundancy, drives and the effects that will be simulated. A study is checked
+    /// as `run` checks it before anything runs (every case's scene compiled, or the analysis
+    /// study and its first flow), without running it.
+    Check {
+        /// Scene or study file (TOML).
+        scene: PathBuf,
+    },
+    /// Simulate a scene, or run a study. A scene writes DIR/<name>.h5 and the figures of its
+    /// positions, drives and diagnostics (PNG and SVG). A comparison study (a [study] table and
+    /// [[cases]]) writes DIR/<study>.h5 with every case, DIR/<study>.md (its comparison table) and
+    /// the figures it asks for. An analysis study (a [study] and an [analysis] table) writes
+    /// DIR/<study>.h5 (histories, sections, the sweep, Lyapunov exponents, periodic orbits, as it
+    /// asks) and its figures, and a sweep its table DIR/<study>.md and .csv (a row per value);
+    /// while a sweep runs its finished values are in DIR/<study>.journal, and a continuation's
+    /// state in DIR/<study>.continuation.h5.
+    Run {
+        /// Scene or study file (TOML; a study has a [study] table).
+        scene: PathBuf,
+        /// Output directory (created if missing).
+        #[arg(long, default_value = "out")]
+        out: PathBuf,
+        /// Skip the figures.
+        #[arg(long)]
+        no_plots: bool,
+        /// No progress bar.
+        #[arg(long, short)]
+        quiet: bool,
+        /// Analysis sweeps: keep the finished values of an existing DIR/<name>.h5 (with --shard,
+        /// of the shard's file) and compute only the rest. Continuations: go on from where the
+        /// continuation in DIR/<name>.h5 stopped.
+        #[arg(long)]
+        resume: bool,
+        /// Analysis sweeps: stop after this many values have finished (resume later). A
+        /// continuation without a sweep: stop after this many branch points.
+        #[arg(long)]
+        max_jobs: Option<usize>,
+        /// Analysis sweeps: compute only shard I of N of the values (those whose index j has
+        /// j mod N = I) into DIR/<name>.shard-I-of-N.h5, for `jointplay merge`. In a Slurm job
+        /// array it defaults to the task's SLURM_ARRAY_TASK_ID - SLURM_ARRAY_TASK_MIN of
+        /// SLURM_ARRAY_TASK_COUNT.
+        #[arg(long, value_name = "I/N")]
+        shard: Option<Shard>,
+        /// Scenes: continue from the final state of a run file of this scene (written by
+        /// `jointplay run`) to the scene's end time, as if the run had never stopped.
+        #[arg(long, value_name = "RUN.h5")]
+        from: Option<PathBuf>,
+    },
+    /// Merge the shard files of a sweep into the study file a single run writes (its datasets
+    /// bit-identical, wall times aside), and draw its figures. Refuses when a value is missing
+    /// or failed, naming the shards to rerun.
+    Merge {
+        /// Shard files written by `jointplay run STUDY --shard I/N`.
+        #[arg(required = true)]
+        files: Vec<PathBuf>,
+        /// The merged file, DIR/<study>.h5 (replaced if it exists).
+        #[arg(long)]
+        out: PathBuf,
+        /// Write missing and failed values as not done (the file is marked incomplete), for
+        /// `jointplay run STUDY --out DIR --resume` to finish.
+        #[arg(long)]
+        partial: bool,
+        /// Skip the figures.
+        #[arg(long)]
+        no_plots: bool,
+    },
+    /// Write Slurm batch scripts for a sweep: a job array of N shards and a merge job that runs
+    /// after every task has succeeded; print the sbatch commands, or submit them with --submit.
+    Slurm {
+        /// Analysis study with a [sweep] (not a continuation sweep).
+        study: PathBuf,
+        /// Output directory of the shards, the merged file and the scripts (created if missing).
+        #[arg(long, default_value = "out")]
+        out: PathBuf,
+        /// Number of shards (array tasks).
+        #[arg(long)]
+        shards: usize,
+        /// Slurm partition.
+        #[arg(long)]
+        partition: Option<String>,
+        /// Time limit of each job, in Slurm's format (e.g. 01:00:00).
+        #[arg(long)]
+        time: Option<String>,
+        /// CPUs per array task (the threads of each shard).
+        #[arg(long, default_value_t = 1)]
+        cpus_per_task: usize,
+        /// Memory of each job, in Slurm's format (e.g. 4G).
+        #[arg(long)]
+        mem: Option<String>,
+        /// At most this many tasks run at once (--array=0-(N-1)%M).
+        #[arg(long)]
+        max_running: Option<usize>,
+        /// Submit the array and the merge job with sbatch.
+        #[arg(long)]
+        submit: bool,
+    },
+    /// Redraw every figure of a nonlinear-analysis or work-precision file without simulating
+    /// again.
+    Plot {
+        /// File written by `jointplay run STUDY` for an analysis study.
+        file: PathBuf,
+        /// png, svg or both.
+        #[arg(long, default_value = "both")]
+        format: String,
+        /// Output directory (default: the file's directory).
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// Work-precision: run every integrator over a range of steps or tolerances against a tight
+    /// reference; write DIR/<name>.h5, DIR/<name>.md (the table) and the figure DIR/<name>.png
+    /// and .svg (error against wall time, log-log).
+    Precision {
+        /// An analysis study (its [precision] table, or the defaults) or a scene (every body's
+        /// position and every clearance joint's contact force over the scene's span).
+        file: PathBuf,
+        /// Output directory (created if missing).
+        #[arg(long, default_value = "out")]
+        out: PathBuf,
+        /// Skip the figure.
+        #[arg(long)]
+        no_plots: bool,
+        /// No progress lines.
+        #[arg(long, short)]
+        quiet: bool,
+    },
+    /// Print the table of a comparison study or of a sweep (markdown) from its HDF5 file.
+    Report {
+        /// Study file written by `jointplay run STUDY`.
+        file: PathBuf,
+        /// Write the table here instead of standard output.
+        #[arg(long)]
+        out: Option<PathBuf>,
+    },
+    /// Overlay one recorded quantity from several run files in one figure (PNG and SVG).
+    Compare {
+        /// Run files written by `jointplay run`.
+        #[arg(required = true)]
+        files: Vec<PathBuf>,
+        /// Dataset path inside the files, e.g. bodies/slider/acceleration.
+        #[arg(long)]
+        dataset: String,
+        /// Column of a two-dimensional dataset (0 = x).
+        #[arg(long, default_value_t = 0)]
+        component: usize,
+        /// Output path without extension.
+        #[arg(long)]
+        out: PathBuf,
+        /// Figure title (default: the dataset path).
+        #[arg(long)]
+        title: Option<String>,
+    },
+}
