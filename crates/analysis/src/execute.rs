@@ -513,7 +513,23 @@ fn analysis(
     } else {
         o.figures = figures(&run.file, options)?;
     }
-    let program = options.caller == Caller::Program;
+    explain(&mut o, &st, run, shard, path, options.caller);
+    o.analysed = Some(analysed);
+    Ok(o)
+}
+
+/// What an analysis's outcome says of itself: how to finish an incomplete run or sweep, which
+/// values failed, and the failure message (a single run's, the failed values', or the
+/// continuation's that could not start).
+fn explain(
+    o: &mut Outcome,
+    st: &Loaded,
+    run: &crate::study::analysis::sweep::Outcome,
+    shard: Option<Shard>,
+    path: &Path,
+    caller: Caller,
+) {
+    let program = caller == Caller::Program;
     if !run.complete && st.spec.sweep.is_none() {
         // One run has no finished values to keep: it runs again from its start.
         o.incomplete = Some(if program {
@@ -570,8 +586,6 @@ fn analysis(
                 )
             })
     };
-    o.analysed = Some(analysed);
-    Ok(o)
 }
 
 /// A continuation without a sweep that goes on from its file `file` (or is finished already).

@@ -316,12 +316,7 @@ pub fn trace_partial<S: Observed>(
     let span = t_end - plan.start;
     // The observables the section functions read, evaluated at every step end; g at the
     // previous step end is kept so each step costs one evaluation.
-    let mut used: Vec<usize> = planes
-        .iter()
-        .flat_map(|p| p.terms.iter().map(|t| t.0))
-        .collect();
-    used.sort_unstable();
-    used.dedup();
+    let used = observables_used(planes);
     let mut g_prev: Option<f64> = None;
     let mut g0 = vec![0.0; planes.len()];
     let mut g1 = vec![0.0; planes.len()];
@@ -354,46 +349,10 @@ pub fn trace_partial<S: Observed>(
         }
         for (k, p) in planes.iter().enumerate() {
             let (a, b) = (g0[k], g1[k]);
-            let hit = match p.direction {
-                Direction::Up => a < 0.0 && b >= 0.0,
-                Direction::Down => a > 0.0 && b <= 0.0,
-                Direction::Both => (a < 0.0 && b >= 0.0) || (a > 0.0 && b <= 0.0),
-            };
-            if !hit {
+            if !crosses(p.direction, a, b) {
                 continue;
             }
-            // Illinois iteration on [t0, t1] with g(t0) = a, g(t1) = b.
-            let (mut ta, mut tb, mut ga, mut gb) = (st.t0, st.t1, a, b);
-            let mut side = 0i8;
-            let tol = 1e-13 * (st.t1 - st.t0).max(f64::MIN_POSITIVE);
-            let mut tc = tb;
-            for _ in 0..100 {
-                tc = (ta * gb - tb * ga) / (gb - ga);
-                if !(tc > ta && tc < tb) {
-                    tc = 0.5 * (ta + tb);
-                }
-                st.eval(tc, &mut ys);
-                sys.observe_only(tc, &ys, &used, &mut o);
-                let gc = p.g(&o);
-                if gc == 0.0 || tb - ta < tol {
-                    break;
-                }
-                if (gc < 0.0) == (ga < 0.0) {
-                    ta = tc;
-                    ga = gc;
-                    if side == -1 {
-                        gb *= 0.5;
-                    }
-                    side = -1;
-                } else {
-                    tb = tc;
-                    gb = gc;
-                    if side == 1 {
-                        ga *= 0.5;
-                    }
-                    side = 1;
-                }
-            }
+            let tc = crossing_time(sys, st, p, &used, (a, b), &mut ys, &mut o);
             if tc <= tw {
                 continue;
             }
@@ -441,6 +400,73 @@ pub fn trace_partial<S: Observed>(
         final_state: state.clone(),
     };
     (tr, res)
+}
+
+/// The observables the section functions of `planes` read, each once, in order.
+fn observables_used(planes: &[Hyperplane]) -> Vec<usize> {
+    let mut used: Vec<usize> = planes
+        .iter()
+        .flat_map(|p| p.terms.iter().map(|t| t.0))
+        .collect();
+    used.sort_unstable();
+    used.dedup();
+    used
+}
+
+/// True when a section function going from `a` to `b` over a step crosses zero in `direction`.
+fn crosses(direction: Direction, a: f64, b: f64) -> bool {
+    match direction {
+        Direction::Up => a < 0.0 && b >= 0.0,
+        Direction::Down => a > 0.0 && b <= 0.0,
+        Direction::Both => (a < 0.0 && b >= 0.0) || (a > 0.0 && b <= 0.0),
+    }
+}
+
+/// The time in the step `st` at which plane `p`'s function crosses zero, from its values
+/// `(a, b)` at the step's ends: the Illinois variant of regula falsi on the step's dense output
+/// (the observables `used` evaluated at each trial into `o`, the state into `ys`), until the
+/// bracket is below 1e-13 of the step or the function is 0.
+fn crossing_time<S: Observed>(
+    sys: &mut S,
+    st: &Step,
+    p: &Hyperplane,
+    used: &[usize],
+    (a, b): (f64, f64),
+    ys: &mut [f64],
+    o: &mut [f64],
+) -> f64 {
+    let (mut ta, mut tb, mut ga, mut gb) = (st.t0, st.t1, a, b);
+    let mut side = 0i8;
+    let tol = 1e-13 * (st.t1 - st.t0).max(f64::MIN_POSITIVE);
+    let mut tc = tb;
+    for _ in 0..100 {
+        tc = (ta * gb - tb * ga) / (gb - ga);
+        if !(tc > ta && tc < tb) {
+            tc = 0.5 * (ta + tb);
+        }
+        st.eval(tc, ys);
+        sys.observe_only(tc, ys, used, o);
+        let gc = p.g(o);
+        if gc == 0.0 || tb - ta < tol {
+            break;
+        }
+        if (gc < 0.0) == (ga < 0.0) {
+            ta = tc;
+            ga = gc;
+            if side == -1 {
+                gb *= 0.5;
+            }
+            side = -1;
+        } else {
+            tb = tc;
+            gb = gc;
+            if side == 1 {
+                ga *= 0.5;
+            }
+            side = 1;
+        }
+    }
+    tc
 }
 
 #[cfg(test)]
