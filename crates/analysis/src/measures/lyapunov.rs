@@ -576,31 +576,12 @@ pub fn spectrum_until<F: Tangent>(
         );
         res?;
     }
-    let mut second_state = None;
-    let basis = flow.manifold_basis(state.t, &state.y)?;
-    // Initial tangent vectors: pseudo-random, in the tangent space, orthonormal.
-    let mut v = Vec::with_capacity(n * k);
-    for j in 0..k {
-        let mut x = pseudo_random(j as u64 + 1, n);
-        if let Some(b) = &basis {
-            project(b, &mut x);
-        }
-        v.extend(x);
-    }
-    let mem = flow.memory_len();
-    let mut w = vec![vec![0.0; mem]; k];
-    orthonormalise(&mut v, n, &mut w);
+    let (v, mut w) = initial_vectors(flow, &state, k)?;
     let mut second = second;
-    if let Some(g) = second.as_deref_mut() {
-        // The second trajectory starts `separation` away along the first tangent vector, with
-        // the first one's contact history.
-        let mut s2 = state.clone();
-        for (a, b) in s2.y.iter_mut().zip(&v[..n]) {
-            *a += spec.separation * b;
-        }
-        g.prepare(&s2)?;
-        second_state = Some(s2.y);
-    }
+    let second_state = match second.as_deref_mut() {
+        Some(g) => Some(second_start(g, &state, &v[..n], spec.separation)?),
+        None => None,
+    };
     let interval = period / spec.per_period as f64;
     let max_intervals = spec.periods * spec.per_period;
     let batch = spec.batch_len();
@@ -633,30 +614,13 @@ pub fn spectrum_until<F: Tangent>(
             before: Vec::new(),
             events: 0,
         };
-        // The divergence is integrated by the trapezoid rule on the accepted steps.
-        let use_div = div_known;
-        let mut div_lost = false;
-        let mut on_step = |s: &mut Extended<F>, st: &ode::Step| {
-            if let (Some(a), Some(b)) = (
-                s.flow.divergence(st.t0, &st.y0[..n]),
-                s.flow.divergence(st.t1, &st.y1[..n]),
-            ) {
-                div_sum += 0.5 * (a + b) * (st.t1 - st.t0);
-            } else {
-                div_lost = true;
-            }
-            Step::Continue
-        };
-        let (stats, res) = ode::advance(
+        let (stats, res) = advance_extended(
             &mut ext,
             method,
             &mut ext_state,
             t_next,
-            &[],
-            |_, _, _| Step::Continue,
-            if use_div { Some(&mut on_step) } else { None },
+            (&mut div_known, &mut div_sum),
         );
-        div_known &= !div_lost;
         events += ext.events;
         w = ext.w;
         rhs_evals += stats.rhs_evals;
@@ -680,27 +644,9 @@ pub fn spectrum_until<F: Tangent>(
             batch_sums[j] += l;
         }
         if let Some(g) = second.as_deref_mut() {
-            let mut d: Vec<f64> = y2.iter().zip(ys.iter()).map(|(a, b)| a - b).collect();
-            if let Some(b) = &basis {
-                project(b, &mut d);
-            }
-            let dist = norm(&d);
-            let l = (dist / spec.separation).ln();
+            let l = pull_back(&*flow, g, ys, y2, basis.as_ref(), spec.separation);
             sum2 += l;
             batch2 += l;
-            let scale = spec.separation / dist;
-            for (a, b) in y2.iter_mut().zip(ys.iter()) {
-                *a = b + scale * (*a - b);
-            }
-            // Its contact history is pulled back with it where both are in contact.
-            let m1 = flow.memory();
-            let mut m2 = g.memory();
-            for (a, b) in m2.iter_mut().zip(&m1) {
-                if a.is_finite() && b.is_finite() {
-                    *a = b + scale * (*a - b);
-                }
-            }
-            g.set_memory(&m2);
         }
         done += 1;
         let elapsed = done as f64 * interval;
@@ -711,12 +657,12 @@ pub fn spectrum_until<F: Tangent>(
         }
         if done % batch == 0 {
             let bt = batch as f64 * interval;
-            for j in 0..k {
-                batches[j].push(batch_sums[j] / bt);
-                batch_sums[j] = 0.0;
-            }
-            batches2.push(batch2 / bt);
-            batch2 = 0.0;
+            close_batch(&mut batches, &mut batch_sums, bt);
+            close_batch(
+                std::slice::from_mut(&mut batches2),
+                std::slice::from_mut(&mut batch2),
+                bt,
+            );
             if let Some(target) = spec.until_stderr
                 && batches[0].len() >= MIN_BATCHES
                 && batch_stderr(&batches[0]) <= target
@@ -748,4 +694,124 @@ pub fn spectrum_until<F: Tangent>(
         stopped_early,
         events,
     })
+}
+
+/// The initial tangent vectors at `state`: `k` pseudo-random vectors projected on the tangent
+/// space of the constraint manifold and orthonormalised (`n * k` values, vector after vector),
+/// with their memory tangents (`k` rows of the flow's memory length).
+fn initial_vectors<F: Tangent>(
+    flow: &mut F,
+    state: &HybridState,
+    k: usize,
+) -> Result<(Vec<f64>, Vec<Vec<f64>>)> {
+    let n = flow.dim();
+    let basis = flow.manifold_basis(state.t, &state.y)?;
+    let mut v = Vec::with_capacity(n * k);
+    for j in 0..k {
+        let mut x = pseudo_random(j as u64 + 1, n);
+        if let Some(b) = &basis {
+            project(b, &mut x);
+        }
+        v.extend(x);
+    }
+    let mem = flow.memory_len();
+    let mut w = vec![vec![0.0; mem]; k];
+    orthonormalise(&mut v, n, &mut w);
+    Ok((v, w))
+}
+
+/// Advances the extended system (the state, its tangent vectors and the second trajectory) to
+/// `t_next`. While the flow's divergence is known (`div.0`), it is integrated by the trapezoid
+/// rule on the accepted steps into `div.1`; a step where it is not known clears `div.0`.
+fn advance_extended<F: Tangent>(
+    ext: &mut Extended<'_, F>,
+    method: Method,
+    ext_state: &mut HybridState,
+    t_next: f64,
+    div: (&mut bool, &mut f64),
+) -> (ode::Stats, jointplay_solver::Result<()>) {
+    let n = ext.n;
+    let (div_known, div_sum) = div;
+    let use_div = *div_known;
+    let mut div_lost = false;
+    let mut on_step = |s: &mut Extended<F>, st: &ode::Step| {
+        if let (Some(a), Some(b)) = (
+            s.flow.divergence(st.t0, &st.y0[..n]),
+            s.flow.divergence(st.t1, &st.y1[..n]),
+        ) {
+            *div_sum += 0.5 * (a + b) * (st.t1 - st.t0);
+        } else {
+            div_lost = true;
+        }
+        Step::Continue
+    };
+    let out = ode::advance(
+        ext,
+        method,
+        ext_state,
+        t_next,
+        &[],
+        |_, _, _| Step::Continue,
+        if use_div { Some(&mut on_step) } else { None },
+    );
+    *div_known &= !div_lost;
+    out
+}
+
+/// Brings the second trajectory `y2` back to the distance `separation` from the first, `ys`,
+/// along their difference (projected on the tangent space `basis` when the flow has
+/// constraints), its contact history pulled back with it where both are in contact; returns
+/// the logarithm of the stretch since the last pull-back.
+fn pull_back<F: Tangent>(
+    flow: &F,
+    g: &mut F,
+    ys: &[f64],
+    y2: &mut [f64],
+    basis: Option<&DMatrix<f64>>,
+    separation: f64,
+) -> f64 {
+    let mut d: Vec<f64> = y2.iter().zip(ys.iter()).map(|(a, b)| a - b).collect();
+    if let Some(b) = basis {
+        project(b, &mut d);
+    }
+    let dist = norm(&d);
+    let l = (dist / separation).ln();
+    let scale = separation / dist;
+    for (a, b) in y2.iter_mut().zip(ys.iter()) {
+        *a = b + scale * (*a - b);
+    }
+    let m1 = flow.memory();
+    let mut m2 = g.memory();
+    for (a, b) in m2.iter_mut().zip(&m1) {
+        if a.is_finite() && b.is_finite() {
+            *a = b + scale * (*a - b);
+        }
+    }
+    g.set_memory(&m2);
+    l
+}
+
+/// Ends a batch of the batch-means error estimate: each sum of logarithms over the batch's
+/// duration `bt` (s) becomes the batch's mean exponent, and the sum starts again from 0.
+fn close_batch(batches: &mut [Vec<f64>], sums: &mut [f64], bt: f64) {
+    for (b, s) in batches.iter_mut().zip(sums.iter_mut()) {
+        b.push(*s / bt);
+        *s = 0.0;
+    }
+}
+
+/// The second trajectory's start: `separation` away from `state` along the first tangent
+/// vector `v1`, with the first one's contact history (`g` prepared with it).
+fn second_start<F: Tangent>(
+    g: &mut F,
+    state: &HybridState,
+    v1: &[f64],
+    separation: f64,
+) -> Result<Vec<f64>> {
+    let mut s2 = state.clone();
+    for (a, b) in s2.y.iter_mut().zip(v1) {
+        *a += separation * b;
+    }
+    g.prepare(&s2)?;
+    Ok(s2.y)
 }
