@@ -27,11 +27,35 @@ fn strobe() -> String {
     "strobe".into()
 }
 
-/// An indicator a study asked for: which one (its key in the registry) and on which series.
-#[derive(Debug, Clone, PartialEq)]
+/// An indicator a study asked for: which one and on which series.
+#[derive(Clone)]
 pub struct Asked {
-    pub key: &'static str,
+    pub indicator: &'static dyn Indicator,
     pub series: SeriesSpec,
+}
+
+impl Asked {
+    /// The indicator's key (its study table).
+    pub fn key(&self) -> &'static str {
+        self.indicator.key()
+    }
+}
+
+impl std::fmt::Debug for Asked {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Asked")
+            .field("key", &self.key())
+            .field("series", &self.series)
+            .finish()
+    }
+}
+
+/// Two requests are the same when they name the same indicator (keys are unique in the
+/// registry) on the same series.
+impl PartialEq for Asked {
+    fn eq(&self, other: &Asked) -> bool {
+        self.key() == other.key() && self.series == other.series
+    }
 }
 
 /// What an indicator says of a motion, for the classification.

@@ -39,7 +39,7 @@ macro_rules! with_indicator_tables {
                     .filter_map(|i| {
                         let (_, table) = tables.iter().find(|(k, _)| *k == i.key())?;
                         table.as_ref().map(|s| crate::measures::indicator::Asked {
-                            key: i.key(),
+                            indicator: *i,
                             series: s.clone(),
                         })
                     })
@@ -89,7 +89,7 @@ mod tests {
             let spec = AnalysisStudy::parse_spec(&text, Path::new("s.toml")).unwrap();
             let asked = spec.asked();
             assert_eq!(asked.len(), 1, "{}", i.key());
-            assert_eq!(asked[0].key, i.key());
+            assert_eq!(asked[0].key(), i.key());
             assert_eq!(asked[0].series.observable, "x");
             assert_eq!(asked[0].series.section, "strobe");
             // A reading names its indicator and leads its attributes with its number.

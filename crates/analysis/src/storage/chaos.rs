@@ -3,13 +3,8 @@
 //! book/src/reference/hdf5.md). The measures themselves are [`crate::measures::chaos`].
 
 use crate::measures::chaos::{CLASS_NAMES, Chaos, ChaosSpec, Class};
-use crate::measures::indicator::{Indicator, Number};
+use crate::measures::indicator::Number;
 use crate::measures::registry::INDICATORS;
-
-/// The registered indicator of `key` (a spec's keys come from the registry).
-pub(crate) fn indicator(key: &str) -> &'static dyn Indicator {
-    crate::measures::registry::find(key).expect("an indicator of the registry")
-}
 use crate::storage::h5::{
     create_nan, f64_attr, str_attr, u8_attr_set, u64_attr, write_table, write1,
 };
@@ -141,7 +136,7 @@ pub(crate) fn create_rows(g: &hdf5::Group, n: usize, spec: &ChaosSpec) -> hdf5::
         }
     }
     for asked in &spec.indicators {
-        let row = indicator(asked.key).row();
+        let row = asked.indicator.row();
         create_nan(&c, row.name, &[n], row.unit, row.description)?;
     }
     Ok(())

@@ -74,7 +74,7 @@ pub(crate) fn row_names(l: &SweepLayout) -> Vec<(String, Kind, Option<usize>)> {
             }
         }
         for asked in &l.chaos.indicators {
-            let row = crate::storage::chaos::indicator(asked.key).row();
+            let row = asked.indicator.row();
             v.push((format!("chaos/{}", row.name), Kind::F64, ONE));
         }
     }
@@ -138,11 +138,16 @@ pub(crate) fn job_row(l: &SweepLayout, r: &JobResult) -> Row {
                 other if other.starts_with("chaos/") => {
                     // An indicator's number (the rows above are the spectrum's).
                     let row = &other["chaos/".len()..];
+                    let key = l
+                        .chaos
+                        .indicators
+                        .iter()
+                        .find(|a| a.indicator.row().name == row);
                     Cells::F64(vec![
                         r.chaos
                             .iter()
                             .flat_map(|c| &c.readings)
-                            .find(|x| crate::storage::chaos::indicator(x.key).row().name == row)
+                            .find(|x| key.is_some_and(|a| a.key() == x.key))
                             .map_or(nan, |x| x.value),
                     ])
                 }

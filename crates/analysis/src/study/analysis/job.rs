@@ -154,11 +154,10 @@ impl Loaded {
                     .expect("checked when loaded");
                 &tr.crossings[p].values[i]
             };
-            let indicator = crate::measures::registry::find(x.key).expect("registered");
             readings.push(
-                indicator
+                x.indicator
                     .compute(series)
-                    .map_err(|m| invalid(&self.path, x.key, m))?,
+                    .map_err(|m| invalid(&self.path, x.key(), m))?,
             );
         }
         // The period is looked for in the first indicator's series (the first observable's

@@ -611,8 +611,7 @@ fn check_indicators(
 ) -> Result<()> {
     let a = &spec.analysis;
     for asked in spec.asked() {
-        let (key, z) = (asked.key, &asked.series);
-        let indicator = crate::measures::registry::find(key).expect("registered");
+        let (key, z, indicator) = (asked.key(), &asked.series, asked.indicator);
         if !names.contains_key(&z.observable) {
             return Err(invalid(
                 path,
