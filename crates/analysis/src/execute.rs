@@ -392,7 +392,7 @@ fn work_precision(
             inner: Box::new(e),
         })?;
     create_dir(&options.out)?;
-    let file = r.write(&options.out, p.study())?;
+    let file = r.write(&options.out, &p.study().text, &p.study().path)?;
     let md = options.out.join(format!("{}.md", r.name));
     let table = r.markdown();
     std::fs::write(&md, &table).map_err(|e| Error::Write {
@@ -424,7 +424,7 @@ fn analysis(
     // A continuation goes on from its file; with none begun (stopped before its first point),
     // it starts afresh, as a sweep with nothing kept does.
     let file = options.out.join(format!("{}.h5", st.spec.study.name));
-    if continuation_only && options.resume && crate::study::continuation::file::begun(&file) {
+    if continuation_only && options.resume && crate::storage::continuation_file::begun(&file) {
         return resume_continuation(&st, file, options, report, stop);
     }
     // In a Slurm job array, a sweep is sharded by the task's id unless the shard is given.
@@ -617,8 +617,12 @@ fn resume_continuation(
         path.clone(),
         file.clone(),
     );
-    let Some(prior) = crate::study::continuation::file::read_unfinished(&file, st)? else {
-        if crate::study::continuation::file::is_finished(&file)? {
+    let Some(prior) = crate::storage::continuation_file::read_unfinished(
+        &file,
+        &crate::study::continuation::run::layout(st)?,
+    )?
+    else {
+        if crate::storage::continuation_file::is_finished(&file)? {
             o.already_finished = true;
             return Ok(o);
         }

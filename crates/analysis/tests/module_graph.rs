@@ -296,3 +296,38 @@ fn analysis_modules_form_no_import_cycle() {
         text.join("\n  ")
     );
 }
+
+/// Files are written and read in the storage layer only: above it (studies, figures, the entry
+/// point) no code outside unit tests calls the `hdf5` crate; it hands storage plain data and gets
+/// plain data back.
+#[test]
+fn only_storage_calls_hdf5() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let mut files = Vec::new();
+    collect(&src, &mut files);
+    let storage = layer("storage");
+    let mut found = Vec::new();
+    let mut storage_calls = 0;
+    for f in &files {
+        let module = module_of(&src, f);
+        if module.is_empty() {
+            continue;
+        }
+        let text = code(&std::fs::read_to_string(f).unwrap());
+        let calls = text.matches("hdf5::").count();
+        if layer(&module) > storage && calls > 0 {
+            found.push(format!("{module}: {calls} uses of hdf5::"));
+        }
+        if module.starts_with("storage") {
+            storage_calls += calls;
+        }
+    }
+    assert!(
+        found.is_empty(),
+        "HDF5 calls above the storage layer (move the reading or writing into storage/, handing \
+         it plain data):\n  {}",
+        found.join("\n  ")
+    );
+    // The scan sees the calls where they belong (a test that reads nothing would pass).
+    assert!(storage_calls > 100, "{storage_calls}");
+}

@@ -6,7 +6,9 @@ use std::path::Path;
 use jointplay_analysis::flow::{Flow, Target};
 use jointplay_analysis::measures::periodic::{Newton, shoot};
 use jointplay_analysis::study::analysis::Loaded;
-use jointplay_analysis::study::continuation::{Begin, Continuation, Kind, Settings, continuation};
+use jointplay_analysis::study::continuation::{
+    Begin, Continuation, Kind, Settings, continuation, layout,
+};
 use jointplay_solver::ode::{Flow as Step, advance};
 use jointplay_solver::state::HybridState;
 
@@ -490,9 +492,9 @@ fn continuation_is_written_to_the_analysis_file() {
     let c =
         jointplay_analysis::study::continuation::run_study(&st, Begin::Fresh(None), &mut |_| true)
             .unwrap();
-    jointplay_analysis::study::continuation::write(&o.file, &st, Ok(&c)).unwrap();
+    jointplay_analysis::study::continuation::write(&o.file, &layout(&st).unwrap(), Ok(&c)).unwrap();
     // Written twice: the second replaces the first.
-    jointplay_analysis::study::continuation::write(&o.file, &st, Ok(&c)).unwrap();
+    jointplay_analysis::study::continuation::write(&o.file, &layout(&st).unwrap(), Ok(&c)).unwrap();
     let f = hdf5::File::open(&o.file).unwrap();
     let g = f.group("continuation").unwrap();
     let b = g.group("branch_0").unwrap();
@@ -771,30 +773,38 @@ fn a_stopped_continuation_resumes_to_the_points_of_one_never_stopped() {
         })
         .unwrap();
         assert!(part.unfinished.is_some(), "stopped after {stop}");
-        write(&file, &st, Ok(&part)).unwrap();
+        write(&file, &layout(&st).unwrap(), Ok(&part)).unwrap();
         {
             let f = hdf5::File::open(&file).unwrap();
             let g = f.group("continuation").unwrap();
             assert_eq!(g.attr("finished").unwrap().read_scalar::<u8>().unwrap(), 0);
             assert_eq!(g.attr("complete").unwrap().read_scalar::<u8>().unwrap(), 0);
         }
-        let prior = read_unfinished(&file, &st).unwrap().expect("unfinished");
+        let prior = read_unfinished(&file, &layout(&st).unwrap())
+            .unwrap()
+            .expect("unfinished");
         let rest = run_study(&st, Begin::Resume(prior), &mut |_| true).unwrap();
         assert!(rest.unfinished.is_none());
         same_points(&full, &rest);
-        write(&file, &st, Ok(&rest)).unwrap();
-        assert!(read_unfinished(&file, &st).unwrap().is_none());
+        write(&file, &layout(&st).unwrap(), Ok(&rest)).unwrap();
+        assert!(
+            read_unfinished(&file, &layout(&st).unwrap())
+                .unwrap()
+                .is_none()
+        );
     }
     // Another study text does not go on with it.
     let (_dir, file) = analysis_file(&st);
     let part = run_study(&st, Begin::Fresh(None), &mut |_| false).unwrap();
-    write(&file, &st, Ok(&part)).unwrap();
+    write(&file, &layout(&st).unwrap(), Ok(&part)).unwrap();
     let other = Loaded::parse(
         &st.text.replace("to = 0.28", "to = 0.27"),
         Path::new("t.toml"),
     )
     .unwrap();
-    let err = read_unfinished(&file, &other).unwrap_err().to_string();
+    let err = read_unfinished(&file, &layout(&other).unwrap())
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("another study text"), "{err}");
 }
 
@@ -807,7 +817,7 @@ fn a_continuation_starts_from_a_branch_point_of_a_file() {
     let st = duffing_continuation_study();
     let (_dir, file) = analysis_file(&st);
     let full = run_study(&st, Begin::Fresh(None), &mut |_| true).unwrap();
-    write(&file, &st, Ok(&full)).unwrap();
+    write(&file, &layout(&st).unwrap(), Ok(&full)).unwrap();
     let p3 = &full.branches[0].points[3];
     let file = file.display().to_string();
     let study = |from: f64, start: &str| {

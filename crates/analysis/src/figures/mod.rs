@@ -35,7 +35,7 @@ use crate::Result;
 use crate::figures::plot::{Format, Panel, Series};
 use crate::storage::h5::read_series;
 use crate::storage::inputs::Output;
-use crate::study::precision::outcome::Outcome;
+use crate::storage::precision_file::Outcome;
 
 /// Draws every figure of a written file again, from the file alone, into `dir` in the given
 /// formats, and returns the files written: those of a work-precision file ([`precision::draw`],

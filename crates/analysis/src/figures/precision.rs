@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use crate::figures::plot::{Format, Panel, Series, figure};
-use crate::study::precision::outcome::{Errors, Outcome};
+use crate::storage::precision_file::{Errors, Outcome};
 use crate::{Error, Result};
 
 /// Reads one error measure.

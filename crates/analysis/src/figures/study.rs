@@ -6,8 +6,8 @@ use crate::Result;
 use crate::figures::plot::{PNG_AND_SVG, circle, mm, write};
 use crate::figures::plot::{Panel, Series};
 use crate::storage::run::{Channel, Recording};
+use crate::storage::study_read::norm;
 use crate::study::comparison::Comparison;
-use crate::study::report::norm;
 use crate::study::spec::ReportSpec;
 
 /// The global plane (two axis indices, 0 = X) in which a spherical joint's orbit is drawn: the

@@ -164,6 +164,61 @@ pub(crate) struct SweepLayout {
     pub bits: Option<u32>,
 }
 
+/// What a study declares of its sweep file's layout (the rest, [`SweepLayout`]'s sizes and
+/// units, comes from the flow or from a file written before).
+#[derive(Debug, Clone)]
+pub(crate) struct Declared {
+    pub observables: Vec<ObservableSpec>,
+    pub sections: Vec<String>,
+    pub parameter: String,
+    pub unit: String,
+    pub continuation: bool,
+    pub chaos: crate::measures::chaos::ChaosSpec,
+    pub bits: Option<u32>,
+}
+
+impl SweepLayout {
+    /// The layout of the sweep file `file` whose study declares `d`: its root attributes, and
+    /// the observables' units and the rows' sizes as written.
+    pub(crate) fn read(file: &hdf5::File, d: Declared) -> hdf5::Result<SweepLayout> {
+        let root = Root::read(file)?;
+        let g = file.group("sweep")?;
+        let cols = |g: &hdf5::Group, name: &str| -> hdf5::Result<usize> {
+            Ok(g.dataset(name)?.shape().get(1).copied().unwrap_or(0))
+        };
+        let units = d
+            .observables
+            .iter()
+            .map(|o| {
+                let ds = g.dataset(&o.name)?;
+                read_str(&ds, "unit")
+            })
+            .collect::<hdf5::Result<Vec<_>>>()?;
+        let history = match g.group("history") {
+            Ok(h) => cols(&h, "time")?,
+            Err(_) => 0,
+        };
+        Ok(SweepLayout {
+            root,
+            observables: d.observables,
+            units,
+            sections: d.sections,
+            parameter: d.parameter,
+            unit: d.unit,
+            continuation: d.continuation,
+            kept: cols(&g, "strobe_time")?,
+            history,
+            shape: hybrid::StateShape {
+                dim: cols(&g, "final_state")?,
+                contacts: cols(&g, "final_onset")?,
+                clearances: cols(&g, "final_warned")?,
+            },
+            chaos: d.chaos,
+            bits: d.bits,
+        })
+    }
+}
+
 pub(crate) fn obs_datasets(
     g: &hdf5::Group,
     observables: &[ObservableSpec],
@@ -530,4 +585,73 @@ impl Shard {
             .map(Some)
             .map_err(hdf5::Error::from)
     }
+}
+
+/// Writes a single run's result `r` into its `file`: the `root` attributes (complete unless
+/// `failure`, whose message it keeps, with the time it stopped at), its warnings and counts, the
+/// attributes of the history written while it ran (when `history` gives its rounding:
+/// [`crate::storage::bitround`]), its strobe points and the crossings of the sections named
+/// `planes`, its chaos measures and its final state.
+pub(crate) fn write_single(
+    file: &hdf5::File,
+    root: &Root,
+    obs: &[ObservableSpec],
+    planes: &[&str],
+    history: Option<Option<u32>>,
+    r: &JobResult,
+    failure: Option<&crate::Error>,
+) -> hdf5::Result<()> {
+    root.write(file, u8::from(failure.is_none()))?;
+    if let Some(bits) = history {
+        mark_bits(file, bits)?;
+    }
+    if !r.warnings.is_empty() {
+        str_attr(file, "warnings", &r.warnings.join("\n"))?;
+    }
+    if let Some(e) = failure {
+        str_attr(file, "error", &e.to_string())?;
+        if let crate::Error::Solver(jointplay_solver::Error::Diverged { time, .. })
+        | crate::Error::Interrupted {
+            time: Some(time), ..
+        } = e
+        {
+            f64_attr(file, "stopped_at", *time)?;
+        }
+    }
+    let t = &r.trace;
+    u64_attr(file, "rhs_evals", t.stats.rhs_evals)?;
+    u64_attr(file, "accepted_steps", t.stats.accepted)?;
+    f64_attr(file, "wall_time", r.wall)?;
+    if let Some(bits) = history {
+        // Written while the run went (SingleHistory).
+        let g = file.group("history")?;
+        describe(
+            &g.dataset("time")?,
+            Some("s"),
+            "sample times over the kept window",
+        )?;
+        for (o, u) in obs.iter().zip(&r.units) {
+            let ds = g.dataset(&o.name)?;
+            describe(&ds, Some(u), &format!("{} over the kept window", o.path))?;
+            str_attr(&ds, "path", &o.path)?;
+            mark_bits(&ds, bits)?;
+        }
+    }
+    let g = file.create_group("sections")?;
+    let s0 = g.create_group("strobe")?;
+    write1(
+        &s0,
+        "time",
+        &t.strobe_time,
+        "s",
+        "t0 + phase + k T, one per kept period",
+    )?;
+    obs_datasets(&s0, obs, &r.units, &t.strobe, "at the strobe times")?;
+    for (p, c) in planes.iter().zip(&t.crossings) {
+        write_crossings(&g, p, obs, &r.units, &c.time, &c.values)?;
+    }
+    if let Some(c) = &r.chaos {
+        crate::storage::chaos::write_single(file, c)?;
+    }
+    hybrid::write_state(file, &t.final_state)
 }

@@ -23,21 +23,29 @@
 //! * A **single run** is written under `<name>.h5.partial` and moved into place once complete.
 //!
 //! Any file written is read back generically (datasets by path, units, attributes) by
-//! [`read::Reader`], what the Python package shows of a file.
+//! [`read::Reader`], what the Python package shows of a file; an analysis file's strobe and section
+//! points, history tails, chaos measures and branches, as plain data for its figures, by
+//! [`analysis_read`].
 
 pub mod analysis_file;
+pub mod analysis_read;
 pub mod bitround;
+pub mod branches;
 pub mod chaos;
 pub(crate) mod chunk;
+pub mod continuation_file;
 pub mod durable;
 pub mod h5;
 pub mod hybrid;
 pub mod inputs;
 pub mod journal;
 pub mod lock;
+pub mod precision_file;
 pub mod read;
 pub mod rows;
 pub mod run;
 pub mod run_file;
+pub(crate) mod shard_file;
+pub mod study_read;
 pub mod sweep;
 pub mod table;

@@ -29,11 +29,10 @@
 //! | `J.ripple` | N | half of that range: the amplitude of the settled fluctuation |
 //! | `J.settling_time` | s | the first time after which `F` stays inside the settled range widened by `tol` times the settled mean on both sides (`report.settle_tolerance`, default 0.1); none ("-") when the settled range is wider than twice the settled mean: the force still rattles or leaves contact in the settled window, so nothing has settled |
 
-use std::collections::BTreeMap;
 use std::fmt::Write as _;
 use std::path::{Path, PathBuf};
 
-use crate::storage::h5::{h5err, read_attr, read_rows, read_str};
+use crate::storage::study_read::{Asked, Case, CaseData, read_cases};
 use crate::study::spec::{CaseSpec, Published, StudySpec};
 use crate::{Error, Result};
 
@@ -74,27 +73,6 @@ impl Report {
             .map(|q| q.values[k])
             .filter(|v| !v.is_nan())
     }
-}
-
-struct CaseData {
-    time: Vec<f64>,
-    period: Option<f64>,
-    body: Option<[Vec<[f64; 3]>; 3]>,
-    forces: BTreeMap<String, Vec<f64>>,
-}
-
-/// The rows of a three-column dataset; `None` when it is missing or has another shape.
-fn read_vec3(g: &hdf5::Group, name: &str) -> Option<Vec<[f64; 3]>> {
-    if g.dataset(name).ok()?.shape().get(1) != Some(&3) {
-        return None;
-    }
-    let rows = read_rows(g, name).ok()?;
-    Some(rows.iter().map(|c| [c[0], c[1], c[2]]).collect())
-}
-
-/// Euclidean length of a 3-vector.
-pub fn norm(v: &[f64; 3]) -> f64 {
-    (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]).sqrt()
 }
 
 /// Index and value of the largest element (the first one on ties).
@@ -152,18 +130,13 @@ fn settled_start(c: &CaseData) -> usize {
 
 /// Reads a study file and computes its report.
 pub fn compute(path: &Path) -> Result<Report> {
-    let e = h5err(path);
-    let file = hdf5::File::open(path).map_err(&e)?;
-    let text = read_str(&file, "study").map_err(|_| Error::Hdf5 {
-        file: path.to_path_buf(),
-        message: "not a study file (no 'study' attribute); `jointplay run STUDY` writes one".into(),
-    })?;
+    let text = crate::storage::study_read::open(path)?;
     let spec: StudySpec = toml::from_str(&text).map_err(|err| Error::Hdf5 {
         file: path.to_path_buf(),
         message: format!("the stored study text does not parse: {err}"),
     })?;
     let tol = spec.report.settle_tolerance.unwrap_or(0.1);
-    let cases = Cases::read(path, &file, &spec)?;
+    let cases = Cases::read(path, &spec)?;
     let motion = cases.motion(path, &spec, tol)?;
     let forces = cases.forces(&spec, tol);
     Ok(Report {
@@ -191,31 +164,33 @@ struct Cases {
 }
 
 impl Cases {
-    /// Reads every case of the study `spec` from `file` (at `path`).
-    fn read(path: &Path, file: &hdf5::File, spec: &StudySpec) -> Result<Cases> {
-        let e = h5err(path);
-        let cases_g = file.group("cases").map_err(&e)?;
+    /// Reads every case of the study `spec` from its file `path`.
+    fn read(path: &Path, spec: &StudySpec) -> Result<Cases> {
+        let cases: Vec<&str> = spec.cases.iter().map(|c| c.label.as_str()).collect();
+        let joints: Vec<&str> = spec.report.joints.iter().map(String::as_str).collect();
+        let asked = Asked {
+            cases: &cases,
+            body: spec.report.body.as_deref(),
+            joints: &joints,
+        };
         let mut labels = Vec::new();
         let mut data = Vec::new();
         let mut notes = Vec::new();
         let mut walls = Vec::new();
-        for c in &spec.cases {
-            let g = cases_g.group(&c.label).map_err(|err| Error::Hdf5 {
-                file: path.to_path_buf(),
-                message: format!("case '{}' missing: {err}", c.label),
-            })?;
-            if let Ok(err) = read_str(&g, "error") {
-                labels.push(c.label.clone());
-                notes.push((format!("failed: {err}"), None));
-                walls.push(f64::NAN);
-                data.push(None);
-                continue;
-            }
-            let case = CaseData::read(path, &g, spec, &c.label)?;
-            notes.push(case_note(spec, c));
-            walls.push(read_attr::<f64>(&g, "wall_time_s").unwrap_or(f64::NAN));
+        for (c, case) in spec.cases.iter().zip(read_cases(path, &asked)?) {
             labels.push(c.label.clone());
-            data.push(Some(case));
+            match case {
+                Case::Failed(err) => {
+                    notes.push((format!("failed: {err}"), None));
+                    walls.push(f64::NAN);
+                    data.push(None);
+                }
+                Case::Recorded { data: d, wall } => {
+                    notes.push(case_note(spec, c));
+                    walls.push(wall);
+                    data.push(Some(d));
+                }
+            }
         }
         Ok(Cases {
             labels,
@@ -380,61 +355,6 @@ fn motion_value(
             let (lo, hi) = range(&d[s..]);
             0.5 * (hi - lo)
         }
-    }
-}
-
-impl CaseData {
-    /// Reads the case `label` of the study `spec` from its group `g`: its time (at least two
-    /// samples), drive period, report body's motion and report joints' force magnitudes.
-    fn read(path: &Path, g: &hdf5::Group, spec: &StudySpec, label: &str) -> Result<CaseData> {
-        let e = h5err(path);
-        let time = g
-            .dataset("time")
-            .and_then(|d| d.read_raw::<f64>())
-            .map_err(&e)?;
-        if time.len() < 2 {
-            return Err(Error::Hdf5 {
-                file: path.to_path_buf(),
-                message: format!("case '{label}' has fewer than two samples"),
-            });
-        }
-        let period = read_attr::<f64>(g, "drive_period").ok();
-        let body = match &spec.report.body {
-            Some(b) => {
-                let bg = g.group(&format!("bodies/{b}")).map_err(|err| Error::Hdf5 {
-                    file: path.to_path_buf(),
-                    message: format!("case '{label}': body '{b}' not recorded: {err}"),
-                })?;
-                let get = |n: &str| {
-                    read_vec3(&bg, n).ok_or_else(|| Error::Hdf5 {
-                        file: path.to_path_buf(),
-                        message: format!("case '{label}': bodies/{b}/{n} missing"),
-                    })
-                };
-                Some([get("position")?, get("velocity")?, get("acceleration")?])
-            }
-            None => None,
-        };
-        let mut forces = BTreeMap::new();
-        for j in &spec.report.joints {
-            let f = g
-                .group(&format!("joints/{j}"))
-                .ok()
-                .and_then(|jg| {
-                    read_vec3(&jg, "force_on_journal").or_else(|| read_vec3(&jg, "reaction_force"))
-                })
-                .ok_or_else(|| Error::Hdf5 {
-                    file: path.to_path_buf(),
-                    message: format!("case '{label}': no force recorded for joint '{j}'"),
-                })?;
-            forces.insert(j.clone(), f.iter().map(norm).collect::<Vec<_>>());
-        }
-        Ok(CaseData {
-            time,
-            period,
-            body,
-            forces,
-        })
     }
 }
 

@@ -24,9 +24,9 @@
 
 use std::path::{Path, PathBuf};
 
-use crate::storage::analysis_file::{Root, Shard, SweepLayout};
-use crate::storage::h5::{h5err, read_attr, read_str};
+use crate::storage::analysis_file::{Shard, SweepLayout};
 use crate::storage::rows::Outcome as Kept;
+use crate::storage::shard_file::ShardFile;
 use crate::study::analysis::load::Loaded;
 use crate::study::analysis::spec::{AnalysisStudy, sweep_jobs};
 use crate::study::spec::invalid;
@@ -75,80 +75,10 @@ pub struct Merged {
     pub tables: Vec<PathBuf>,
 }
 
-/// One shard file, read for the merge.
-struct ShardFile {
-    path: PathBuf,
-    file: hdf5::File,
-    shard: Shard,
-    version: String,
-    root: Root,
-    layout: SweepLayout,
-    done: Vec<u8>,
-    /// Messages of failed rows.
-    errors: Vec<(usize, String)>,
-    /// The done values that check, by row of the shard file.
-    values: Vec<crate::storage::rows::Value>,
-    /// Rows that do not check: why.
-    bad: Vec<String>,
-}
-
 fn io(file: &Path, message: impl Into<String>) -> Error {
     Error::Io {
         file: file.to_path_buf(),
         message: message.into(),
-    }
-}
-
-impl ShardFile {
-    fn open(path: &Path) -> Result<ShardFile> {
-        let e = h5err(path);
-        let file = hdf5::File::open(path).map_err(&e)?;
-        let shard = Shard::of_file(&file).map_err(&e)?.ok_or_else(|| {
-            io(
-                path,
-                "not a shard file (no 'shard' attribute): merge takes the files written by \
-                 `jointplay run STUDY --shard I/N`",
-            )
-        })?;
-        let version = read_str(&file, "program_version").map_err(&e)?;
-        let root = Root::read(&file).map_err(&e)?;
-        let spec = AnalysisStudy::parse_spec(&root.study, path)?;
-        let layout = SweepLayout::read(&file, &spec).map_err(&e)?;
-        let g = file.group("sweep").map_err(&e)?;
-        let done = g
-            .dataset("done")
-            .and_then(|d| d.read_raw::<u8>())
-            .map_err(&e)?;
-        // Every value is checked against its checksum; one that does not check counts as not
-        // run (the shard's `--resume` computes it again).
-        let (values, bad) = crate::storage::sweep::read_values(path, &file, &layout, done.len())?;
-        let mut done = vec![0u8; done.len()];
-        let mut errors = Vec::new();
-        let mut kept = Vec::new();
-        for v in values {
-            match v.outcome {
-                Kept::Done(_) => {
-                    done[v.row] = 1;
-                    kept.push(v);
-                }
-                Kept::Failed(m) => {
-                    done[v.row] = 2;
-                    errors.push((v.row, m));
-                }
-            }
-        }
-        Ok(ShardFile {
-            path: path.to_path_buf(),
-            file,
-            shard,
-            version,
-            root,
-            layout,
-            done,
-            errors,
-            values: kept,
-            bad,
-        })
     }
 }
 
@@ -251,7 +181,9 @@ fn open_shards(inputs: &[PathBuf], out: &Path) -> Result<Vec<ShardFile>> {
     }
     let mut shards: Vec<ShardFile> = Vec::new();
     for p in inputs {
-        let s = ShardFile::open(p)?;
+        let s = ShardFile::open(p, &|root, path| {
+            AnalysisStudy::parse_spec(&root.study, path)?.declared(path)
+        })?;
         if let Some(o) = shards.first() {
             s.check_matches(p, o, &shards)?;
         }
@@ -333,17 +265,8 @@ impl ShardFile {
 /// Refuses a shard that does not hold exactly its jobs, with the values the study gives them.
 fn check_rows(shards: &[ShardFile], jobs: &[(f64, i8)]) -> Result<()> {
     for s in shards {
-        let e = h5err(&s.path);
         let expect = s.shard.jobs(jobs.len());
-        let g = s.file.group("sweep").map_err(&e)?;
-        let rows = g
-            .dataset("job")
-            .and_then(|d| d.read_raw::<u64>())
-            .map_err(&e)?;
-        let params = g
-            .dataset("parameter")
-            .and_then(|d| d.read_raw::<f64>())
-            .map_err(&e)?;
+        let (rows, params) = (&s.jobs, &s.parameters);
         let same = rows.len() == expect.len()
             && s.done.len() == expect.len()
             && params.len() == expect.len()
@@ -473,10 +396,7 @@ fn write_merged(
                 outcome: v.outcome,
             }));
         }
-        shard_walls.push((
-            s.shard,
-            read_attr::<f64>(&s.file, "wall_time").unwrap_or(f64::NAN),
-        ));
+        shard_walls.push((s.shard, s.wall));
     }
     let mut by_row = vec![None; jobs.len()];
     for v in values.into_iter().flatten() {

@@ -12,6 +12,7 @@ use crate::Result;
 use crate::flow::observe::ObservableSpec;
 use crate::flow::systems::SystemSpec;
 use crate::measures::sections::Direction;
+use crate::storage::analysis_file::Declared;
 use crate::study::spec::invalid;
 
 crate::measures::registry::with_indicator_tables! {
@@ -306,5 +307,28 @@ impl AnalysisStudy {
     /// The observable index of `name`.
     pub fn observable(&self, name: &str) -> Option<usize> {
         self.observables.iter().position(|o| o.name == name)
+    }
+}
+impl AnalysisStudy {
+    /// What this study (read from `path`) declares of its sweep file's layout: its
+    /// observables, sections, swept parameter, chaos measures and history rounding.
+    pub(crate) fn declared(&self, path: &Path) -> Result<Declared> {
+        let spec = self;
+        let sw = spec
+            .sweep
+            .as_ref()
+            .ok_or_else(|| invalid(path, "sweep", "its study text has no [sweep]"))?;
+        Ok(Declared {
+            observables: spec.observables.clone(),
+            sections: spec.sections.iter().map(|s| s.name.clone()).collect(),
+            parameter: sw.parameter.clone(),
+            unit: sw.unit.clone(),
+            continuation: sw.continuation,
+            chaos: crate::measures::chaos::ChaosSpec {
+                lyapunov: spec.lyapunov.clone(),
+                indicators: spec.asked(),
+            },
+            bits: spec.analysis.history_bits(),
+        })
     }
 }

@@ -13,12 +13,8 @@ use rayon::prelude::*;
 use crate::flow::Flow;
 use crate::measures::sections::HistorySink;
 use crate::progress::{Progress, Stop};
-use crate::storage::analysis_file::{
-    JobResult, Root, SingleHistory, SweepLayout, obs_datasets, write_crossings,
-};
-use crate::storage::h5::{
-    PartialFile, describe, f64_attr, h5err, mark_bits, read_str, str_attr, u64_attr, write1,
-};
+use crate::storage::analysis_file::{JobResult, Root, SingleHistory, SweepLayout, write_single};
+use crate::storage::h5::{PartialFile, h5err};
 use crate::storage::hybrid;
 use crate::storage::rows::Outcome as Kept;
 use crate::storage::sweep as storage;
@@ -199,27 +195,17 @@ fn single_run(
         job: 0,
         ok: failure.is_none(),
     });
-    let written = (|| -> hdf5::Result<()> {
-        let file = &out.file;
-        Root::of(st, &r.integrator, r.start, r.period).write(file, u8::from(failure.is_none()))?;
-        if st.spec.analysis.samples_per_period > 0 {
-            mark_bits(file, st.spec.analysis.history_bits())?;
-        }
-        if !r.warnings.is_empty() {
-            str_attr(file, "warnings", &r.warnings.join("\n"))?;
-        }
-        if let Some(e) = &failure {
-            str_attr(file, "error", &e.to_string())?;
-            if let Error::Solver(jointplay_solver::Error::Diverged { time, .. })
-            | Error::Interrupted {
-                time: Some(time), ..
-            } = e
-            {
-                f64_attr(file, "stopped_at", *time)?;
-            }
-        }
-        write_single(file, st, &r)
-    })();
+    let planes: Vec<&str> = st.planes.iter().map(|p| p.name.as_str()).collect();
+    let a = &st.spec.analysis;
+    let written = write_single(
+        &out.file,
+        &Root::of(st, &r.integrator, r.start, r.period),
+        &st.spec.observables,
+        &planes,
+        (a.samples_per_period > 0).then_some(a.history_bits()),
+        &r,
+        failure.as_ref(),
+    );
     drop(history);
     if let Err(err) = written {
         return Err(out.fail(err));
@@ -574,54 +560,6 @@ fn keep(
     Ok(())
 }
 
-impl SweepLayout {
-    /// The layout of the sweep file `file`, whose study text parses to `spec`.
-    pub(crate) fn read(file: &hdf5::File, spec: &AnalysisStudy) -> hdf5::Result<SweepLayout> {
-        let root = Root::read(file)?;
-        let sw = spec
-            .sweep
-            .as_ref()
-            .ok_or_else(|| hdf5::Error::from("its study text has no [sweep]"))?;
-        let g = file.group("sweep")?;
-        let cols = |g: &hdf5::Group, name: &str| -> hdf5::Result<usize> {
-            Ok(g.dataset(name)?.shape().get(1).copied().unwrap_or(0))
-        };
-        let units = spec
-            .observables
-            .iter()
-            .map(|o| {
-                let ds = g.dataset(&o.name)?;
-                read_str(&ds, "unit")
-            })
-            .collect::<hdf5::Result<Vec<_>>>()?;
-        let history = match g.group("history") {
-            Ok(h) => cols(&h, "time")?,
-            Err(_) => 0,
-        };
-        Ok(SweepLayout {
-            root,
-            observables: spec.observables.clone(),
-            units,
-            sections: spec.sections.iter().map(|s| s.name.clone()).collect(),
-            parameter: sw.parameter.clone(),
-            unit: sw.unit.clone(),
-            continuation: sw.continuation,
-            kept: cols(&g, "strobe_time")?,
-            history,
-            shape: hybrid::StateShape {
-                dim: cols(&g, "final_state")?,
-                contacts: cols(&g, "final_onset")?,
-                clearances: cols(&g, "final_warned")?,
-            },
-            chaos: crate::measures::chaos::ChaosSpec {
-                lyapunov: spec.lyapunov.clone(),
-                indicators: spec.asked(),
-            },
-            bits: spec.analysis.history_bits(),
-        })
-    }
-}
-
 impl Loaded {
     /// The layout of this study's sweep file, from a probe of job 0 (its flow is built, not run).
     fn layout(&self, sw: &SweepSpec) -> Result<SweepLayout> {
@@ -651,46 +589,6 @@ impl Loaded {
             bits: self.spec.analysis.history_bits(),
         })
     }
-}
-
-fn write_single(file: &hdf5::File, st: &Loaded, r: &JobResult) -> hdf5::Result<()> {
-    let t = &r.trace;
-    let obs = &st.spec.observables;
-    u64_attr(file, "rhs_evals", t.stats.rhs_evals)?;
-    u64_attr(file, "accepted_steps", t.stats.accepted)?;
-    f64_attr(file, "wall_time", r.wall)?;
-    if st.spec.analysis.samples_per_period > 0 {
-        // Written while the run went (SingleHistory).
-        let g = file.group("history")?;
-        describe(
-            &g.dataset("time")?,
-            Some("s"),
-            "sample times over the kept window",
-        )?;
-        for (o, u) in obs.iter().zip(&r.units) {
-            let ds = g.dataset(&o.name)?;
-            describe(&ds, Some(u), &format!("{} over the kept window", o.path))?;
-            str_attr(&ds, "path", &o.path)?;
-            mark_bits(&ds, st.spec.analysis.history_bits())?;
-        }
-    }
-    let g = file.create_group("sections")?;
-    let s0 = g.create_group("strobe")?;
-    write1(
-        &s0,
-        "time",
-        &t.strobe_time,
-        "s",
-        "t0 + phase + k T, one per kept period",
-    )?;
-    obs_datasets(&s0, obs, &r.units, &t.strobe, "at the strobe times")?;
-    for (p, c) in st.planes.iter().zip(&t.crossings) {
-        write_crossings(&g, &p.name, obs, &r.units, &c.time, &c.values)?;
-    }
-    if let Some(c) = &r.chaos {
-        crate::storage::chaos::write_single(file, c)?;
-    }
-    hybrid::write_state(file, &t.final_state)
 }
 
 impl Root {

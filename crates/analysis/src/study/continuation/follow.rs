@@ -67,7 +67,8 @@ use crate::flow::tangent::Tangent;
 use crate::flow::{Flow, Target};
 use crate::measures::lyapunov::tangent_map;
 use crate::measures::periodic::{MapEval, evaluate, map_distance, orbit_of, shoot};
-use crate::study::continuation::branch::*;
+use crate::storage::branches::*;
+use crate::study::continuation::branch::Report;
 use crate::study::continuation::spec::*;
 
 /// A point of the corrector with what the next tangent needs.
@@ -433,7 +434,7 @@ pub fn continuation(
     follow(&ctx, Continuation::default(), None, queue, 0, progress)
 }
 
-/// Goes on with a continuation that stopped before its end (read back with [`read_unfinished`](crate::study::continuation::file::read_unfinished)):
+/// Goes on with a continuation that stopped before its end (read back with [`read_unfinished`](crate::storage::continuation_file::read_unfinished)):
 /// the branch being followed from its last point with the step it had, then the branches still
 /// waiting. With the same settings the points are those an uninterrupted run computes.
 pub fn resume(

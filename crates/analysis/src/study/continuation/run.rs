@@ -7,17 +7,45 @@ use jointplay_solver::state::HybridState;
 
 use crate::Result;
 use crate::flow::Flow;
-use crate::study::continuation::branch::*;
-use crate::study::continuation::file::{snapshot_path, write, write_snapshot};
+use crate::storage::branches::*;
+use crate::storage::continuation_file::{Layout, snapshot_path, write, write_snapshot};
+use crate::study::continuation::branch::Report;
 use crate::study::continuation::follow::*;
 use crate::study::continuation::spec::*;
+
+/// What the continuation's files record of the study `st` ([`Layout`]): its text, its
+/// `[continuation]` table and its observables.
+pub fn layout(st: &crate::study::analysis::load::Loaded) -> Result<Layout<'_>> {
+    let spec = st.spec.continuation.as_ref().ok_or_else(|| {
+        crate::study::spec::invalid(&st.path, "continuation", "no [continuation] table")
+    })?;
+    Ok(Layout {
+        study: &st.text,
+        parameter: &spec.parameter,
+        unit: &spec.unit,
+        from: spec.from,
+        to: spec.to,
+        tolerance: spec.tolerance,
+        locate: spec.settings(None).locate,
+        observables: st
+            .spec
+            .observables
+            .iter()
+            .map(|o| o.name.as_str())
+            .collect(),
+        gap_observable: spec
+            .grazing
+            .as_ref()
+            .and_then(|g| st.spec.observable(&g.observable)),
+    })
+}
 
 /// Where a continuation begins.
 pub enum Begin {
     /// From the study's start after `transient` periods at `from`, or from the `start` state
     /// read before with [`Loaded::continuation_start`](crate::study::analysis::load::Loaded::continuation_start) (then `transient` periods from it, default none).
     Fresh(Option<HybridState>),
-    /// Going on with an unfinished continuation read back with [`read_unfinished`](crate::study::continuation::file::read_unfinished).
+    /// Going on with an unfinished continuation read back with [`read_unfinished`](crate::storage::continuation_file::read_unfinished).
     Resume(Continuation),
 }
 
@@ -67,6 +95,7 @@ pub fn run_into(
     limit: Option<usize>,
     on_point: &mut dyn FnMut(&Report) -> bool,
 ) -> Result<std::result::Result<Continuation, crate::Error>> {
+    let layout = layout(st)?;
     let _lock = crate::storage::lock::Lock::acquire(file)?;
     if matches!(begin, Begin::Fresh(_)) {
         // The state of an earlier continuation into this file is not this one's.
@@ -76,7 +105,7 @@ pub fn run_into(
     let mut write_error = None;
     let res = run_study(st, begin, &mut |r| {
         let go = on_point(r);
-        if let Err(e) = write_snapshot(file, st, &r.snapshot) {
+        if let Err(e) = write_snapshot(file, &layout, &r.snapshot) {
             write_error = Some(e);
             return false;
         }
@@ -86,7 +115,7 @@ pub fn run_into(
     if let Some(e) = write_error {
         return Err(e);
     }
-    write(file, st, res.as_ref())?;
+    write(file, &layout, res.as_ref())?;
     Ok(res)
 }
 

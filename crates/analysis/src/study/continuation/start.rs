@@ -24,76 +24,23 @@ pub(crate) fn read_start(
         .parent()
         .unwrap_or(std::path::Path::new(""))
         .join(&s.file);
-    let file = hdf5::File::open(&path)
-        .map_err(|e| bad("file", format!("cannot open {}: {e}", path.display())))?;
-    let state = match s.branch {
-        None => {
-            if s.point.is_some() {
-                return Err(bad("point", "needs continuation.start.branch".into()));
-            }
-            let complete: u8 = crate::storage::h5::read_attr(&file, "complete").unwrap_or(0);
-            if complete != 1 {
-                return Err(bad(
-                    "file",
-                    format!(
-                        "{} is not a finished run of the program (attribute complete = 1): its last state is where it stopped",
-                        path.display()
-                    ),
-                ));
-            }
-            crate::storage::hybrid::read_state(&file).map_err(|e| {
-                bad(
-                    "file",
-                    format!(
-                        "{} has no final state ({e}); a sweep's file holds one per value: start from a run file or a branch point",
-                        path.display()
-                    ),
-                )
-            })?
-        }
-        Some(b) => {
-            let g = file
-                .group(&format!("continuation/branch_{b}"))
-                .map_err(|_| {
-                    bad(
-                        "branch",
-                        format!("{} has no /continuation/branch_{b}", path.display()),
-                    )
-                })?;
-            let read = |name: &str| crate::storage::h5::read_rows(&g, name);
-            let e = |err: hdf5::Error| bad("branch", format!("{}: {err}", path.display()));
-            let params = read("parameter").map_err(e)?;
-            let n = params.len() as i64;
-            let i = s.point.unwrap_or(-1);
-            let j = if i < 0 { n + i } else { i };
-            if !(0..n).contains(&j) {
-                return Err(bad(
-                    "point",
-                    format!("branch {b} has {n} points: {i} is not one of them"),
-                ));
-            }
-            let j = j as usize;
-            let p = params[j][0];
-            if (p - spec.from).abs() > 1e-9 * (spec.to - spec.from).abs() {
-                return Err(bad(
-                    "point",
-                    format!(
-                        "the point is at parameter {p:e}, continuation.from is {:e}: set from = {p:e}",
-                        spec.from
-                    ),
-                ));
-            }
-            let t: f64 = crate::storage::h5::read_attr(&g, "strobe_time").map_err(e)?;
-            let y = read("state").map_err(e)?.swap_remove(j);
-            let onset = read("onset")
-                .ok()
-                .and_then(|mut o| (o.len() > j).then(|| o.swap_remove(j)))
-                .unwrap_or_default();
-            let mut point = HybridState::new(t, y);
-            point.onset = onset;
-            point
-        }
-    };
+    if s.branch.is_none() && s.point.is_some() {
+        return Err(bad("point", "needs continuation.start.branch".into()));
+    }
+    let (state, parameter) =
+        crate::storage::continuation_file::read_start(&path, s.branch, s.point)
+            .map_err(|(field, m)| bad(field, m))?;
+    if let Some(p) = parameter
+        && (p - spec.from).abs() > 1e-9 * (spec.to - spec.from).abs()
+    {
+        return Err(bad(
+            "point",
+            format!(
+                "the point is at parameter {p:e}, continuation.from is {:e}: set from = {p:e}",
+                spec.from
+            ),
+        ));
+    }
     use crate::flow::tangent::Tangent;
     let dim = jointplay_solver::ode::OdeSystem::dim(flow);
     if state.y.len() != dim {

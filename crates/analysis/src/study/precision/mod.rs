@@ -4,12 +4,13 @@
 //!
 //! * [`spec`]: the `[precision]` table;
 //! * [`measure`]: the runs and their errors ([`Precision`]);
-//! * [`outcome`]: what they measured, its table and its file.
+//! * [`outcome`]: the table of what they measured (the data and its file are
+//!   [`crate::storage::precision_file`]).
 
 pub mod measure;
 pub mod outcome;
 pub mod spec;
 
+pub use crate::storage::precision_file::{Errors, Outcome, RunRecord, is_precision_file};
 pub use measure::{Precision, scene_study};
-pub use outcome::{Errors, Outcome, RunRecord, is_precision_file};
 pub use spec::{FamilySpec, MethodSpec, PrecisionSpec};

@@ -7,7 +7,94 @@ use nalgebra::{Complex, DMatrix};
 
 use crate::Result;
 use crate::measures::periodic::Orbit;
-use crate::study::continuation::branch::*;
+use crate::storage::branches::*;
+
+/// A start state read from the HDF5 file `path` ([`read_start`]): the final state of a finished
+/// run, or point `point` (from the end when negative; default the last) of branch `branch` of
+/// a continuation, with that point's parameter. An error names the field of the start it
+/// concerns ("file", "branch" or "point") and says why.
+pub fn read_start(
+    path: &std::path::Path,
+    branch: Option<usize>,
+    point: Option<i64>,
+) -> std::result::Result<(HybridState, Option<f64>), (&'static str, String)> {
+    let file = hdf5::File::open(path)
+        .map_err(|e| ("file", format!("cannot open {}: {e}", path.display())))?;
+    let Some(b) = branch else {
+        let complete: u8 = crate::storage::h5::read_attr(&file, "complete").unwrap_or(0);
+        if complete != 1 {
+            return Err((
+                "file",
+                format!(
+                    "{} is not a finished run of the program (attribute complete = 1): its last state is where it stopped",
+                    path.display()
+                ),
+            ));
+        }
+        let state = crate::storage::hybrid::read_state(&file).map_err(|e| {
+            (
+                "file",
+                format!(
+                    "{} has no final state ({e}); a sweep's file holds one per value: start from a run file or a branch point",
+                    path.display()
+                ),
+            )
+        })?;
+        return Ok((state, None));
+    };
+    let g = file
+        .group(&format!("continuation/branch_{b}"))
+        .map_err(|_| {
+            (
+                "branch",
+                format!("{} has no /continuation/branch_{b}", path.display()),
+            )
+        })?;
+    let read = |name: &str| crate::storage::h5::read_rows(&g, name);
+    let e = |err: hdf5::Error| ("branch", format!("{}: {err}", path.display()));
+    let params = read("parameter").map_err(e)?;
+    let n = params.len() as i64;
+    let i = point.unwrap_or(-1);
+    let j = if i < 0 { n + i } else { i };
+    if !(0..n).contains(&j) {
+        return Err((
+            "point",
+            format!("branch {b} has {n} points: {i} is not one of them"),
+        ));
+    }
+    let j = j as usize;
+    let t: f64 = crate::storage::h5::read_attr(&g, "strobe_time").map_err(e)?;
+    let y = read("state").map_err(e)?.swap_remove(j);
+    let onset = read("onset")
+        .ok()
+        .and_then(|mut o| (o.len() > j).then(|| o.swap_remove(j)))
+        .unwrap_or_default();
+    let mut state = HybridState::new(t, y);
+    state.onset = onset;
+    Ok((state, Some(params[j][0])))
+}
+
+/// What a continuation's files record of the study that runs it: the study text (a continuation
+/// resumes only with the study that began it), the `[continuation]` table's parameter, range and
+/// tolerances, the observables by name, and which of them is the grazing gap's.
+#[derive(Debug, Clone)]
+pub struct Layout<'a> {
+    /// The study's TOML text.
+    pub study: &'a str,
+    /// The continued parameter's path and SI unit.
+    pub parameter: &'a str,
+    pub unit: &'a str,
+    pub from: f64,
+    pub to: f64,
+    pub tolerance: f64,
+    /// The arclength bracket a special point is located to (parameter units).
+    pub locate: f64,
+    /// The study's observables, in its order.
+    pub observables: Vec<&'a str>,
+    /// The observable whose smallest value along an orbit is the grazing gap, when grazing is
+    /// followed.
+    pub gap_observable: Option<usize>,
+}
 
 /// The file a continuation's state goes to after every point, beside the analysis file `path`
 /// (`out/s.h5` -> `out/s.continuation.h5`): a small HDF5 file with the root attribute `study` and
@@ -25,7 +112,7 @@ pub fn snapshot_path(path: &std::path::Path) -> std::path::PathBuf {
 /// [`snapshot_path`] is then removed.
 pub fn write(
     path: &std::path::Path,
-    st: &crate::study::analysis::load::Loaded,
+    layout: &Layout,
     c: std::result::Result<&Continuation, &crate::Error>,
 ) -> Result<()> {
     use crate::storage::durable;
@@ -35,7 +122,7 @@ pub fn write(
     if file.group("continuation").is_ok() {
         file.unlink("continuation").map_err(&e)?;
     }
-    write_group(&file, &name, st, c)?;
+    write_group(&file, &name, layout, c)?;
     let bytes = crate::storage::h5::image(&file).map_err(&e)?;
     file.close().map_err(&e)?;
     durable::write_new(path, &bytes)?;
@@ -45,21 +132,17 @@ pub fn write(
 /// Writes the state of a continuation that goes on into the file of [`snapshot_path`] of the
 /// analysis file `path`: a new file, read back as [`read_unfinished`] reads it, then moved into
 /// place, so that a kill at any moment leaves the previous point's state or this one's, whole.
-pub fn write_snapshot(
-    path: &std::path::Path,
-    st: &crate::study::analysis::load::Loaded,
-    c: &Continuation,
-) -> Result<()> {
+pub fn write_snapshot(path: &std::path::Path, layout: &Layout, c: &Continuation) -> Result<()> {
     use crate::storage::durable;
     let snap = snapshot_path(path);
     let name = durable::with_suffix(&snap, ".partial");
     let e = crate::storage::h5::h5err(&name);
     let file = crate::storage::h5::create_in_memory(&name).map_err(&e)?;
-    crate::storage::h5::str_attr(&file, "study", &st.text).map_err(&e)?;
+    crate::storage::h5::str_attr(&file, "study", layout.study).map_err(&e)?;
     crate::storage::h5::str_attr(&file, "program_version", env!("CARGO_PKG_VERSION"))
         .map_err(&e)?;
-    write_group(&file, &name, st, Ok(c))?;
-    if c.unfinished.is_some() && read_group(&file, &name, st)?.is_none() {
+    write_group(&file, &name, layout, Ok(c))?;
+    if c.unfinished.is_some() && read_group(&file, &name, layout)?.is_none() {
         return Err(crate::Error::Write {
             file: name.clone(),
             message: "the continuation's state does not read back as written".into(),
@@ -74,21 +157,20 @@ pub fn write_snapshot(
 fn write_group(
     file: &hdf5::File,
     path: &std::path::Path,
-    st: &crate::study::analysis::load::Loaded,
+    layout: &Layout,
     c: std::result::Result<&Continuation, &crate::Error>,
 ) -> Result<()> {
     use crate::storage::h5::{f64_attr, h5err, str_attr, u8_attr_set, u64_attr, write1};
     let e = h5err(path);
-    let spec = st.spec.continuation.as_ref().expect("asked for");
-    let obs = observable_names(st);
+    let obs = &layout.observables;
     (|| -> hdf5::Result<()> {
         let g = file.create_group("continuation")?;
-        str_attr(&g, "parameter", &spec.parameter)?;
-        str_attr(&g, "parameter_unit", &spec.unit)?;
-        f64_attr(&g, "from", spec.from)?;
-        f64_attr(&g, "to", spec.to)?;
-        f64_attr(&g, "tolerance", spec.tolerance)?;
-        f64_attr(&g, "locate", spec.settings(None).locate)?;
+        str_attr(&g, "parameter", layout.parameter)?;
+        str_attr(&g, "parameter_unit", layout.unit)?;
+        f64_attr(&g, "from", layout.from)?;
+        f64_attr(&g, "to", layout.to)?;
+        f64_attr(&g, "tolerance", layout.tolerance)?;
+        f64_attr(&g, "locate", layout.locate)?;
         str_attr(&g, "spurious_reason", crate::measures::periodic::SPURIOUS_REASON)?;
         let c = match c {
             Ok(c) => c,
@@ -105,10 +187,8 @@ fn write_group(
         )?;
         u8_attr_set(&g, "finished", u8::from(c.unfinished.is_none()))?;
         u64_attr(&g, "branches", c.branches.len() as u64)?;
-        let gap_unit = spec
-            .grazing
-            .as_ref()
-            .and_then(|gz| st.spec.observable(&gz.observable))
+        let gap_unit = layout
+            .gap_observable
             .and_then(|i| c.units.get(i))
             .map_or("", String::as_str);
         for (i, b) in c.branches.iter().enumerate() {
@@ -119,10 +199,10 @@ fn write_group(
                         end: "not finished: the continuation stopped here (`jointplay run STUDY --out DIR --resume` goes on)".into(),
                         ..b.clone()
                     };
-                    write_branch(&bg, &open, &obs, &c.units, &spec.unit, gap_unit)?;
+                    write_branch(&bg, &open, obs, &c.units, layout.unit, gap_unit)?;
                     f64_attr(&bg, "next_step", u.step)?;
                 }
-                None => write_branch(&bg, b, &obs, &c.units, &spec.unit, gap_unit)?,
+                None => write_branch(&bg, b, obs, &c.units, layout.unit, gap_unit)?,
             }
         }
         if let Some(u) = &c.unfinished {
@@ -138,7 +218,7 @@ fn write_group(
                     end: "waiting".into(),
                     failed: false,
                 };
-                write_branch(&pg, &b, &obs, &c.units, &spec.unit, gap_unit)?;
+                write_branch(&pg, &b, obs, &c.units, layout.unit, gap_unit)?;
                 u64_attr(&pg, "branch_periods", p.k as u64)?;
                 if let Some((ty, ts)) = &p.switch {
                     let mut v = ty.clone();
@@ -156,20 +236,12 @@ fn write_group(
         write_specials(
             &g.create_group("special")?,
             &c.specials,
-            &obs,
+            obs,
             &c.units,
-            &spec.unit,
+            layout.unit,
         )
     })()
     .map_err(&e)
-}
-
-fn observable_names(st: &crate::study::analysis::load::Loaded) -> Vec<&str> {
-    st.spec
-        .observables
-        .iter()
-        .map(|o| o.name.as_str())
-        .collect()
 }
 
 /// Reads back the continuation of the analysis file `path` when it stopped before its end
@@ -179,23 +251,17 @@ fn observable_names(st: &crate::study::analysis::load::Loaded) -> Vec<&str> {
 ///
 /// The state written after the last point ([`write_snapshot`]) is read when there is one, else
 /// the analysis file's `/continuation`.
-pub fn read_unfinished(
-    path: &std::path::Path,
-    st: &crate::study::analysis::load::Loaded,
-) -> Result<Option<Continuation>> {
+pub fn read_unfinished(path: &std::path::Path, layout: &Layout) -> Result<Option<Continuation>> {
     let snap = snapshot_path(path);
     if snap.exists() {
-        return read_from(&snap, st);
+        return read_from(&snap, layout);
     }
-    read_from(path, st)
+    read_from(path, layout)
 }
 
-fn read_from(
-    path: &std::path::Path,
-    st: &crate::study::analysis::load::Loaded,
-) -> Result<Option<Continuation>> {
+fn read_from(path: &std::path::Path, layout: &Layout) -> Result<Option<Continuation>> {
     let file = hdf5::File::open(path).map_err(crate::storage::h5::h5err(path))?;
-    read_group(&file, path, st)
+    read_group(&file, path, layout)
 }
 
 /// Whether a continuation into the analysis file `path` has begun: its state file
@@ -222,7 +288,7 @@ pub fn is_finished(path: &std::path::Path) -> Result<bool> {
 fn read_group(
     file: &hdf5::File,
     path: &std::path::Path,
-    st: &crate::study::analysis::load::Loaded,
+    layout: &Layout,
 ) -> Result<Option<Continuation>> {
     use crate::storage::h5::{read_attr, read_rows, read_strings};
     let Ok(g) = file.group("continuation") else {
@@ -232,18 +298,18 @@ fn read_group(
         return Ok(None);
     }
     let text = crate::storage::h5::read_str(file, "study").unwrap_or_default();
-    if text != st.text {
+    if text != layout.study {
         return Err(crate::Error::Io {
             file: path.to_path_buf(),
             message: "written by another study text: a continuation goes on only with the study that began it".into(),
         });
     }
-    let obs = observable_names(st);
+    let obs = &layout.observables;
     (|| -> hdf5::Result<Option<Continuation>> {
         let n: u64 = read_attr(&g, "branches")?;
         let mut branches = Vec::new();
         for i in 0..n {
-            branches.push(read_branch(&g.group(&format!("branch_{i}"))?, &obs)?);
+            branches.push(read_branch(&g.group(&format!("branch_{i}"))?, obs)?);
         }
         let step: f64 = match n.checked_sub(1) {
             Some(last) => {
@@ -255,7 +321,7 @@ fn read_group(
         let mut queue = Vec::new();
         for i in 0..read_attr::<u64>(&g, "pending")? {
             let pg = g.group(&format!("pending_{i}"))?;
-            let b = read_branch(&pg, &obs)?;
+            let b = read_branch(&pg, obs)?;
             let switch = match pg.dataset("switch") {
                 Ok(d) => {
                     let mut v: Vec<f64> = d.read_raw()?;
