@@ -21,6 +21,8 @@ use serde::{Deserialize, Serialize};
 use crate::error::{Error, Result};
 use crate::ode::{Integrator, Method};
 
+pub mod units;
+
 /// Fixed-length vectors of the scene format (`[x, y, z]`, a quaternion). TOML's deserializer
 /// hands an array's elements to serde's `[f64; N]` one by one and leaves those after the Nth
 /// unread, so `gravity = [0, -9.81, 0, 5]` was taken as its first three components. These read
@@ -181,8 +183,8 @@ pub struct InertiaSpec {
 pub struct OrientationSpec {
     #[serde(default, deserialize_with = "fixed::option")]
     pub axis: Option<[f64; 3]>,
-    /// Rotation angle about `axis` (rad).
-    #[serde(default)]
+    /// Rotation angle about `axis` (rad; or a string with a unit, `"30 deg"`: [`units`]).
+    #[serde(default, deserialize_with = "units::option_angle")]
     pub angle: Option<f64>,
     #[serde(default, deserialize_with = "fixed::option")]
     pub quaternion: Option<[f64; 4]>,
@@ -290,6 +292,8 @@ pub enum RevoluteModel {
 /// Clearance block of a joint (lengths in m). One struct for every geometry, because the file
 /// does not name the geometry (the joint kind and `model` imply it); the scene compiler sorts it
 /// into a per-geometry enum and refuses the fields of another geometry (`compile/clearance.rs`).
+///
+/// Its lengths (m) may be given with a unit, `radial_clearance = "0.1 mm"` ([`units`]).
 #[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(deny_unknown_fields)]
 pub struct ClearanceSpec {
@@ -297,26 +301,26 @@ pub struct ClearanceSpec {
     #[serde(default)]
     pub model: Option<RevoluteModel>,
     /// Spherical: ball radius.
-    #[serde(default)]
+    #[serde(default, deserialize_with = "units::option_length")]
     pub ball_radius: Option<f64>,
     /// Revolute: journal radius.
-    #[serde(default)]
+    #[serde(default, deserialize_with = "units::option_length")]
     pub journal_radius: Option<f64>,
     /// Revolute: bushing (bearing) inner radius; default journal_radius + radial_clearance.
-    #[serde(default)]
+    #[serde(default, deserialize_with = "units::option_length")]
     pub bushing_radius: Option<f64>,
     /// Radial clearance (socket radius - ball radius, or bushing - journal radius).
-    #[serde(default)]
+    #[serde(default, deserialize_with = "units::option_length")]
     pub radial_clearance: Option<f64>,
     /// Spatial revolute: bushing length L_B.
-    #[serde(default)]
+    #[serde(default, deserialize_with = "units::option_length")]
     pub bushing_length: Option<f64>,
     /// Spatial revolute: outer radius of the bushing end faces R_B2.
-    #[serde(default)]
+    #[serde(default, deserialize_with = "units::option_length")]
     pub face_radius: Option<f64>,
     /// Spatial revolute: axial clearance per side, (L_J - L_B)/2. Absent: no axial contact, the
     /// axial position is held by a constraint row.
-    #[serde(default)]
+    #[serde(default, deserialize_with = "units::option_length")]
     pub axial_clearance: Option<f64>,
     pub normal: NormalSpec,
     #[serde(default)]
@@ -352,13 +356,16 @@ pub struct DriveSpec {
     pub profile: ProfileSpec,
 }
 
-/// A function of time s(t) (m or rad) with its first two derivatives.
+/// A function of time s(t) (m or rad) with its first two derivatives. Its lengths, angles and
+/// rates may be given with a unit (`rate = "120 rpm"`, [`units`]).
 #[derive(Debug, Clone, Deserialize, Serialize)]
 #[serde(tag = "kind", rename_all = "snake_case", deny_unknown_fields)]
 pub enum ProfileSpec {
     /// s = initial + rate t.
     ConstantRate {
+        #[serde(deserialize_with = "units::coordinate")]
         initial: f64,
+        #[serde(deserialize_with = "units::coordinate_rate")]
         rate: f64,
         /// Seconds over which the speed rises from rest to `rate` (0: none; see
         /// [`crate::profile`]).
@@ -367,11 +374,14 @@ pub enum ProfileSpec {
     },
     /// s = mean + amplitude sin(omega t + phase).
     Harmonic {
+        #[serde(deserialize_with = "units::coordinate")]
         mean: f64,
+        #[serde(deserialize_with = "units::coordinate")]
         amplitude: f64,
         /// Angular frequency (rad/s).
+        #[serde(deserialize_with = "units::angular_rate")]
         omega: f64,
-        #[serde(default)]
+        #[serde(default, deserialize_with = "units::angle")]
         phase: f64,
         /// Seconds over which the drive's speed rises from rest to omega (0: none; see
         /// [`crate::profile`]).
@@ -392,8 +402,9 @@ pub enum ProfileSpec {
         cos_amplitude: [f64; 3],
         #[serde(deserialize_with = "fixed::array")]
         sin_amplitude: [f64; 3],
+        #[serde(deserialize_with = "units::angular_rate")]
         omega: f64,
-        #[serde(default)]
+        #[serde(default, deserialize_with = "units::length")]
         offset: f64,
         /// Seconds over which the drive's speed rises from rest to omega (0: none; see
         /// [`crate::profile`]).
@@ -755,7 +766,18 @@ fn unknown_field(message: &str) -> Option<&str> {
 impl SceneSpec {
     /// Parses scene text; `file` names the source in errors.
     pub fn parse(text: &str, file: &Path) -> Result<SceneSpec> {
-        parse_toml(text, file)
+        let spec: SceneSpec = parse_toml(text, file)?;
+        // A unit of the wrong kind for a drive's coordinate (read again from the text: the
+        // values are in SI by now). The text parsed once, so it parses again.
+        if spec.drives.is_empty() {
+            return Ok(spec);
+        }
+        let doc: toml::Table = parse_toml(text, file)?;
+        units::check_drives(&doc, &spec).map_err(|(field, message)| Error::Parse {
+            file: file.to_path_buf(),
+            message: format!("{field}: {message}"),
+        })?;
+        Ok(spec)
     }
 
     /// Reads and parses a scene file.

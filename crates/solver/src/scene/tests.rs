@@ -198,3 +198,69 @@ fn a_field_the_friction_law_does_not_take_names_its_path() {
         "{err}"
     );
 }
+
+/// Angles, rates and lengths given with a unit are read into SI; a unit of the wrong kind for a
+/// drive's coordinate, or an unknown one, is refused naming the field.
+#[test]
+fn units_are_read_into_si_and_checked_against_the_drive() {
+    let path =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../data/scenes/slider-crank-clearance.toml");
+    let base = std::fs::read_to_string(&path).unwrap();
+    let si = SceneSpec::parse(&base, &path).unwrap();
+    let edited = base
+        .replace("rate = 523.5987755982989", r#"rate = "5000 rpm""#)
+        .replace("bushing_radius = 0.0100", r#"bushing_radius = "10 mm""#);
+    let with_units = SceneSpec::parse(&edited, &path).unwrap();
+    let rate = |s: &SceneSpec| match s.drives[0].profile {
+        ProfileSpec::ConstantRate { rate, .. } => rate,
+        _ => panic!("not a constant rate"),
+    };
+    let bushing = |s: &SceneSpec| {
+        s.joints[2]
+            .clearance
+            .as_ref()
+            .and_then(|c| c.bushing_radius)
+            .unwrap()
+    };
+    // The file's rate is 5000 rpm written out to 16 digits, its radius 10 mm: equal to the
+    // converted values to the last bits of the conversion's two roundings.
+    assert!((rate(&with_units) / rate(&si) - 1.0).abs() < 4.0 * f64::EPSILON);
+    assert!((bushing(&with_units) / bushing(&si) - 1.0).abs() < 4.0 * f64::EPSILON);
+
+    // An angle in degrees.
+    let turned = base.replace(
+        "position = [0.17, 0.0, 0.0]",
+        "position = [0.17, 0.0, 0.0]\norientation = { axis = [0.0, 0.0, 1.0], angle = \"90 deg\" }",
+    );
+    let turned = SceneSpec::parse(&turned, &path).unwrap();
+    let angle = turned.bodies[2].orientation.angle.unwrap();
+    assert_eq!(angle, std::f64::consts::FRAC_PI_2);
+
+    // An angular rate on the prismatic guide, a length on the crank, an unknown unit.
+    let on_guide = edited.replace(r#"joint = "crank_pivot""#, r#"joint = "guide""#);
+    let err = SceneSpec::parse(&on_guide, &path).unwrap_err().to_string();
+    assert!(
+        err.contains("drives[0].profile.rate")
+            && err.contains("'motor'")
+            && err.contains("translation"),
+        "{err}"
+    );
+    let length = base.replace("initial = 0.0,", r#"initial = "5 mm","#);
+    let err = SceneSpec::parse(&length, &path).unwrap_err().to_string();
+    assert!(
+        err.contains("drives[0].profile.initial") && err.contains("rotation"),
+        "{err}"
+    );
+    let unknown = base.replace("rate = 523.5987755982989", r#"rate = "5000 rev/min""#);
+    let err = SceneSpec::parse(&unknown, &path).unwrap_err().to_string();
+    assert!(
+        err.contains("rate") && err.contains("unknown unit 'rev/min'"),
+        "{err}"
+    );
+    let wrong = base.replace("bushing_radius = 0.0100", r#"bushing_radius = "10 deg""#);
+    let err = SceneSpec::parse(&wrong, &path).unwrap_err().to_string();
+    assert!(
+        err.contains("bushing_radius") && err.contains("is an angle"),
+        "{err}"
+    );
+}
