@@ -206,10 +206,11 @@ pub fn run_scene(
     }
     println!("wrote        {}", file.display());
     if plots {
-        if written.stride > 1 {
+        if written.bucket > 1 {
             println!(
-                "figures      drawn from one sample in {} (the file holds them all)",
-                written.stride
+                "figures      drawn from the first sample and the farthest excursion of every {} \
+                 (the file holds them all)",
+                written.bucket
             );
         }
         for f in run_figures(out, &model.name, &result)? {

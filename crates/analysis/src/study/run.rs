@@ -22,11 +22,11 @@
 //! contact laws with hysteresis damping read); the file's writer thread evaluates the recorded
 //! quantities from them, beside the integration, to the same values bit for bit (a part the
 //! writer is behind with the integrating thread evaluates itself: `Stream`). Of the streamed
-//! samples it keeps only those the run figures draw ([`crate::storage::run::drawn`]), and of
-//! those every `stride`-th: at most [`FIGURE_SAMPLES`] to `2 * FIGURE_SAMPLES` samples, the
-//! stride doubling whenever twice the bound is reached (sample `j` of the kept ones is sample
-//! `j * stride` of the run, so halving keeps exactly those whose index is a multiple of the new
-//! stride). A run of up to [`FIGURE_SAMPLES`] samples draws every sample, as an in-memory run.
+//! samples it keeps only those the run figures draw ([`crate::storage::run::drawn`]), thinned so
+//! that no excursion is lost: of each bucket of consecutive samples, the first and, per column,
+//! the value farthest from it (a force spike is kept at its height, not skipped), the bucket
+//! doubling whenever `4 FIGURE_SAMPLES` rows are reached ([`FIGURE_SAMPLES`]). A run of up to
+//! `4 FIGURE_SAMPLES` samples draws every sample, as an in-memory run.
 //!
 //! Every run ends with its hybrid state ([`RunResult::final_state`]: the continuous state with
 //! the contact-onset history, the guard's flags and the integrator's memory), written to the run
@@ -76,8 +76,8 @@ pub fn simulate_until(
     )
 }
 
-/// Samples a run written to its file keeps in memory for its figures: between this and twice
-/// this (see the module documentation).
+/// Rows a run written to its file keeps in memory for its figures: between twice and four times
+/// this once it is long (see the module documentation).
 pub const FIGURE_SAMPLES: usize = 10_000;
 
 /// What a run written to its file ([`simulate_to_file`]) leaves besides its [`RunResult`].
@@ -90,8 +90,10 @@ pub struct Written {
     /// The largest constraint drift and velocity drift over all samples, when the scene
     /// records its diagnostics.
     pub max_drift: Option<(f64, f64)>,
-    /// The [`RunResult::recording`] returned with it holds every `stride`-th sample.
-    pub stride: usize,
+    /// The [`RunResult::recording`] returned with it holds, of every bucket of this many
+    /// samples, the first and the farthest excursion (see the module documentation); 1: every
+    /// sample.
+    pub bucket: usize,
 }
 
 /// The states of a block of samples, read on the integrator's dense output: what the writer
@@ -114,22 +116,66 @@ impl States {
     }
 }
 
-/// What a streamed run keeps besides its file: every `stride`-th sample of the channels the
-/// figures draw, and the largest constraint and velocity drift.
+/// What a streamed run keeps besides its file: the channels the figures draw, thinned so that
+/// no excursion is lost, and the largest constraint and velocity drift.
+///
+/// The samples are taken in buckets of `bucket` consecutive samples. A bucket of one sample is
+/// kept as it is; a larger bucket as two rows: its first sample, and per column the value
+/// farthest from the first row's within the bucket (a force spike, a turning point), placed at
+/// the bucket's last sample time. A journal's eccentricity vector is kept whole (the sample
+/// farthest from the first row's, so an orbit shows only positions the journal took). Whenever
+/// the rows reach `4 FIGURE_SAMPLES`, adjacent buckets merge by the same rule and `bucket`
+/// doubles: a figure a thousand pixels wide gets at least ten buckets per pixel column, and the
+/// largest excursion of each of them.
 struct Kept {
     thin: Recording,
     /// Per channel: kept for the figures.
     keep: Vec<bool>,
-    stride: usize,
+    /// Per channel: kept as a vector (one distance over its columns), not column by column.
+    vector: Vec<bool>,
+    /// Samples per bucket.
+    bucket: usize,
+    /// Samples in the last bucket so far (0: the next sample opens a bucket).
+    open: usize,
     /// The channels of the constraint and velocity drift, and their largest values so far.
     drift: Option<([usize; 2], [f64; 2])>,
     /// Samples seen.
     rows: usize,
 }
 
+/// Of the candidate rows `cands` (each a slice of one channel's columns), the index of the one
+/// farthest from `first`: per column when `vector` is false (then one index per column), else
+/// one index for the whole row by its Euclidean distance.
+fn farthest(first: &[f64], cands: &[&[f64]], vector: bool) -> Vec<usize> {
+    let far = |d: &dyn Fn(&[f64]) -> f64| {
+        let mut best = (0, f64::NEG_INFINITY);
+        for (i, c) in cands.iter().enumerate() {
+            let v = d(c);
+            if v > best.1 {
+                best = (i, v);
+            }
+        }
+        best.0
+    };
+    if vector {
+        let i = far(&|c| {
+            c.iter()
+                .zip(first)
+                .map(|(a, b)| (a - b) * (a - b))
+                .sum::<f64>()
+        });
+        vec![i; first.len()]
+    } else {
+        (0..first.len())
+            .map(|k| far(&|c| (c[k] - first[k]).abs()))
+            .collect()
+    }
+}
+
 impl Kept {
     fn new(rec: &Recording) -> Kept {
         let mut thin = rec.clone();
+        thin.time.clear();
         for c in &mut thin.channels {
             c.values = Vec::new();
         }
@@ -138,6 +184,11 @@ impl Kept {
             .iter()
             .map(|c| crate::storage::run::drawn(&c.dataset))
             .collect();
+        let vector = rec
+            .channels
+            .iter()
+            .map(|c| c.dataset.ends_with("/radial_eccentricity"))
+            .collect();
         let at = |d: &str| rec.channels.iter().position(|c| c.dataset == d);
         let drift = at("diagnostics/constraint_drift")
             .zip(at("diagnostics/velocity_drift"))
@@ -145,7 +196,9 @@ impl Kept {
         Kept {
             thin,
             keep,
-            stride: 1,
+            vector,
+            bucket: 1,
+            open: 0,
             drift,
             rows: 0,
         }
@@ -153,7 +206,6 @@ impl Kept {
 
     /// Takes in the next samples of the run.
     fn add(&mut self, rec: &Recording) {
-        let base = self.rows;
         self.rows += rec.time.len();
         if let Some((idx, max)) = &mut self.drift {
             for (m, &i) in max.iter_mut().zip(idx.iter()) {
@@ -164,34 +216,92 @@ impl Kept {
             }
         }
         for (i, &t) in rec.time.iter().enumerate() {
-            if !(base + i).is_multiple_of(self.stride) {
+            self.add_sample(rec, i, t);
+            if self.open == 0 && self.thin.time.len() >= 4 * FIGURE_SAMPLES {
+                self.merge();
+            }
+        }
+    }
+
+    /// Sample `i` (at time `t`) of `rec` into the open bucket, or a new one.
+    fn add_sample(&mut self, rec: &Recording, i: usize, t: f64) {
+        let opening = self.open == 0;
+        if opening {
+            self.thin.time.push(t);
+            if self.bucket > 1 {
+                self.thin.time.push(t);
+            }
+        } else if let Some(last) = self.thin.time.last_mut() {
+            *last = t;
+        }
+        for (((c, th), &keep), &vector) in rec
+            .channels
+            .iter()
+            .zip(&mut self.thin.channels)
+            .zip(&self.keep)
+            .zip(&self.vector)
+        {
+            if !keep {
                 continue;
             }
-            self.thin.time.push(t);
-            for ((c, th), &keep) in rec
-                .channels
-                .iter()
-                .zip(&mut self.thin.channels)
-                .zip(&self.keep)
-            {
-                if keep {
-                    let w = c.width();
-                    th.values.extend_from_slice(&c.values[i * w..(i + 1) * w]);
+            let w = c.width();
+            let sample = &c.values[i * w..(i + 1) * w];
+            if opening {
+                th.values.extend_from_slice(sample);
+                if self.bucket > 1 {
+                    th.values.extend_from_slice(sample);
+                }
+                continue;
+            }
+            let n = th.values.len();
+            let (first, second) = th.values[n - 2 * w..].split_at_mut(w);
+            let pick = farthest(first, &[second, sample], vector);
+            for (k, p) in pick.into_iter().enumerate() {
+                if p == 1 {
+                    second[k] = sample[k];
                 }
             }
         }
-        while self.thin.time.len() >= 2 * FIGURE_SAMPLES {
-            let halve = |v: &[f64], w: usize| -> Vec<f64> {
-                v.chunks_exact(w).step_by(2).flatten().copied().collect()
-            };
-            self.thin.time = halve(&self.thin.time, 1);
-            for c in &mut self.thin.channels {
-                if !c.values.is_empty() {
-                    c.values = halve(&c.values, c.width());
-                }
+        self.open = (self.open + 1) % self.bucket;
+    }
+
+    /// Merges adjacent buckets (see [`Kept`]): the number of rows halves, `bucket` doubles.
+    fn merge(&mut self) {
+        if self.bucket == 1 {
+            // Pairs of single samples are buckets of two already: the first sample, and the
+            // second (the only one there is to be farthest).
+            if self.thin.time.len().is_multiple_of(2) {
+                self.bucket = 2;
             }
-            self.stride *= 2;
+            return;
         }
+        let rows = self.thin.time.len();
+        if !rows.is_multiple_of(4) {
+            return;
+        }
+        let time: Vec<f64> = self
+            .thin
+            .time
+            .chunks_exact(4)
+            .flat_map(|q| [q[0], q[3]])
+            .collect();
+        self.thin.time = time;
+        for (c, &vector) in self.thin.channels.iter_mut().zip(&self.vector) {
+            if c.values.is_empty() {
+                continue;
+            }
+            let w = c.width();
+            let mut out = Vec::with_capacity(c.values.len() / 2);
+            for q in c.values.chunks_exact(4 * w) {
+                let (first, rest) = q.split_at(w);
+                let cands: Vec<&[f64]> = rest.chunks_exact(w).collect();
+                let pick = farthest(first, &cands, vector);
+                out.extend_from_slice(first);
+                out.extend(pick.iter().enumerate().map(|(k, &p)| cands[p][k]));
+            }
+            c.values = out;
+        }
+        self.bucket *= 2;
     }
 }
 
@@ -313,8 +423,8 @@ const PART_ROWS: usize = STREAM_ROWS / 8;
 const WAITING: usize = STREAM_ROWS / PART_ROWS;
 
 /// Where a streamed run's samples go: the states at the sample times to a thread of their own,
-/// which evaluates the recorded quantities from them, writes them to the file and keeps every
-/// `stride`-th sample of the channels the figures draw ([`Kept`]).
+/// which evaluates the recorded quantities from them, writes them to the file and keeps the
+/// channels the figures draw, thinned without losing an excursion ([`Kept`]).
 ///
 /// The integration only reads the states on its dense output (and the contacts' onset history)
 /// and hands each part of [`PART_ROWS`] of them over a channel that holds at most [`WAITING`]
@@ -563,8 +673,9 @@ impl Stream {
 
 /// [`simulate`] that writes the run to `dir/<scene name>.h5` while it goes (layout and values
 /// those of [`crate::storage::run_file::write_run`]; see the module documentation), keeping only what its
-/// figures draw: the returned [`RunResult::recording`] holds every [`Written::stride`]-th sample
-/// of the channels [`crate::storage::run::drawn`] names, and no values of the others. A run
+/// figures draw: the returned [`RunResult::recording`] holds the channels
+/// [`crate::storage::run::drawn`] names, thinned to the first sample and the farthest excursion
+/// of every [`Written::bucket`] samples, and no values of the others. A run
 /// that stops early still finishes its file, marked incomplete (`complete = 0`) with the
 /// samples before the failure.
 pub fn simulate_to_file(
@@ -643,7 +754,7 @@ fn stream(
     let samples = writer.rows();
     let Kept {
         thin,
-        stride,
+        bucket,
         drift,
         ..
     } = kept;
@@ -659,7 +770,7 @@ fn stream(
             path,
             samples,
             max_drift: drift.map(|(_, m)| (m[0], m[1])),
-            stride,
+            bucket,
         },
     ))
 }
@@ -1099,9 +1210,90 @@ mod tests {
         assert_same_datasets(&da, &db);
     }
 
+    /// A long streamed run's figures keep every excursion: of 100 000 samples fed in blocks, the
+    /// kept rows stay within four times the bound, start with the first sample, are values the
+    /// run took, and hold a one-sample spike up and down at its full height (the old every
+    /// n-th sample drew a 92 kN impact as 36 kN).
+    #[test]
+    fn a_long_runs_figures_keep_every_excursion() {
+        let (mut m, state) = model("pendulum.toml");
+        m.settings.end_time = 25.0;
+        let whole = simulate(&m, state, &mut |_| {}).unwrap().recording;
+        let n1 = whole.time.len();
+        let mut long = whole.clone();
+        for k in 1..4 {
+            long.time
+                .extend(whole.time.iter().map(|t| t + 25.0 * k as f64 + 1.0));
+            for (c, w) in long.channels.iter_mut().zip(&whole.channels) {
+                c.values.extend_from_slice(&w.values);
+            }
+        }
+        let n = long.time.len();
+        let pos = long
+            .channels
+            .iter()
+            .position(|c| c.dataset == "bodies/bob/position")
+            .unwrap();
+        let w = long.channels[pos].width();
+        long.channels[pos].values[(2 * n1 + 17) * w + 1] = 1e3;
+        long.channels[pos].values[(3 * n1 + 3) * w + 1] = -1e3;
+        let block = |a: usize, b: usize| {
+            let mut r = long.clone();
+            r.time = long.time[a..b].to_vec();
+            for c in &mut r.channels {
+                let w = c.width();
+                c.values = c.values[a * w..b * w].to_vec();
+            }
+            r
+        };
+        // As a streamed run declares it: its channels, no samples yet.
+        let mut kept = Kept::new(&block(0, 0));
+        for a in (0..n).step_by(STREAM_ROWS) {
+            kept.add(&block(a, (a + STREAM_ROWS).min(n)));
+        }
+        let rows = kept.thin.time.len();
+        assert!(kept.bucket >= 4, "{}", kept.bucket);
+        assert!(
+            (FIGURE_SAMPLES..=4 * FIGURE_SAMPLES + 2).contains(&rows),
+            "{rows}"
+        );
+        assert!(kept.thin.time.windows(2).all(|t| t[0] <= t[1]));
+        for (c, full) in kept.thin.channels.iter().zip(&long.channels) {
+            if c.values.is_empty() {
+                continue;
+            }
+            assert_eq!(c.values.len(), rows * c.width(), "{}", c.dataset);
+            assert_eq!(
+                c.values[..c.width()],
+                full.values[..c.width()],
+                "{}",
+                c.dataset
+            );
+            let took: std::collections::HashSet<u64> =
+                full.values.iter().map(|v| v.to_bits()).collect();
+            assert!(
+                c.values.iter().all(|v| took.contains(&v.to_bits())),
+                "{}",
+                c.dataset
+            );
+        }
+        let y = kept.thin.channels[pos].column(1);
+        assert!(y.contains(&1e3) && y.contains(&-1e3));
+    }
+
+    /// The farthest of candidate rows from a first one: per column, or as a whole vector.
+    #[test]
+    fn the_farthest_row_is_taken_per_column_or_as_a_vector() {
+        let first = [0.0, 0.0];
+        let cands: [&[f64]; 2] = [&[3.0, 0.0], &[-1.0, 2.0]];
+        assert_eq!(farthest(&first, &cands, false), vec![0, 1]);
+        // As a vector: |(3, 0)| = 3 > |(-1, 2)| = 2.24, so the first candidate, whole.
+        assert_eq!(farthest(&first, &cands, true), vec![0, 0]);
+    }
+
     /// A run written while it goes, over several appended blocks, holds the datasets (names,
     /// shapes, values bit for bit) and the attributes of the same run written at its end; what
-    /// it keeps in memory is every `stride`-th sample of the figures' datasets.
+    /// it keeps in memory is every sample of the figures' datasets (it is short).
     #[test]
     fn a_run_written_as_it_goes_is_the_run_written_at_its_end() {
         let (mut m, state) = model("pendulum.toml");
@@ -1139,12 +1331,9 @@ mod tests {
         }
         let complete = |f: &hdf5::File| f.attr("complete").unwrap().read_scalar::<u8>().unwrap();
         assert_eq!((complete(&fa), complete(&fb)), (1, 1));
-        // The figures' samples: every second one, once the bound was passed.
-        assert_eq!(w.stride, 2);
-        let every = |v: &[f64], k: usize| -> Vec<f64> {
-            v.chunks_exact(k).step_by(2).flatten().copied().collect()
-        };
-        assert_eq!(thin.recording.time, every(&whole.recording.time, 1));
+        // The figures' samples: all of them, below four times the bound.
+        assert_eq!(w.bucket, 1);
+        assert_eq!(thin.recording.time, whole.recording.time);
         for (c, full) in thin
             .recording
             .channels
@@ -1152,7 +1341,7 @@ mod tests {
             .zip(&whole.recording.channels)
         {
             if crate::storage::run::drawn(&c.dataset) {
-                assert_eq!(c.values, every(&full.values, c.width()), "{}", c.dataset);
+                assert_eq!(c.values, full.values, "{}", c.dataset);
             } else {
                 assert!(c.values.is_empty(), "{}", c.dataset);
             }
