@@ -58,6 +58,28 @@ fn default_figures(d: &Data) -> Vec<FigureSpec> {
     v
 }
 
+/// `title`, naming the done values a panel leaves out because their `what` is not a number (a
+/// periodic window where the 0-1 test has no K, a value whose Lyapunov run failed): the count
+/// and the parameter range, with `(parameter, value)` per done value.
+fn left_out(title: String, values: impl Iterator<Item = (f64, f64)>, what: &str) -> String {
+    let missing: Vec<f64> = values
+        .filter(|(_, v)| !v.is_finite())
+        .map(|(p, _)| p)
+        .collect();
+    match (missing.first(), missing.last()) {
+        (Some(a), Some(b)) if missing.len() == 1 || a == b => {
+            format!("{title} (no {what} at {})", crate::study::report::num(*a))
+        }
+        (Some(a), Some(b)) => format!(
+            "{title} (no {what} at {} values, {} to {})",
+            missing.len(),
+            crate::study::report::num(*a),
+            crate::study::report::num(*b)
+        ),
+        _ => title,
+    }
+}
+
 /// The chaos panels under a bifurcation diagram: lambda_1 with its 3-standard-error band and the
 /// two-trajectory estimate, and one panel per chaos indicator (K of the 0-1 test); none when the
 /// sweep has no chaos measures.
@@ -72,19 +94,30 @@ fn chaos_panels(d: &Data, x_label: &str, px: f64) -> Vec<Panel> {
             y: rows.iter().map(|r| f(r)).collect(),
         };
         let mut p = Panel::new(
-            "Largest Lyapunov exponent",
+            left_out(
+                "Largest Lyapunov exponent".into(),
+                d.chaos.iter().map(|r| (r[0] * px, r[1])),
+                "lambda_1",
+            ),
             x_label,
             "lambda_1 (1/s)",
-            vec![
-                line("lambda_1 + 3 s.e.", &|r| r[1] + 3.0 * r[2]),
-                line("lambda_1 - 3 s.e.", &|r| r[1] - 3.0 * r[2]),
-                Series {
-                    label: "0".into(),
-                    x: vec![x[0], x[x.len() - 1]],
-                    y: vec![0.0, 0.0],
-                },
-            ],
+            vec![Series {
+                label: String::new(),
+                x: vec![x[0], x[x.len() - 1]],
+                y: vec![0.0, 0.0],
+            }],
         );
+        p.styles.push(crate::figures::plot::LineStyle {
+            color: 5,
+            dashed: true,
+        });
+        p.bands.push(crate::figures::plot::Band {
+            label: "lambda_1 +- 3 s.e.".into(),
+            x: x.clone(),
+            lo: rows.iter().map(|r| r[1] - 3.0 * r[2]).collect(),
+            hi: rows.iter().map(|r| r[1] + 3.0 * r[2]).collect(),
+            color: 0,
+        });
         p.line_width = 1;
         // The two estimates usually agree to the width of a dot: the two-trajectory one is
         // drawn first and larger, the tangent one over it, smaller, so that both show.
@@ -102,7 +135,16 @@ fn chaos_panels(d: &Data, x_label: &str, px: f64) -> Vec<Panel> {
         if finite.is_empty() {
             continue;
         }
-        let mut p = Panel::new(row.title, x_label, row.column, Vec::new());
+        let mut p = Panel::new(
+            left_out(
+                row.title.into(),
+                values.iter().map(|r| (r[0] * px, r[1])),
+                row.column,
+            ),
+            x_label,
+            row.column,
+            Vec::new(),
+        );
         p.y_range = row.range;
         p.points = vec![Series {
             label: row.column.into(),
@@ -223,30 +265,75 @@ fn branches_panel(d: &Data, f: &FigureSpec, y: &str, scale: f64, y_label: String
     p
 }
 
-/// The convergence figure of a single run's Lyapunov exponents.
+/// The convergence figure of a single run's Lyapunov exponents: the running estimates against
+/// the time since the Lyapunov run began, on a logarithmic axis (the estimates settle as 1/t),
+/// the two-trajectory estimate dashed over them (both show where they agree), and the final
+/// lambda_1 with its 3-standard-error band.
 fn convergence_panel(d: &Data) -> Option<Panel> {
-    let (t, h, two) = d.convergence.as_ref()?;
-    let k = h.first().map_or(0, Vec::len);
-    let mut series: Vec<Series> = (0..k)
-        .map(|j| Series {
+    let c = d.convergence.as_ref()?;
+    let k = c.history.first().map_or(0, Vec::len);
+    // The run began `averaging_time` before its last re-orthonormalisation (files without the
+    // attribute: at the first one's time less one interval).
+    let last = c.time.last().copied().unwrap_or(0.0);
+    let begun = if c.averaging_time.is_finite() {
+        last - c.averaging_time
+    } else {
+        match c.time[..] {
+            [a, b, ..] => a - (b - a),
+            _ => 0.0,
+        }
+    };
+    let since: Vec<f64> = c.time.iter().map(|t| t - begun).collect();
+    let mut p = Panel::new(
+        format!("{}: running Lyapunov exponents", d.name),
+        "time since the Lyapunov run began (s)",
+        "exponent (1/s)",
+        Vec::new(),
+    );
+    p.log_x = since.iter().any(|t| *t > 0.0);
+    for j in 0..k {
+        p.series.push(Series {
             label: format!("lambda_{}", j + 1),
-            x: t.clone(),
-            y: h.iter().map(|r| r[j]).collect(),
-        })
-        .collect();
-    if !two.is_empty() {
-        series.push(Series {
-            label: "lambda_1, two trajectories".into(),
-            x: t.clone(),
-            y: two.clone(),
+            x: since.clone(),
+            y: c.history.iter().map(|r| r[j]).collect(),
+        });
+        p.styles.push(crate::figures::plot::LineStyle {
+            color: if j == 0 { 0 } else { j + 1 },
+            dashed: false,
         });
     }
-    Some(Panel::new(
-        format!("{}: running Lyapunov exponents", d.name),
-        "time (s)",
-        "exponent (1/s)",
-        series,
-    ))
+    if !c.two.is_empty() {
+        p.series.push(Series {
+            label: "lambda_1, two trajectories".into(),
+            x: since.clone(),
+            y: c.two.clone(),
+        });
+        p.styles.push(crate::figures::plot::LineStyle {
+            color: 1,
+            dashed: true,
+        });
+    }
+    if let (Some(l1), Some(e1), Some(t0), Some(t1)) = (
+        c.exponents.first(),
+        c.stderr.first(),
+        since.iter().find(|t| **t > 0.0),
+        since.last(),
+    ) && l1.is_finite()
+        && e1.is_finite()
+    {
+        p.bands.push(crate::figures::plot::Band {
+            label: format!(
+                "lambda_1 = {} +- {} (3 s.e.)",
+                crate::study::report::num(*l1),
+                crate::study::report::num(3.0 * e1)
+            ),
+            x: vec![*t0, *t1],
+            lo: vec![l1 - 3.0 * e1; 2],
+            hi: vec![l1 + 3.0 * e1; 2],
+            color: 0,
+        });
+    }
+    Some(p)
 }
 
 fn scaled(v: &[f64], s: f64) -> Vec<f64> {
@@ -659,7 +746,28 @@ pub fn render(path: &Path, out: &Path, formats: &[Format]) -> Result<Vec<PathBuf
 
 #[cfg(test)]
 mod tests {
-    use super::display_scale;
+    use super::{display_scale, left_out};
+
+    #[test]
+    fn a_panel_names_the_values_it_leaves_out() {
+        let t = || "K".to_string();
+        assert_eq!(
+            left_out(t(), [(0.2, 1.0), (0.3, 0.0)].into_iter(), "K"),
+            "K"
+        );
+        assert_eq!(
+            left_out(t(), [(0.2, f64::NAN), (0.3, 0.0)].into_iter(), "K"),
+            "K (no K at 0.2000)"
+        );
+        assert_eq!(
+            left_out(
+                t(),
+                [(0.2, f64::NAN), (0.25, 1.0), (0.3, f64::NAN)].into_iter(),
+                "K"
+            ),
+            "K (no K at 2 values, 0.2000 to 0.3000)"
+        );
+    }
 
     #[test]
     fn small_lengths_are_drawn_in_millimetres() {

@@ -29,6 +29,17 @@ pub struct Series {
     pub y: Vec<f64>,
 }
 
+/// A shaded band between `lo` and `hi` over `x` (an error band), drawn translucent under the
+/// lines and dots, in colour `color` of the line palette.
+#[derive(Debug, Clone, Default)]
+pub struct Band {
+    pub label: String,
+    pub x: Vec<f64>,
+    pub lo: Vec<f64>,
+    pub hi: Vec<f64>,
+    pub color: usize,
+}
+
 /// How one line of a panel is drawn: its colour (an index into the palette) and whether it is
 /// dashed.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
@@ -70,6 +81,8 @@ pub struct Panel {
     pub point_radii: Vec<u32>,
     /// Dot colours of the point series, by index into the dot palette (default in order).
     pub point_colors: Vec<usize>,
+    /// Shaded bands under the lines ([`Band`]).
+    pub bands: Vec<Band>,
 }
 
 impl Default for Panel {
@@ -93,6 +106,7 @@ impl Default for Panel {
             styles: Vec::new(),
             point_radii: Vec::new(),
             point_colors: Vec::new(),
+            bands: Vec::new(),
         }
     }
 }
@@ -219,6 +233,42 @@ where
         .map_err(|e| e.to_string())?;
     let (xr, yr) = (chart.x_range(), chart.y_range());
     let frame = (xr.start, xr.end, yr.start, yr.end);
+    for b in &panel.bands {
+        let c = COLORS[b.color % COLORS.len()];
+        // Clamped to the frame (a polygon is not clipped as a line is); points with an edge
+        // outside `keep` (a log axis) are left out.
+        let clamp = |v: f64, a: f64, z: f64| v.clamp(a.min(z), a.max(z));
+        let at = |x: f64, y: f64| (clamp(x, frame.0, frame.1), clamp(y, frame.2, frame.3));
+        let pts: Vec<(usize, f64)> =
+            b.x.iter()
+                .enumerate()
+                .filter(|(i, x)| {
+                    x.is_finite()
+                        && (!panel.log_x || **x > 0.0)
+                        && [b.lo[*i], b.hi[*i]]
+                            .iter()
+                            .all(|y| y.is_finite() && keep(*y))
+                })
+                .map(|(i, x)| (i, *x))
+                .collect();
+        let outline: Vec<(f64, f64)> = pts
+            .iter()
+            .map(|&(i, x)| at(x, b.lo[i]))
+            .chain(pts.iter().rev().map(|&(i, x)| at(x, b.hi[i])))
+            .collect();
+        if outline.len() < 3 {
+            continue;
+        }
+        let fill = c.mix(0.25).filled();
+        let drawn = chart
+            .draw_series(std::iter::once(Polygon::new(outline, fill)))
+            .map_err(|e| e.to_string())?;
+        if !b.label.is_empty() {
+            drawn
+                .label(&b.label)
+                .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 20, y + 5)], fill));
+        }
+    }
     for (i, s) in panel.series.iter().enumerate() {
         let style = panel.styles.get(i).copied().unwrap_or(LineStyle {
             color: i,
@@ -282,12 +332,13 @@ where
                 .legend(move |(x, y)| Circle::new((x + 10, y), 3, c.filled()));
         }
     }
-    if panel.series.len() + panel.points.len() > 1 && !small {
+    if panel.series.len() + panel.points.len() + panel.bands.len() > 1 && !small {
         let labels: Vec<&str> = panel
             .series
             .iter()
             .chain(&panel.points)
             .map(|s| s.label.as_str())
+            .chain(panel.bands.iter().map(|b| b.label.as_str()))
             .collect();
         chart
             .configure_series_labels()
@@ -461,8 +512,18 @@ fn legend_corner(
         (0.0, w, 0.0, h),
         (1.0 - w, 1.0, 0.5 - h / 2.0, 0.5 + h / 2.0),
     ];
-    for s in panel.series.iter().chain(&panel.points) {
-        for (x, y) in s.x.iter().zip(&s.y) {
+    let edges = panel
+        .bands
+        .iter()
+        .flat_map(|b| [(&b.x, &b.lo), (&b.x, &b.hi)]);
+    let lines = panel
+        .series
+        .iter()
+        .chain(&panel.points)
+        .map(|s| (&s.x, &s.y))
+        .chain(edges);
+    for (xs, ys) in lines {
+        for (x, y) in xs.iter().zip(ys) {
             let (u, v) = (frac(*x, x0, x1, panel.log_x), frac(*y, y0, y1, panel.log_y));
             for (k, b) in boxes.iter().enumerate() {
                 if u >= b.0 && u <= b.1 && v >= b.2 && v <= b.3 {
@@ -534,7 +595,19 @@ where
     DB::ErrorType: 'static,
 {
     register_font();
-    let all = || panel.series.iter().chain(&panel.points);
+    // A band's edges count as lines for the axes' ranges.
+    let edges: Vec<Series> = panel
+        .bands
+        .iter()
+        .flat_map(|b| {
+            [&b.lo, &b.hi].map(|y| Series {
+                label: String::new(),
+                x: b.x.clone(),
+                y: y.clone(),
+            })
+        })
+        .collect();
+    let all = || panel.series.iter().chain(&panel.points).chain(&edges);
     let (mut x0, mut x1) = panel
         .x_range
         .unwrap_or_else(|| range(all().flat_map(|s| s.x.iter().copied())));
@@ -796,6 +869,48 @@ mod tests {
             (log[0][1].0 - 0.5).abs() < 1e-12 && (log[0][1].1 - 10.0).abs() < 1e-9,
             "{log:?}"
         );
+    }
+
+    #[test]
+    fn a_band_is_shaded_inside_the_axes_it_widens() {
+        // A line at 0 and a band from 1 to 3 over it: the fitted y range takes in the band, and
+        // the band's pixels are the palette colour mixed with the white background.
+        let line = Series {
+            label: "line".into(),
+            x: vec![0.0, 1.0],
+            y: vec![0.0, 0.0],
+        };
+        let mut panel = Panel::new("band", "x", "y", vec![line]);
+        panel.bands.push(Band {
+            label: "band".into(),
+            x: vec![0.0, 1.0],
+            lo: vec![1.0, 1.0],
+            hi: vec![3.0, 3.0],
+            color: 0,
+        });
+        let (w, h) = (560u32, 380u32);
+        let mut buf = vec![0u8; (w * h * 3) as usize];
+        let drawn = {
+            let area = BitMapBackend::with_buffer(&mut buf, (w, h)).into_drawing_area();
+            area.fill(&WHITE).unwrap();
+            draw_panel(&area, &panel, false).unwrap()
+        };
+        assert!(drawn.y.0 <= 0.0 && drawn.y.1 >= 3.0, "{drawn:?}");
+        // 25 % of the first palette colour over white, the shade of every band pixel.
+        let c = COLORS[0];
+        let mix = |v: u8| (0.25 * v as f64 + 0.75 * 255.0).round() as i32;
+        let shade = [mix(c.0), mix(c.1), mix(c.2)];
+        let shaded = buf
+            .chunks_exact(3)
+            .filter(|p| {
+                p.iter()
+                    .zip(shade)
+                    .all(|(a, b)| (i32::from(*a) - b).abs() <= 2)
+            })
+            .count();
+        // The band covers about a third of the plotting area's height, over its whole width.
+        let area = (drawn.pixels.0 * drawn.pixels.1) as usize;
+        assert!(shaded > area / 5, "{shaded} of {area}");
     }
 
     #[test]

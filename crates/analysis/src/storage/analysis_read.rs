@@ -37,9 +37,21 @@ pub struct SweepAxis {
     pub values: Vec<f64>,
 }
 
-/// Times of the re-orthonormalisations, the running Lyapunov estimates there (one row per time)
-/// and the two-trajectory estimate.
-pub type Convergence = (Vec<f64>, Vec<Vec<f64>>, Vec<f64>);
+/// A single run's Lyapunov estimates as they converged (`/chaos/lyapunov`).
+#[derive(Debug, Clone, Default)]
+pub struct Convergence {
+    /// Times of the re-orthonormalisations (s).
+    pub time: Vec<f64>,
+    /// The running estimate of every exponent there, one row per time (1/s).
+    pub history: Vec<Vec<f64>>,
+    /// The running two-trajectory estimate of lambda_1 (1/s; empty when not computed).
+    pub two: Vec<f64>,
+    /// The final exponents and their batch-means standard errors (1/s).
+    pub exponents: Vec<f64>,
+    pub stderr: Vec<f64>,
+    /// The time the estimates averaged over (s): the run began that long before the last time.
+    pub averaging_time: f64,
+}
 
 /// One branch of periodic orbits as read back: its parameter, stability and, per observable, the
 /// values at its strobe points (one row per point, one column per drive period).
@@ -352,12 +364,20 @@ impl Recorded {
         if let Ok(l) = file.group("chaos/lyapunov") {
             let t = l.dataset("history_time").and_then(|d| d.read_raw::<f64>());
             let h = read_rows(&l, "history");
-            if let (Ok(t), Ok(h)) = (t, h) {
-                let two = l
-                    .dataset("two_trajectory_history")
-                    .and_then(|d| d.read_raw::<f64>())
-                    .unwrap_or_default();
-                self.convergence = Some((t, h, two));
+            if let (Ok(time), Ok(history)) = (t, h) {
+                let raw = |name: &str| {
+                    l.dataset(name)
+                        .and_then(|d| d.read_raw::<f64>())
+                        .unwrap_or_default()
+                };
+                self.convergence = Some(Convergence {
+                    time,
+                    history,
+                    two: raw("two_trajectory_history"),
+                    exponents: raw("exponents"),
+                    stderr: raw("stderr"),
+                    averaging_time: read_attr(&l, "averaging_time").unwrap_or(f64::NAN),
+                });
             }
         }
         let mut job = RecordedJob {
