@@ -336,6 +336,44 @@ fn convergence_panel(d: &Data) -> Option<Panel> {
     Some(p)
 }
 
+/// The unit an axis recorded in `recorded` is drawn in when a figure scales it by `scale` and
+/// names the unit `figure` (`scale = 1000.0, unit = "mm"`): the figure's unit takes the place of
+/// the SI unit it is a multiple of, so that a velocity recorded in m/s reads "mm/s", not "mm";
+/// an axis in another unit keeps its own with the factor (`rad/s, x 1000`).
+fn scaled_unit(recorded: &str, figure: &str, scale: f64) -> String {
+    // Multiples of SI units a figure may name, and the SI unit of each.
+    const BASES: [(&str, &str); 12] = [
+        ("mm", "m"),
+        ("um", "m"),
+        ("µm", "m"),
+        ("cm", "m"),
+        ("km", "m"),
+        ("mrad", "rad"),
+        ("deg", "rad"),
+        ("kN", "N"),
+        ("mN", "N"),
+        ("ms", "s"),
+        ("kN m", "N m"),
+        ("N mm", "N m"),
+    ];
+    let base = BASES.iter().find(|(f, _)| *f == figure).map(|(_, b)| *b);
+    if base.is_none() && !figure.is_empty() {
+        // A unit of the figure's own (`mm/s`): as written.
+        return figure.to_string();
+    }
+    let rest = base.and_then(|b| {
+        recorded
+            .strip_prefix(b)
+            .filter(|r| r.is_empty() || r.starts_with(['/', ' ', '^', '*']))
+    });
+    match rest {
+        Some(r) => format!("{figure}{r}"),
+        None if scale == 1.0 => recorded.to_string(),
+        None if recorded.is_empty() || recorded == "1" => format!("x {scale}"),
+        None => format!("{recorded}, x {scale}"),
+    }
+}
+
 fn scaled(v: &[f64], s: f64) -> Vec<f64> {
     v.iter().map(|x| x * s).collect()
 }
@@ -467,11 +505,11 @@ impl<'a> Axes<'a> {
     /// The axis label of observable `n`: its name and the unit it is drawn in.
     fn label(&self, n: &str) -> String {
         let shown = if n == self.x { &self.ux } else { &self.uy };
-        let u = shown.clone().unwrap_or_else(|| {
-            self.f
-                .unit
-                .clone()
-                .unwrap_or_else(|| self.d.units.get(n).cloned().unwrap_or_default())
+        let recorded = self.d.units.get(n).cloned().unwrap_or_default();
+        let u = shown.clone().unwrap_or_else(|| match &self.f.unit {
+            Some(fu) => scaled_unit(&recorded, fu, self.s),
+            None if self.s != 1.0 => scaled_unit(&recorded, "", self.s),
+            None => recorded,
         });
         if u.is_empty() || u == "1" {
             n.to_string()
@@ -747,6 +785,23 @@ pub fn render(path: &Path, out: &Path, formats: &[Format]) -> Result<Vec<PathBuf
 #[cfg(test)]
 mod tests {
     use super::{display_scale, left_out};
+
+    #[test]
+    fn a_scaled_axis_names_the_unit_it_is_drawn_in() {
+        use super::scaled_unit;
+        assert_eq!(scaled_unit("m", "mm", 1e3), "mm");
+        assert_eq!(scaled_unit("m/s", "mm", 1e3), "mm/s");
+        assert_eq!(scaled_unit("m/s^2", "mm", 1e3), "mm/s^2");
+        assert_eq!(scaled_unit("rad/s", "deg", 57.3), "deg/s");
+        // A unit the figure's does not scale keeps its own, with the factor.
+        assert_eq!(scaled_unit("N", "mm", 1e3), "N, x 1000");
+        assert_eq!(scaled_unit("1", "", 10.0), "x 10");
+        // "m" is no prefix of "mol": only a whole unit is replaced.
+        assert_eq!(scaled_unit("mol", "mm", 1e3), "mol, x 1000");
+        assert_eq!(scaled_unit("m", "m", 1.0), "m");
+        // A unit the table does not know is the figure's own, as written.
+        assert_eq!(scaled_unit("m/s", "mm/s", 1e3), "mm/s");
+    }
 
     #[test]
     fn a_panel_names_the_values_it_leaves_out() {
