@@ -130,6 +130,11 @@ pub enum Command {
         /// Output directory (default: the file's directory).
         #[arg(long)]
         out: Option<PathBuf>,
+        /// Draw the [[figures]] of this TOML file (the study edited, or a file of figures
+        /// alone) instead of the study's own: a title, a scale or a picked value changed without
+        /// running the study again.
+        #[arg(long)]
+        figures: Option<PathBuf>,
     },
     /// Work-precision: run every integrator over a range of steps or tolerances against a tight
     /// reference; write DIR/<name>.h5, DIR/<name>.md (the table) and the figure DIR/<name>.png

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use jointplay_analysis::figures::plot::{Format, figure};
-use jointplay_analysis::figures::{overlay, redraw};
+use jointplay_analysis::figures::{overlay, redraw, redraw_with};
 use jointplay_analysis::storage::inputs::{Input, Output};
 use jointplay_analysis::study::report::{self, markdown};
 use jointplay_analysis::study::shards::merge;
@@ -70,13 +70,18 @@ fn emit(md: &str, out: Option<&Path>) -> Result<()> {
     Ok(())
 }
 
-pub fn plot_cmd(file: &Path, format: &str, out: Option<&Path>) -> Result<()> {
+pub fn plot_cmd(
+    file: &Path,
+    format: &str,
+    out: Option<&Path>,
+    figures: Option<&Path>,
+) -> Result<()> {
     let dir = out
         .map(Path::to_path_buf)
         .unwrap_or_else(|| file.parent().unwrap_or(Path::new(".")).to_path_buf());
     let formats =
         Format::list(format).with_context(|| format!("--format {format}: use png, svg or both"))?;
-    for f in redraw(file, &dir, &formats)? {
+    for f in redraw_with(file, &dir, &formats, figures)? {
         println!("wrote        {}", f.display());
     }
     Ok(())

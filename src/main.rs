@@ -123,7 +123,12 @@ fn main() {
             },
             submit,
         ),
-        Command::Plot { file, format, out } => files::plot_cmd(&file, &format, out.as_deref()),
+        Command::Plot {
+            file,
+            format,
+            out,
+            figures,
+        } => files::plot_cmd(&file, &format, out.as_deref(), figures.as_deref()),
         Command::Report { file, out } => files::report_cmd(&file, out.as_deref()),
         Command::Precision {
             file,

@@ -2089,3 +2089,58 @@ fn a_journal_started_inside_its_housing_wall_is_reported_by_check_and_run() {
         "{se}"
     );
 }
+
+/// `plot FILE --figures EDITED.toml` draws the edited figures from the file alone, without
+/// running the study again; a figure that does not fit the file's study is refused naming the
+/// edited file and the field.
+#[test]
+fn plot_draws_edited_figures_without_running_again() {
+    let dir = tempfile::tempdir().unwrap();
+    let study = write_scene(dir.path(), "duffing.toml", DUFFING_SWEEP);
+    let out = bin()
+        .arg("run")
+        .arg(&study)
+        .arg("--out")
+        .arg(dir.path())
+        .args(["-q", "--no-plots"])
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{:?}", text(&out));
+    let h5 = dir.path().join("duffing-small.h5");
+    let before = std::fs::read(&h5).unwrap();
+    let plot = |figures: &str| {
+        let f = write_scene(dir.path(), "figures.toml", figures);
+        bin()
+            .arg("plot")
+            .arg(&h5)
+            .arg("--figures")
+            .arg(&f)
+            .args(["--format", "svg", "--out"])
+            .arg(dir.path().join("figs"))
+            .output()
+            .unwrap()
+    };
+    let edited = "[[figures]]\nkind = \"time\"\ny = \"x\"\nname = \"edited\"\n\
+                  title = \"An edited title\"\nvalues = [0.28]\n";
+    let out = plot(edited);
+    let (so, se) = text(&out);
+    assert!(out.status.success(), "{so}\n{se}");
+    let svg = std::fs::read_to_string(dir.path().join("figs/edited.svg")).unwrap();
+    assert!(svg.contains("An edited title"), "{so}");
+    // The study's own default figure was not drawn, and the file is untouched.
+    assert!(!dir.path().join("figs/duffing-small-bifurcation-x.svg").exists());
+    assert_eq!(std::fs::read(&h5).unwrap(), before);
+    let out = plot(&edited.replace("0.28", "0.29"));
+    let (_, se) = text(&out);
+    assert_eq!(out.status.code(), Some(1), "{se}");
+    assert!(
+        se.contains("figures.toml") && se.contains("figures[0].values[0]: 0.29 is not a value"),
+        "{se}"
+    );
+    let out = plot(&edited.replace("y = \"x\"", "y = \"v\""));
+    let (_, se) = text(&out);
+    assert!(
+        se.contains("figures[0].y: 'v' is not an observable of this study"),
+        "{se}"
+    );
+}

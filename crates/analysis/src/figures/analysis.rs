@@ -745,10 +745,54 @@ fn stem(d: &Data, f: &FigureSpec) -> String {
     }
 }
 
-/// Draws every figure of the analysis file `path` into `out` in the given formats; returns the
-/// files written.
-pub fn render(path: &Path, out: &Path, formats: &[Format]) -> Result<Vec<PathBuf>> {
-    let d = read(path)?;
+/// The `[[figures]]` tables of the TOML file `from` (a study file edited, or a file of figures
+/// alone; its other tables are not read), each checked against the study of the analysis file
+/// `path` (`spec`), as the study's own are when it is run: errors name `from` and the field.
+fn figures_from(
+    from: &Path,
+    path: &Path,
+    spec: &crate::study::analysis::spec::AnalysisStudy,
+) -> Result<Vec<FigureSpec>> {
+    #[derive(serde::Deserialize)]
+    struct Figures {
+        #[serde(default)]
+        figures: Vec<FigureSpec>,
+    }
+    let text = std::fs::read_to_string(from).map_err(|e| Error::Io {
+        file: from.to_path_buf(),
+        message: e.to_string(),
+    })?;
+    let figures = jointplay_solver::scene::parse_toml::<Figures>(&text, from)?.figures;
+    if figures.is_empty() {
+        return Err(crate::study::spec::invalid(
+            from,
+            "figures",
+            "no [[figures]] table to draw",
+        ));
+    }
+    let jobs = match spec.sweep {
+        Some(_) => crate::study::analysis::spec::sweep_jobs(spec, path)?,
+        None => Vec::new(),
+    };
+    for (i, f) in figures.iter().enumerate() {
+        spec.check_figure(from, &jobs, i, f)?;
+    }
+    Ok(figures)
+}
+
+/// Draws every figure of the analysis file `path` into `out` in the given formats: the figures
+/// of its study, or those of the TOML file `figures` when given (a title or a scale changed
+/// without running the study again); returns the files written.
+pub fn render(
+    path: &Path,
+    out: &Path,
+    formats: &[Format],
+    figures: Option<&Path>,
+) -> Result<Vec<PathBuf>> {
+    let mut d = read(path)?;
+    if let Some(from) = figures {
+        d.spec.figures = figures_from(from, path, &d.spec)?;
+    }
     std::fs::create_dir_all(out).map_err(|e| Error::Io {
         file: out.to_path_buf(),
         message: format!("cannot create output directory: {e}"),

@@ -42,11 +42,32 @@ use crate::storage::precision_file::Outcome;
 /// named after its study) or of an analysis file ([`analysis::render`]). Any other file is an
 /// error naming it.
 pub fn redraw(file: &Path, dir: &Path, formats: &[Format]) -> Result<Vec<PathBuf>> {
+    redraw_with(file, dir, formats, None)
+}
+
+/// [`redraw`] with the `[[figures]]` of the TOML file `figures` in place of the study's own
+/// (an analysis file's only: a work-precision file has one figure, drawn as it is).
+pub fn redraw_with(
+    file: &Path,
+    dir: &Path,
+    formats: &[Format],
+    figures: Option<&Path>,
+) -> Result<Vec<PathBuf>> {
     if Output::read(file).is_ok_and(|k| k == Output::Precision) {
+        if let Some(f) = figures {
+            return Err(crate::Error::Io {
+                file: f.to_path_buf(),
+                message: format!(
+                    "{} is a work-precision file, whose one figure has no specification to \
+                     edit: plot it without --figures",
+                    file.display()
+                ),
+            });
+        }
         let o = Outcome::read(file)?;
         return precision::draw(&o, &dir.join(&o.name), formats);
     }
-    analysis::render(file, dir, formats)
+    analysis::render(file, dir, formats, figures)
 }
 
 /// One panel overlaying column `component` of `dataset` (1-D datasets ignore it) from each run

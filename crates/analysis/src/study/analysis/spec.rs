@@ -332,3 +332,115 @@ impl AnalysisStudy {
         })
     }
 }
+impl AnalysisStudy {
+    /// Checks `figures[i]` of the study read from `path`, whose sweep has the values `jobs`: its
+    /// picked sweep values, circle and scale, its observables, and
+    /// what its kind needs (x, a [continuation], a [sweep], a section of this study).
+    pub(crate) fn check_figure(
+        &self,
+        path: &Path,
+        jobs: &[(f64, i8)],
+        i: usize,
+        f: &FigureSpec,
+    ) -> Result<()> {
+        self.check_figure_values(path, jobs, i, f)?;
+        if let Some(c) = f.circle {
+            finite(path, &format!("figures[{i}].circle"), c)?;
+        }
+        if let Some(sc) = f.scale
+            && !(sc.is_finite() && sc != 0.0)
+        {
+            return Err(invalid(
+                path,
+                format!("figures[{i}].scale"),
+                format!("{sc}: must be a finite, non-zero factor"),
+            ));
+        }
+        for (what, name) in [("x", f.x.as_deref()), ("y", Some(f.y.as_str()))] {
+            if let Some(n) = name
+                && self.observable(n).is_none()
+            {
+                return Err(invalid(
+                    path,
+                    format!("figures[{i}].{what}"),
+                    format!("'{n}' is not an observable of this study"),
+                ));
+            }
+        }
+        let needs_x = matches!(
+            f.kind,
+            FigureKind::Phase | FigureKind::Poincare | FigureKind::Orbit
+        );
+        if needs_x && f.x.is_none() {
+            return Err(invalid(
+                path,
+                format!("figures[{i}].x"),
+                "this kind needs x",
+            ));
+        }
+        if f.kind == FigureKind::Branches && self.continuation.is_none() {
+            return Err(invalid(
+                path,
+                format!("figures[{i}].kind"),
+                "a branches figure needs a [continuation]",
+            ));
+        }
+        if f.kind == FigureKind::Bifurcation && self.sweep.is_none() {
+            return Err(invalid(
+                path,
+                format!("figures[{i}].kind"),
+                "a bifurcation diagram needs a [sweep]",
+            ));
+        }
+        if let Some(s) = &f.section
+            && !self.sections.iter().any(|p| &p.name == s)
+            && s != "strobe"
+        {
+            return Err(invalid(
+                path,
+                format!("figures[{i}].section"),
+                format!("no section '{s}'"),
+            ));
+        }
+        Ok(())
+    }
+
+    /// Checks the sweep values `figures[i]` picks: each finite, in a study with a sweep, and a
+    /// value of it.
+    fn check_figure_values(
+        &self,
+        path: &Path,
+        jobs: &[(f64, i8)],
+        i: usize,
+        f: &FigureSpec,
+    ) -> Result<()> {
+        for (k, &v) in f.values.iter().enumerate() {
+            finite(path, &format!("figures[{i}].values[{k}]"), v)?;
+            // A panel is drawn for each value the sweep has: one it lacks would be left out
+            // without a word.
+            if self.sweep.is_none() {
+                return Err(invalid(
+                    path,
+                    format!("figures[{i}].values"),
+                    "the study has no [sweep] whose values it could pick",
+                ));
+            }
+            if !jobs
+                .iter()
+                .any(|j| (j.0 - v).abs() <= 1e-9 * v.abs().max(1e-300))
+            {
+                let shown: Vec<String> = jobs.iter().take(8).map(|j| j.0.to_string()).collect();
+                return Err(invalid(
+                    path,
+                    format!("figures[{i}].values[{k}]"),
+                    format!(
+                        "{v} is not a value of the sweep ({}{})",
+                        shown.join(", "),
+                        if jobs.len() > 8 { ", ..." } else { "" }
+                    ),
+                ));
+            }
+        }
+        Ok(())
+    }
+}
