@@ -19,8 +19,10 @@
 //!   when the test ran; or, with no Lyapunov run, K < 0.2;
 //! - *quasi-periodic*: no period found, `|lambda_1| <= 3 s + 1e-3 / T` and K < 0.2 (the 0-1 test
 //!   must have run);
-//! - *undetermined* otherwise (the measures disagree, or the run is too short to tell): say so
-//!   rather than guess.
+//! - *undetermined* otherwise (the measures disagree, or the run is too short to tell), and
+//!   whenever lambda_1's batch estimates changed while it averaged
+//!   ([`crate::measures::lyapunov::drift`]: a transient that settles, the mean of two motions):
+//!   say so rather than guess.
 
 use crate::measures::indicator::{Asked, Reading, Verdict};
 use crate::measures::lyapunov::{LyapunovSpec, Spectrum};
@@ -77,6 +79,10 @@ pub fn strobe_period(series: &[f64]) -> Option<usize> {
 pub fn classify(spectrum: Option<&Spectrum>, readings: &[Reading], period: Option<usize>) -> Class {
     let all = |ok: &dyn Fn(Verdict) -> bool| readings.iter().all(|r| ok(r.verdict));
     let ran = !readings.is_empty();
+    // An estimate that changed while it averaged is the mean of two motions: no class.
+    if spectrum.is_some_and(|s| s.drift.is_some()) {
+        return Class::Undetermined;
+    }
     if let Some(s) = spectrum {
         let (l, e) = (s.exponents[0], s.stderr[0]);
         let e = if e.is_finite() { e } else { f64::INFINITY };
@@ -156,6 +162,7 @@ mod tests {
             stopped_early: false,
             events: 0,
             end: HybridState::new(0.0, vec![]),
+            drift: None,
         }
     }
     /// The 0-1 test's reading of K = `v` (the thresholds of [`crate::measures::zero_one`]).
@@ -196,5 +203,18 @@ mod tests {
             ..k(0.5)
         };
         assert_eq!(classify(None, &[constant], None), Class::Periodic);
+        // An estimate that changed while it averaged has no class, whatever its mean says.
+        let mut moved = spectrum(0.15, 0.002);
+        moved.drift = Some(crate::measures::lyapunov::Drift {
+            time: 100.0,
+            before: 0.3,
+            after: -0.05,
+            statistic: 4.0,
+            critical: 2.0,
+        });
+        assert_eq!(
+            classify(Some(&moved), &[k(0.98)], None),
+            Class::Undetermined
+        );
     }
 }

@@ -34,6 +34,21 @@
 //! first batch end where the standard error of lambda_1 is at most that value (and at least 10
 //! batches are done), or after the requested periods. The running estimate of every exponent at
 //! every re-orthonormalisation is kept (the convergence figure).
+//!
+//! **Drift.** The standard error assumes one stationary motion. A chaotic transient that settles
+//! on a periodic orbit (or a regular stretch that turns chaotic) breaks it: the mean of the
+//! batches then belongs to neither motion. The batch estimates of lambda_1 are tested for one
+//! change of their mean by the CUSUM statistic (Page, Biometrika 41, 1954; Csorgo & Horvath,
+//! *Limit Theorems in Change-Point Analysis*, 1997):
+//!
+//! ```text
+//! D = max_m |S_m| / (s sqrt(B)),   S_m = sum_{i <= m} (x_i - mean x),
+//! ```
+//!
+//! with `s` the pooled standard deviation of the batches within the two segments split at the
+//! maximising `m` (so that a change does not inflate it). Above the critical value
+//! ([`drift`]: 0.1 % false alarms on independent normal batch means of that count) the run
+//! reports [`Drift`]: where the change lies and lambda_1 before and after it.
 
 use jointplay_solver::ode::{self, Events, Flow as Step, Method, OdeSystem, event_count};
 use jointplay_solver::state::HybridState;
@@ -182,6 +197,100 @@ pub struct Spectrum {
     pub events: u64,
     /// The flow's hybrid state at the end.
     pub end: HybridState,
+    /// A change of lambda_1 during the averaging ([`drift`]), when the batches show one.
+    pub drift: Option<Drift>,
+}
+
+/// A change of the largest exponent's batch estimates during the averaging: a transient that
+/// settles, or a motion that changes character (see the module documentation).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Drift {
+    /// The end of the last batch before the change (s).
+    pub time: f64,
+    /// lambda_1 averaged over the batches before and after it (1/s).
+    pub before: f64,
+    pub after: f64,
+    /// The CUSUM statistic and the critical value it exceeds.
+    pub statistic: f64,
+    pub critical: f64,
+}
+
+/// Critical values of the CUSUM statistic of [`drift`] for B batches: the 99.9 % quantile of
+/// its distribution over 40 000 series of B independent standard normal values each (a
+/// simulation; the asymptotic value, the Kolmogorov distribution's, is 1.95). Between the listed
+/// counts the value is interpolated linearly in 1/B; below 10 batches there is no test.
+const CUSUM_CRITICAL: [(f64, f64); 6] = [
+    (10.0, 3.04),
+    (15.0, 2.61),
+    (20.0, 2.31),
+    (40.0, 2.05),
+    (100.0, 1.97),
+    (400.0, 1.95),
+];
+
+/// The critical value of [`drift`]'s statistic for `b` batches; None below 10.
+fn cusum_critical(b: usize) -> Option<f64> {
+    let b = b as f64;
+    let (first, last) = (CUSUM_CRITICAL[0], CUSUM_CRITICAL[CUSUM_CRITICAL.len() - 1]);
+    if b < first.0 {
+        return None;
+    }
+    if b >= last.0 {
+        return Some(last.1);
+    }
+    CUSUM_CRITICAL.windows(2).find_map(|w| {
+        let ((b0, c0), (b1, c1)) = (w[0], w[1]);
+        (b >= b0 && b <= b1).then(|| {
+            let f = (1.0 / b0 - 1.0 / b) / (1.0 / b0 - 1.0 / b1);
+            c0 + f * (c1 - c0)
+        })
+    })
+}
+
+/// One change of mean in the batch estimates `batches` (in time order), batch `i` ending at
+/// `end(i)` (s): the CUSUM test of the module documentation. The first batch is left out (it
+/// holds the tangent vectors' turn towards the growing direction, not the motion), each side of
+/// the change keeps two batches at least, and a change of `floor` (1/s) or less is none (the
+/// classification's floor for a zero exponent). None when there is no change at the 0.1 %
+/// level, or fewer than 10 batches besides the first.
+pub fn drift(batches: &[f64], end: impl Fn(usize) -> f64, floor: f64) -> Option<Drift> {
+    let x = batches.get(1..)?;
+    let b = x.len();
+    let critical = cusum_critical(b)?;
+    if x.iter().any(|v| !v.is_finite()) {
+        return None;
+    }
+    let mean = x.iter().sum::<f64>() / b as f64;
+    let (mut sum, mut best) = (0.0f64, (0usize, 0.0f64));
+    for (i, v) in x[..b - 2].iter().enumerate() {
+        sum += v - mean;
+        if i >= 1 && sum.abs() > best.1 {
+            best = (i + 1, sum.abs());
+        }
+    }
+    let m = best.0;
+    if m == 0 {
+        return None;
+    }
+    let (left, right) = x.split_at(m);
+    let avg = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    let (before, after) = (avg(left), avg(right));
+    if (before - after).abs() <= floor {
+        return None;
+    }
+    let within = left.iter().map(|v| (v - before).powi(2)).sum::<f64>()
+        + right.iter().map(|v| (v - after).powi(2)).sum::<f64>();
+    let s = (within / (b - 2) as f64).sqrt();
+    let statistic = best.1 / (s * (b as f64).sqrt());
+    // Two constant segments (s = 0) at levels further apart than the floor: an infinite
+    // statistic, a change.
+    (statistic > critical).then(|| Drift {
+        time: end(m),
+        before,
+        after,
+        statistic,
+        critical,
+    })
 }
 
 impl Spectrum {
@@ -693,6 +802,11 @@ pub fn spectrum_until<F: Tangent>(
         rhs_evals,
         stopped_early,
         events,
+        drift: drift(
+            &batches[0],
+            |i| t_start + ((i + 1) * batch) as f64 * interval,
+            1e-3 / period,
+        ),
     })
 }
 
@@ -814,4 +928,70 @@ fn second_start<F: Tangent>(
     }
     g.prepare(&s2)?;
     Ok(s2.y)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::{cusum_critical, drift, pseudo_random};
+
+    /// `n` standard normal values (Box-Muller on the pseudo-random uniforms of `seed`).
+    fn normals(seed: u64, n: usize) -> Vec<f64> {
+        let u = pseudo_random(seed, 2 * n);
+        u.chunks_exact(2)
+            .map(|p| {
+                let (a, b) = (p[0] + 0.5, p[1] + 0.5);
+                (-2.0 * (1.0f64 - a).ln()).sqrt() * (std::f64::consts::TAU * b).cos()
+            })
+            .collect()
+    }
+
+    #[test]
+    fn stationary_batches_rarely_drift() {
+        // 4000 stationary series per batch count, at the 0.1 % level: 4 false alarms expected;
+        // 16 is beyond the binomial's 99.99 % quantile (mean 4, sd 2), so a test that fails
+        // here has critical values too small for that count.
+        for b in [10, 14, 20, 30, 40, 100] {
+            let alarms = (0..4000u64)
+                .filter(|s| {
+                    drift(&normals(s * 1000 + b as u64, b + 1), |i| i as f64, 0.0).is_some()
+                })
+                .count();
+            assert!(alarms <= 16, "{b} batches: {alarms} false alarms in 4000");
+        }
+        assert_eq!(cusum_critical(9), None);
+        assert_eq!(cusum_critical(10), Some(3.04));
+        assert_eq!(cusum_critical(1000), Some(1.95));
+        let c = cusum_critical(30).unwrap();
+        assert!(c < 2.31 && c > 2.05, "{c}");
+    }
+
+    #[test]
+    fn a_transient_that_settles_is_a_drift_with_its_time_and_both_values() {
+        // 30 batches of a chaotic transient (0.2 1/s) then 30 of the periodic orbit it settles on
+        // (-0.05 1/s), each with a scatter of 0.02; the first batch (the tangent vectors
+        // turning) far off, and left out.
+        let noise = normals(7, 60);
+        let mut x: Vec<f64> = (0..60)
+            .map(|i| if i < 30 { 0.2 } else { -0.05 } + 0.02 * noise[i])
+            .collect();
+        x[0] = 5.0;
+        let d = drift(&x, |i| 10.0 * (i + 1) as f64, 1e-3).expect("a drift");
+        assert_eq!(d.time, 300.0);
+        // Each mean of 30 batches of scatter 0.02 is within 4 standard errors (0.015).
+        assert!(
+            (d.before - 0.2).abs() < 0.015 && (d.after + 0.05).abs() < 0.015,
+            "{d:?}"
+        );
+        assert!(d.statistic > d.critical);
+        // Two exact plateaus; one constant level after a first batch far off (a periodic
+        // orbit); a change below the floor; too few batches.
+        let steps: Vec<f64> = (0..20).map(|i| if i < 5 { 1.0 } else { 0.0 }).collect();
+        assert_eq!(drift(&steps, |i| i as f64, 1e-3).map(|d| d.time), Some(4.0));
+        let mut periodic = vec![-0.0855; 40];
+        periodic[0] = -0.07;
+        assert!(drift(&periodic, |i| i as f64, 1e-3).is_none());
+        let small: Vec<f64> = (0..40).map(|i| if i < 20 { 1e-4 } else { 0.0 }).collect();
+        assert!(drift(&small, |i| i as f64, 1e-3).is_none());
+        assert!(drift(&x[..10], |i| i as f64, 1e-3).is_none());
+    }
 }

@@ -60,6 +60,18 @@ pub(crate) fn write_single(file: &hdf5::File, c: &Chaos) -> hdf5::Result<()> {
         if let Some(d) = s.mean_divergence {
             f64_attr(&l, "mean_divergence", d)?;
         }
+        // A change of lambda_1 while it averaged (crate::measures::lyapunov::drift): where, and
+        // the two means.
+        if let Some(d) = &s.drift {
+            f64_attr(&l, "drift_time", d.time)?;
+            f64_attr(&l, "lambda_1_before", d.before)?;
+            f64_attr(&l, "lambda_1_after", d.after)?;
+            f64_attr(&l, "drift_statistic", d.statistic)?;
+            f64_attr(&l, "drift_critical", d.critical)?;
+        }
+        // Where the Lyapunov run left the trajectory (it goes on from the analysis run's end):
+        // a run continued from here starts on what the motion settled to.
+        crate::storage::hybrid::write_state(&l.create_group("end")?, &s.end)?;
         if let Some((v, e, h)) = &s.two_trajectory {
             f64_attr(&l, "two_trajectory", *v)?;
             f64_attr(&l, "two_trajectory_stderr", *e)?;
@@ -191,6 +203,20 @@ pub fn summary(path: &std::path::Path) -> crate::Result<Vec<String>> {
                 crate::storage::h5::read_attr::<f64>(&l, "period"),
             ) {
                 out.push(format!("averaged     {t:.6} s ({:.1} periods)", t / p));
+            }
+            let at = |n: &str| crate::storage::h5::read_attr::<f64>(&l, n);
+            if let (Ok(t), Ok(a), Ok(b), Ok(d), Ok(c)) = (
+                at("drift_time"),
+                at("lambda_1_before"),
+                at("lambda_1_after"),
+                at("drift_statistic"),
+                at("drift_critical"),
+            ) {
+                out.push(format!(
+                    "drift        lambda_1 changes near t = {t:.6} s: {a:.4} 1/s before, {b:.4} \
+                     after (CUSUM {d:.2} > {c:.2}): not one motion; the value after is that of \
+                     the motion it settled to (state at the end: /chaos/lyapunov/end)"
+                ));
             }
             if let (Ok(v), Ok(s)) = (
                 crate::storage::h5::read_attr::<f64>(&l, "two_trajectory"),
