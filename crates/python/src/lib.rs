@@ -939,6 +939,44 @@ fn failure(o: &Outcome, f: &str) -> PyErr {
     err(m)
 }
 
+/// The study `text` (read from `path`) with its `study.scene` replaced by `scene`, written to
+/// `out/<study name>.scene.toml` (whole, or not at all) and named by its absolute path.
+fn with_scene(
+    text: &str,
+    path: &std::path::Path,
+    scene: &Scene,
+    out: &std::path::Path,
+) -> PyResult<String> {
+    let mut table: Table = text.parse().map_err(|e: toml::de::Error| {
+        err(format!("{}: {}", path.display(), e.to_string().trim_end()))
+    })?;
+    let study = table
+        .get_mut("study")
+        .and_then(Value::as_table_mut)
+        .ok_or_else(|| err(format!("{}: study: no [study] table", path.display())))?;
+    if !study.contains_key("scene") {
+        return Err(err(format!(
+            "{}: study.scene: the study names no scene for `scene` to replace (a study of a \
+             built-in system, or a work-precision scene run)",
+            path.display()
+        )));
+    }
+    let name = study
+        .get("name")
+        .and_then(Value::as_str)
+        .unwrap_or("study")
+        .to_string();
+    let scene_text = scene.data().current_text()?;
+    std::fs::create_dir_all(out).map_err(|e| err(format!("{}: {e}", out.display())))?;
+    let file = out.join(format!("{name}.scene.toml"));
+    jointplay_analysis::storage::durable::write_new(&file, scene_text.as_bytes()).map_err(err)?;
+    let file = file
+        .canonicalize()
+        .map_err(|e| err(format!("{}: {e}", file.display())))?;
+    study.insert("scene".into(), Value::String(file.display().to_string()));
+    toml::to_string(&table).map_err(|e| err(format!("{}: {e}", path.display())))
+}
+
 /// Runs a study as ``jointplay run STUDY --out OUT`` does (as ``jointplay precision`` with
 /// ``precision=True``: an analysis study with or without a ``[precision]`` table, or a scene)
 /// and returns a ``StudyResult`` with the HDF5 file loaded. The program and this function call
@@ -955,8 +993,12 @@ fn failure(o: &Outcome, f: &str) -> PyErr {
 /// program does. Ctrl-C stops cleanly: a sweep keeps its finished values (``resume=True`` later
 /// runs the rest), a continuation its points, and a single run is written with what it
 /// computed, marked incomplete; ``jointplay.Interrupted`` then carries the result.
+///
+/// ``scene`` (a ``Scene``, edited in memory or not) takes the place of the scene the study names
+/// (``study.scene``): it is written to ``OUT/<study name>.scene.toml`` and the study runs on that
+/// file, so that the study text the result keeps names a scene that exists.
 #[pyfunction]
-#[pyo3(signature = (source, out = PathBuf::from("out"), threads = None, progress = true, resume = false, max_jobs = None, plots = false, precision = false))]
+#[pyo3(signature = (source, out = PathBuf::from("out"), threads = None, progress = true, resume = false, max_jobs = None, plots = false, precision = false, scene = None))]
 #[allow(clippy::too_many_arguments)]
 fn run_study(
     py: Python<'_>,
@@ -968,6 +1010,7 @@ fn run_study(
     max_jobs: Option<usize>,
     plots: bool,
     precision: bool,
+    scene: Option<Py<Scene>>,
 ) -> PyResult<StudyResult> {
     // The arguments first: a bad thread count is refused whatever the source.
     let pool = pool(threads)?;
@@ -986,6 +1029,10 @@ fn run_study(
             "{}: cannot read: no such file",
             source.display()
         )));
+    };
+    let text = match &scene {
+        Some(sc) => with_scene(&text, &path, sc.get(), &out)?,
+        None => text,
     };
     let tally = Mutex::new(Tally::default());
     let shown = Mutex::new(Shown::default());

@@ -381,3 +381,34 @@ def test_a_scene_is_used_from_another_thread_while_it_runs():
     assert errors == []
     assert run.complete
     assert scene["bodies.bob.mass"] == 40.0
+
+
+def test_a_study_runs_on_a_scene_edited_in_memory(tmp_path):
+    """`run_study(..., scene=Scene)` runs the study on the edited scene, written beside the
+    results: the same values as the same edit made by the study's `set`."""
+    scene = jointplay.load_scene(SCENES / "slider-crank-clearance.toml")
+    scene["solver.periods"] = 0.4
+    scene["joints.piston_pin.clearance.bushing_radius"] = 0.00975
+    study = tmp_path / "base.toml"
+    study.write_text(f"""
+[study]
+name = "in-memory"
+scene = "{SCENES / 'slider-crank-clearance.toml'}"
+
+[[cases]]
+label = "edited"
+""")
+    res = jointplay.run_study(study, out=tmp_path / "mem", progress=False, scene=scene)
+    written = tmp_path / "mem" / "in-memory.scene.toml"
+    assert written.exists() and res.complete
+    edited = tmp_path / "set.toml"
+    edited.write_text(study.read_text().replace(
+        "\n\n[[cases]]",
+        '\nset = { "solver.periods" = 0.4, '
+        '"joints.piston_pin.clearance.bushing_radius" = 0.00975 }\n\n[[cases]]'))
+    ref = jointplay.run_study(edited, out=tmp_path / "set", progress=False)
+    for d in ("time", "joints/piston_pin/normal_force", "bodies/slider/position"):
+        assert np.array_equal(res[f"cases/edited/{d}"], ref[f"cases/edited/{d}"]), d
+    # A study of a built-in system has no scene to replace.
+    with pytest.raises(jointplay.JointplayError, match="study.scene"):
+        jointplay.run_study(SWEEP, out=tmp_path / "sys", progress=False, scene=scene)

@@ -182,7 +182,13 @@ pub fn check_drives(doc: &toml::Table, spec: &super::SceneSpec) -> Result<(), (S
             match joint.kind {
                 JointKind::Revolute => Some(DriveCoordinate::Rotation),
                 JointKind::Prismatic => Some(DriveCoordinate::Translation),
-                _ => None,
+                // Cylindrical joints name their coordinate; the others take no drive (the
+                // compiler says so).
+                JointKind::Cylindrical
+                | JointKind::Spherical
+                | JointKind::Universal
+                | JointKind::Planar
+                | JointKind::Fixed => None,
             }
         });
         let Some(coordinate) = coordinate else {
