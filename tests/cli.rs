@@ -1859,20 +1859,25 @@ joints = ["piston_pin", "nope"]
 }
 
 /// `plot` panicked on a sweep file whose /sweep/done was shorter than /sweep/parameter.
-#[test]
-fn plot_of_a_sweep_file_with_a_short_done_dataset_names_the_file() {
-    let dir = tempfile::tempdir().unwrap();
-    let study = write_scene(dir.path(), "duffing.toml", DUFFING_SWEEP);
+/// The small Duffing sweep ([`DUFFING_SWEEP`]) run into `dir` without figures: its file.
+fn small_sweep_file(dir: &Path) -> PathBuf {
+    let study = write_scene(dir, "duffing.toml", DUFFING_SWEEP);
     let out = bin()
         .arg("run")
         .arg(&study)
         .arg("--out")
-        .arg(dir.path())
+        .arg(dir)
         .args(["-q", "--no-plots"])
         .output()
         .unwrap();
     assert!(out.status.success(), "{:?}", text(&out));
-    let h5 = dir.path().join("duffing-small.h5");
+    dir.join("duffing-small.h5")
+}
+
+#[test]
+fn plot_of_a_sweep_file_with_a_short_done_dataset_names_the_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let h5 = small_sweep_file(dir.path());
     {
         let f = hdf5::File::open_rw(&h5).unwrap();
         let g = f.group("sweep").unwrap();
@@ -2096,17 +2101,7 @@ fn a_journal_started_inside_its_housing_wall_is_reported_by_check_and_run() {
 #[test]
 fn plot_draws_edited_figures_without_running_again() {
     let dir = tempfile::tempdir().unwrap();
-    let study = write_scene(dir.path(), "duffing.toml", DUFFING_SWEEP);
-    let out = bin()
-        .arg("run")
-        .arg(&study)
-        .arg("--out")
-        .arg(dir.path())
-        .args(["-q", "--no-plots"])
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{:?}", text(&out));
-    let h5 = dir.path().join("duffing-small.h5");
+    let h5 = small_sweep_file(dir.path());
     let before = std::fs::read(&h5).unwrap();
     let plot = |figures: &str| {
         let f = write_scene(dir.path(), "figures.toml", figures);
@@ -2128,7 +2123,11 @@ fn plot_draws_edited_figures_without_running_again() {
     let svg = std::fs::read_to_string(dir.path().join("figs/edited.svg")).unwrap();
     assert!(svg.contains("An edited title"), "{so}");
     // The study's own default figure was not drawn, and the file is untouched.
-    assert!(!dir.path().join("figs/duffing-small-bifurcation-x.svg").exists());
+    assert!(
+        !dir.path()
+            .join("figs/duffing-small-bifurcation-x.svg")
+            .exists()
+    );
     assert_eq!(std::fs::read(&h5).unwrap(), before);
     let out = plot(&edited.replace("0.28", "0.29"));
     let (_, se) = text(&out);
