@@ -21,8 +21,8 @@
 //!   must have run);
 //! - *undetermined* otherwise (the measures disagree, or the run is too short to tell), and
 //!   whenever lambda_1's batch estimates changed while it averaged
-//!   ([`crate::measures::lyapunov::drift`]: a transient that settles, the mean of two motions):
-//!   say so rather than guess.
+//!   ([`crate::measures::lyapunov::drift`]: a transient that settles, the mean of two motions)
+//!   and no period was found: say so rather than guess.
 
 use crate::measures::indicator::{Asked, Reading, Verdict};
 use crate::measures::lyapunov::{LyapunovSpec, Spectrum};
@@ -79,8 +79,11 @@ pub fn strobe_period(series: &[f64]) -> Option<usize> {
 pub fn classify(spectrum: Option<&Spectrum>, readings: &[Reading], period: Option<usize>) -> Class {
     let all = |ok: &dyn Fn(Verdict) -> bool| readings.iter().all(|r| ok(r.verdict));
     let ran = !readings.is_empty();
-    // An estimate that changed while it averaged is the mean of two motions: no class.
-    if spectrum.is_some_and(|s| s.drift.is_some()) {
+    // An estimate that changed while it averaged is the mean of two motions: no class, unless
+    // the strobe series repeats (the motion had settled before: a change of the batch estimates
+    // is then that of the tangent vectors on the orbit, as the rotation of a complex pair of
+    // multipliers gives).
+    if period.is_none() && spectrum.is_some_and(|s| s.drift.is_some()) {
         return Class::Undetermined;
     }
     if let Some(s) = spectrum {

@@ -213,9 +213,10 @@ pub fn summary(path: &std::path::Path) -> crate::Result<Vec<String>> {
                 at("drift_critical"),
             ) {
                 out.push(format!(
-                    "drift        lambda_1 changes near t = {t:.6} s: {a:.4} 1/s before, {b:.4} \
-                     after (CUSUM {d:.2} > {c:.2}): not one motion; the value after is that of \
-                     the motion it settled to (state at the end: /chaos/lyapunov/end)"
+                    "drift        lambda_1's batch estimates change near t = {t:.6} s: {a:.4} 1/s \
+                     before, {b:.4} after (CUSUM {d:.2} > {c:.2}); unless the strobe points \
+                     repeat, not one motion: the value after is that of the motion it settled \
+                     to (state at the end: /chaos/lyapunov/end)"
                 ));
             }
             if let (Ok(v), Ok(s)) = (
