@@ -245,7 +245,7 @@ fn write_group(
 }
 
 /// Reads back the continuation of the analysis file `path` when it stopped before its end
-/// (`finished = 0`, written by [`write()`] from a [`Report`]'s snapshot or an interrupted run): the
+/// (`finished = 0`, written by [`write()`] from a [`Report`](crate::study::continuation::branch::Report)'s snapshot or an interrupted run): the
 /// branches, the special points and where it stands. None when the file has no continuation or
 /// a finished one.
 ///
