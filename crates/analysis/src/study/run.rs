@@ -255,10 +255,19 @@ impl Kept {
             }
             let n = th.values.len();
             let (first, second) = th.values[n - 2 * w..].split_at_mut(w);
-            let pick = farthest(first, &[second, sample], vector);
-            for (k, p) in pick.into_iter().enumerate() {
-                if p == 1 {
-                    second[k] = sample[k];
+            // The rule of `farthest` for two candidates, without its allocation: this runs for
+            // every sample of every drawn channel on the writer thread.
+            let d = |a: f64, b: f64| (a - b) * (a - b);
+            if vector {
+                let dist = |r: &[f64]| r.iter().zip(&*first).map(|(a, b)| d(*a, *b)).sum::<f64>();
+                if dist(sample) > dist(second) {
+                    second.copy_from_slice(sample);
+                }
+            } else {
+                for ((s2, &x), &f) in second.iter_mut().zip(sample).zip(&*first) {
+                    if d(x, f) > d(*s2, f) {
+                        *s2 = x;
+                    }
                 }
             }
         }
