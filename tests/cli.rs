@@ -2053,12 +2053,12 @@ fn a_sweep_writes_its_table_and_report_prints_it() {
     assert!(o.status.success(), "{:?}", text(&o));
     assert_eq!(text(&o).0, md);
 }
-
-/// A start whose journal lies inside its housing's wall (the assembly closes no loop through a
-/// clearance joint): `check` reports the joint, the depth and the force, and `run` warns of it
-/// at t = 0; the tutorial's four-bar, started right, gets no such line.
+/// A scene whose poses leave a clearance joint off its housing centre starts closed: `check`
+/// says the joint was assembled as its ideal joint and how far the open start was, and no
+/// journal starts inside a wall. With `start = "free"` the declared poses decide, and the
+/// journal inside the wall is a warning of `check` and of the run at t = 0.
 #[test]
-fn a_journal_started_inside_its_housing_wall_is_reported_by_check_and_run() {
+fn a_journal_off_its_housing_starts_closed_and_a_free_one_inside_its_wall_is_reported() {
     let dir = tempfile::tempdir().unwrap();
     let good = std::fs::read_to_string(
         PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("book/src/tutorial/four-bar.toml"),
@@ -2066,24 +2066,42 @@ fn a_journal_started_inside_its_housing_wall_is_reported_by_check_and_run() {
     .unwrap();
     // The rocker turned by about 0.4 degrees: its pin end moves 0.74 mm, past the 0.25 mm
     // clearance.
-    let bad = good.replace(
+    let off = good.replace(
         "orientation = { x = [-0.05, 0.12, 0.0], y = [-0.12, -0.05, 0.0] }",
         "orientation = { x = [-0.0492, 0.12, 0.0], y = [-0.12, -0.0492, 0.0] }",
     );
-    assert_ne!(good, bad, "the tutorial's rocker orientation moved");
+    assert_ne!(good, off, "the tutorial's rocker orientation moved");
     // A tenth of a turn is enough to start: the stiff strike that follows is slow to integrate.
-    let bad = bad.replace("periods = 5 ", "periods = 0.1 ");
-    assert!(bad.contains("periods = 0.1 "));
-    let (g, b) = (
+    let off = off.replace("periods = 5 ", "periods = 0.1 ");
+    assert!(off.contains("periods = 0.1 "));
+    let free = off.replace(
+        "friction = { law = \"ambrosio\"",
+        "start = \"free\"\nfriction = { law = \"ambrosio\"",
+    );
+    assert_ne!(free, off, "the tutorial's friction line moved");
+    let (g, c, b) = (
         study_file(dir.path(), "good", &good),
-        study_file(dir.path(), "bad", &bad),
+        study_file(dir.path(), "closed", &off),
+        study_file(dir.path(), "bad", &free),
     );
     let check = |p: &Path| text(&bin().arg("check").arg(p).output().unwrap()).0;
-    assert!(!check(&g).contains("start        warning"));
+    let so = check(&g);
+    assert!(
+        !so.contains("start        warning")
+            && so.contains("start        clearance joints already closed at the assembled start, kept as it is: coupler_pin (concentric)"),
+        "{so}"
+    );
+    let so = check(&c);
+    assert!(
+        !so.contains("start        warning")
+            && so.contains("start        clearance joints closed as ideal joints, then released: coupler_pin (concentric); the start assembled without closing them was 6.84e-4 (m, rad)"),
+        "{so}"
+    );
     let so = check(&b);
     assert!(
         so.contains("start        warning: clearance joint 'coupler_pin', contact 'radial': the journal starts 4.90")
-            && so.contains("m inside the housing's wall"),
+            && so.contains("m inside the housing's wall")
+            && !so.contains("start        clearance joints"),
         "{so}"
     );
     let o = run_quietly(&b, &dir.path().join("out"));

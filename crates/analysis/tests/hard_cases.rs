@@ -98,7 +98,8 @@ fn position_gap(a: &Recording, b: &Recording) -> f64 {
 /// The ball of the spherical cases: 1 kg, radius 15 mm, in a socket fixed to the ground with
 /// radial clearance `c`; `body` adds initial-state lines to the ball, `normal` is the normal
 /// law, `extra` more clearance fields, `top` scene-level lines (gravity), `solver` the solver
-/// table's lines.
+/// table's lines. The joint starts `free`: these cases place and launch the ball themselves, which
+/// a closed start (the ball assembled concentric and at rest in the socket) would undo.
 fn ball(c: f64, body: &str, normal: &str, extra: &str, top: &str, solver: &str) -> String {
     format!(
         r#"
@@ -121,7 +122,7 @@ body_a = "ground"
 body_b = "ball"
 point_a = "O"
 point_b = "C"
-clearance = {{ ball_radius = 0.015, radial_clearance = {c}, normal = {normal}{extra} }}
+clearance = {{ ball_radius = 0.015, radial_clearance = {c}, normal = {normal}, start = "free"{extra} }}
 
 [solver]
 {solver}
@@ -520,6 +521,7 @@ bushing_length = 0.18
 face_radius = 0.014
 axial_clearance = 3e-4
 normal = {{ law = "lankarani_nikravesh", youngs_modulus = 207e9, poisson_ratio = 0.3, restitution = 0.5 }}
+start = "free"
 [solver]
 {solver}
 "#

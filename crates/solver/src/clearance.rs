@@ -97,6 +97,14 @@ impl Geometry {
         0.1 * r
     }
 
+    /// True for a journal in a bearing (planar or spatial), false for a ball in a socket.
+    pub fn is_revolute(&self) -> bool {
+        match self {
+            Geometry::Spherical { .. } => false,
+            Geometry::Planar { .. } | Geometry::Revolute { .. } => true,
+        }
+    }
+
     /// The radial clearance (m).
     pub fn radial_clearance(&self) -> f64 {
         match *self {

@@ -74,9 +74,9 @@ impl std::fmt::Display for StartPenetration {
         write!(
             f,
             "clearance joint '{}', contact '{}': the journal starts {:.4e} m inside the housing's \
-             wall, where the contact law pushes with {:.4e} N; the assembly does not close loops \
-             through clearance joints, so give the bodies positions with the journal inside its \
-             clearance",
+             wall, where the contact law pushes with {:.4e} N; the joint starts free (start = \
+             \"free\"), so the declared poses place the journal: put it inside its clearance, \
+             or let the start close the joint (start = \"closed\")",
             self.joint, self.contact, self.depth, self.force
         )
     }

@@ -396,6 +396,23 @@ pub struct Model {
     /// Warnings about the scene found while compiling it, each naming the file and the field
     /// (a law used outside its range, for instance). The run goes ahead.
     pub warnings: Vec<String>,
+    /// The clearance joints the start was assembled with closed, when any
+    /// (see `compile/start.rs`).
+    pub closed_start: Option<ClosedStart>,
+}
+
+/// A start assembled with clearance joints closed as their ideal joints
+/// (`compile/start.rs`), for `jointplay check` and the run's summary.
+#[derive(Debug, Clone)]
+pub struct ClosedStart {
+    /// Each joint closed, with the eccentricity it starts at (m, housing body axes).
+    pub joints: Vec<(String, Vector3<f64>)>,
+    /// The largest |Phi| (m or rad) and |Phi'| (m/s or rad/s) of these joints' ideal rows at the
+    /// start the assembly gives without them: how far that start was from closing them. `None`
+    /// when that assembly failed.
+    pub gap: Option<(f64, f64)>,
+    /// False when that start already closed them (to 1e-9) and was kept as it is.
+    pub moved: bool,
 }
 
 /// The mutable state: time and y = [r_0, q_0, r_1, q_1, ..., v_0, w_0, v_1, w_1, ...] with r the

@@ -325,6 +325,28 @@ pub struct ClearanceSpec {
     pub normal: NormalSpec,
     #[serde(default)]
     pub friction: FrictionSpec,
+    /// How a run starts in this joint: `closed` (default) assembles the start with the joint
+    /// held as its ideal joint, the journal concentric or at `initial_eccentricity`, and then
+    /// releases it; `free` leaves the journal where the declared poses put it (the loops
+    /// through the joint are not closed, and the journal may start inside the wall).
+    #[serde(default)]
+    pub start: Option<JointStart>,
+    /// The journal (ball) centre's offset from the housing (socket) centre at the start (m, in
+    /// the housing body's axes; normal to the axis for a revolute joint); default concentric.
+    /// Only with `start = "closed"`.
+    #[serde(default)]
+    pub initial_eccentricity: Option<[f64; 3]>,
+}
+
+/// How a clearance joint starts (see [`ClearanceSpec::start`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Deserialize, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum JointStart {
+    /// Assembled as the ideal joint (concentric or at the given eccentricity), then released.
+    #[default]
+    Closed,
+    /// Left where the declared poses put it.
+    Free,
 }
 
 // The contact-law fields live next to the laws (crate::contact), so that a new law is written

@@ -39,7 +39,7 @@ body_a = "ground"
 body_b = "ball"
 point_a = "O"
 point_b = "C"
-clearance = {{ ball_radius = 0.015, radial_clearance = {c}, normal = {normal} }}
+clearance = {{ ball_radius = 0.015, radial_clearance = {c}, normal = {normal}, start = "free" }}
 
 [solver]
 end_time = 1.0
@@ -345,6 +345,7 @@ radial_clearance = 3e-4
 bushing_length = 0.18{axial}
 normal = {{ law = "lankarani_nikravesh", youngs_modulus = 207e9, poisson_ratio = 0.3, restitution = 0.5 }}
 friction = {friction}
+start = "free"
 [solver]
 end_time = 1.0
 "#
@@ -448,6 +449,7 @@ model = "planar"
 journal_radius = 0.0095
 radial_clearance = 5e-4
 normal = {{ law = "{law}", contact = "line", contact_length = 0.02, youngs_modulus = 207e9, poisson_ratio = 0.3{} }}
+start = "free"
 [solver]
 end_time = 1.0
 "#,

@@ -75,6 +75,8 @@ pub struct Summary {
     /// Ranks, degrees of freedom and redundancy at the assembled initial state.
     pub structure: Structure,
     pub assembly: AssemblyReport,
+    /// The clearance joints the start was assembled with closed as their ideal joints.
+    pub closed_start: Option<jointplay_solver::model::ClosedStart>,
     /// Clearance contacts that penetrate at the assembled start, deepest first.
     pub penetrations: Vec<jointplay_solver::guard::StartPenetration>,
     /// The effects simulated, one line each; a line starting with four spaces continues the one
@@ -157,6 +159,7 @@ impl Summary {
                 .collect(),
             structure,
             assembly,
+            closed_start: model.closed_start.clone(),
             penetrations,
             effects: model.effects.describe(model),
             disabled: model.disabled.clone(),
@@ -261,6 +264,37 @@ impl Summary {
             a.initial_velocity_residual,
             a.final_velocity_residual
         ));
+        if let Some(c) = &self.closed_start {
+            let joints: Vec<String> = c
+                .joints
+                .iter()
+                .map(|(name, e)| {
+                    if e.norm() == 0.0 {
+                        format!("{name} (concentric)")
+                    } else {
+                        format!(
+                            "{name} (eccentricity [{:.4e}, {:.4e}, {:.4e}] m)",
+                            e.x, e.y, e.z
+                        )
+                    }
+                })
+                .collect();
+            let gap = match c.gap {
+                Some((p, v)) => format!(
+                    "the start assembled without closing them was {p:.2e} (m, rad) and {v:.2e} (m/s, rad/s) from it"
+                ),
+                None => "the start could not be assembled without closing them".into(),
+            };
+            out.push(format!(
+                "start        clearance joints {}: {}; {gap}",
+                if c.moved {
+                    "closed as ideal joints, then released"
+                } else {
+                    "already closed at the assembled start, kept as it is"
+                },
+                joints.join(", ")
+            ));
+        }
         for p in &self.penetrations {
             out.push(format!("start        warning: {p}"));
         }

@@ -86,7 +86,7 @@ pub(crate) fn compile<'s>(
 }
 
 /// The rows of an ideal joint of kind `kind`.
-fn ideal_rows(kind: JointKind, fr: &JointFrame, rows: &mut Rows) {
+pub(crate) fn ideal_rows(kind: JointKind, fr: &JointFrame, rows: &mut Rows) {
     let mut push = |p| rows.push(p);
     match kind {
         JointKind::Spherical => push(fr.coincident()),

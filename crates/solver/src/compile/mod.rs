@@ -18,6 +18,9 @@
 //! 6. springs and loads ([`forces::springs`], [`forces::loads`]);
 //! 7. solver settings and outputs ([`settings::settings`], [`settings::outputs`]), and the
 //!    [`Effects`](crate::model::Effects) the model simulates ([`settings::effects`]).
+//! 8. the start ([`start::close`]): the declared state assembled with every clearance joint
+//!    closed as its ideal joint (concentric, or at its `initial_eccentricity`), so that the run
+//!    releases it from a consistent pose and velocity.
 //!
 //! The passes share two leaves, which import none of them: [`ctx`] (the context [`Ctx`](ctx::Ctx)
 //! that errors and warnings go through, and small field helpers) and [`rows`] (the constraint
@@ -36,6 +39,7 @@ pub(crate) mod joints;
 pub(crate) mod laws;
 pub(crate) mod rows;
 pub(crate) mod settings;
+pub(crate) mod start;
 
 use std::path::Path;
 
@@ -47,8 +51,10 @@ use crate::scene::SceneFile;
 // The entry point lives here, not in `model`, so that `model` (the compiled types) does not
 // import its own compiler.
 impl Model {
-    /// Validates and compiles a scene; returns the model and the initial state as declared
-    /// (not yet assembled onto the constraints: see [`Model::assemble`]).
+    /// Validates and compiles a scene; returns the model and the initial state: as declared,
+    /// or, when the scene has clearance joints, assembled with them closed as their ideal
+    /// joints (pass 8). Either way not yet assembled onto the model's own constraints: see
+    /// [`Model::assemble`].
     pub fn compile(scene: &SceneFile) -> Result<(Model, State)> {
         let cx = Ctx::new(&scene.path);
         // Disabled effects are removed from the scene before anything is compiled.
@@ -58,9 +64,10 @@ impl Model {
         check_finite(&scene.text, &scene.path, &cx)?;
         let bodies = bodies::compile(spec, &cx)?;
         let mut rows = rows::Rows::default();
-        let joints = joints::compile(spec, &bodies, &mut rows, &cx)?;
+        let mut joints = joints::compile(spec, &bodies, &mut rows, &cx)?;
         let joint_rows = rows.n;
         let drives = drives::compile(spec, &joints, &mut rows, &cx)?;
+        let frames = std::mem::take(&mut joints.frames);
         let springs = forces::springs(spec, &bodies, &cx)?;
         let loads = forces::loads(spec, &bodies, &cx)?;
         let settings = settings::settings(&spec.solver, &drives, &cx)?;
@@ -97,13 +104,16 @@ impl Model {
             disabled,
             settings,
             outputs,
-            warnings: cx.into_warnings(),
+            warnings: Vec::new(),
+            closed_start: None,
         };
         model.effects = settings::effects(&model);
-        let state = State {
+        let mut state = State {
             t: model.settings.start_time,
             y,
         };
+        model.closed_start = start::close(&model, &frames, spec, &mut state, &cx)?;
+        model.warnings = cx.into_warnings();
         Ok((model, state))
     }
 }

@@ -17,6 +17,13 @@ impl Model {
     /// with minimum-norm corrections for positions, then the mass-weighted projection of the
     /// velocities, `v = v0 - M^-1 G^T S^+ (G v0 - s')`.
     pub fn assemble(&self, state: &mut State) -> Result<AssemblyReport> {
+        self.assemble_within(state, 0.0)
+    }
+
+    /// [`Model::assemble`] that leaves the velocities alone when their residual max |Phi'| is
+    /// already below `velocity_tol` (m/s or rad/s), so that a state already on the constraints
+    /// comes back bit for bit (the positions are left alone below 1e-12 in any case).
+    pub fn assemble_within(&self, state: &mut State, velocity_tol: f64) -> Result<AssemblyReport> {
         let nb = self.nb();
         let np = 7 * nb;
         let nr = self.n_rows;
@@ -99,6 +106,10 @@ impl Model {
         // Velocities: mass-weighted projection.
         self.accelerations(t, &state.y, &mut ws);
         report.initial_velocity_residual = max_abs(&ws.phi_dot);
+        if report.initial_velocity_residual < velocity_tol {
+            report.final_velocity_residual = report.initial_velocity_residual;
+            return Ok(report);
+        }
         let mut mu = ws.phi_dot.clone();
         // The acceleration evaluation left G M^-1 G^T factored.
         ws.solve_reduced(&mut mu);
