@@ -49,6 +49,15 @@ def main(out):
             f"{run.stats['rhs_evaluations']:.0f} right-hand sides"
         )
         runs[clearance] = run
+    # The journal's orbit once per crank turn (a Poincare section of the run): the radial
+    # eccentricity (m) and its rate (m/s) at t = 0, T, 2T, the last one at the run's end.
+    times, ecc = runs[2.5e-4].strobe("joints/coupler_pin/radial_eccentricity")
+    _, rate = runs[2.5e-4].strobe("joints/coupler_pin/radial_eccentricity_rate")
+    for t, e, r in zip(times, ecc, rate):
+        print(
+            f"t = {t:.3f} s: journal {np.hypot(*e) * 1e3:.3f} mm off centre, "
+            f"moving at {np.hypot(*r):.3f} m/s"
+        )
     path = runs[2.5e-4].write(out)                   # OUT/four-bar.h5, as `jointplay run`
     print(f"wrote {path}")
 

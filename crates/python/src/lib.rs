@@ -33,8 +33,8 @@ use jointplay_analysis::study::run::simulate_until;
 use jointplay_analysis::study::spec::{edit, lookup};
 use jointplay_solver::model::Model;
 use jointplay_solver::scene::{SceneFile, SceneSpec};
-use numpy::PyArray;
 use numpy::ndarray::{ArrayD, ArrayView1, ArrayView2, IxDyn};
+use numpy::{PyArray, PyArray1, PyArray2};
 use pyo3::create_exception;
 use pyo3::exceptions::{
     PyException, PyKeyError, PyKeyboardInterrupt, PyRuntimeError, PyTypeError, PyValueError,
@@ -640,6 +640,71 @@ impl Run {
         Err(PyKeyError::new_err(format!(
             "{path}: not recorded in this run (see Run.columns)"
         )))
+    }
+
+    /// A stroboscopic (Poincare) section of the run: the samples of ``path`` at
+    /// ``t0 + phase + k * period`` (s) for k = 0, 1, ... up to the run's last sample, and those
+    /// times. ``path`` is a dataset (``joints/pin/radial_eccentricity``, rows x components) or an
+    /// observable path (``joints.pin.radial_eccentricity_rate.u``, one value per row).
+    /// ``period`` defaults to the drives' common period. Returns ``(times, values)``.
+    ///
+    /// The strobe times are counted with a tolerance of 1e-9 periods, so the last one, at the
+    /// run's end, is kept where rounding would drop it; each must be a sample time (to 1e-6 of
+    /// ``output.interval``), else the call says which interval would make it one: the values are
+    /// the ones the run took, not interpolated.
+    #[pyo3(signature = (path, phase = 0.0, period = None))]
+    fn strobe<'py>(
+        slf: Bound<'py, Self>,
+        path: &str,
+        phase: f64,
+        period: Option<f64>,
+    ) -> PyResult<(Bound<'py, PyAny>, Bound<'py, PyAny>)> {
+        let py = slf.py();
+        let r = slf.get();
+        let period = period.or(r.model.settings.period).ok_or_else(|| {
+            PyValueError::new_err(
+                "the scene's drives have no common period: give period= (s)".to_string(),
+            )
+        })?;
+        let rec = &r.result.recording;
+        let rows = rec
+            .strobe_rows(r.model.outputs.interval, phase, period)
+            .map_err(PyValueError::new_err)?;
+        let times: Vec<f64> = rows.iter().map(|&i| rec.time[i]).collect();
+        let n = rec.time.len();
+        let values = if path.contains('/') {
+            let ch = r.channel(path)?;
+            let w = ch.width();
+            let v: Vec<f64> = rows
+                .iter()
+                .flat_map(|&i| ch.values[i * w..(i + 1) * w].iter().copied())
+                .collect();
+            if ch.scalar {
+                PyArray1::from_vec(py, v).into_any()
+            } else {
+                let a = numpy::ndarray::Array2::from_shape_vec((rows.len(), w), v).map_err(err)?;
+                PyArray2::from_owned_array(py, a).into_any()
+            }
+        } else {
+            let (ch, k) = rec
+                .channels
+                .iter()
+                .find_map(|ch| {
+                    ch.columns
+                        .iter()
+                        .position(|o| o.path == path)
+                        .map(|k| (ch, k))
+                })
+                .ok_or_else(|| {
+                    PyKeyError::new_err(format!(
+                        "{path}: not recorded in this run (see Run.columns)"
+                    ))
+                })?;
+            let w = ch.width();
+            debug_assert_eq!(ch.values.len(), n * w);
+            PyArray1::from_vec(py, rows.iter().map(|&i| ch.values[i * w + k]).collect()).into_any()
+        };
+        Ok((PyArray1::from_vec(py, times).into_any(), values))
     }
 
     /// The recorded datasets, in the order of the run file.

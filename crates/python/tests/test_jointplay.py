@@ -412,3 +412,27 @@ label = "edited"
     # A study of a built-in system has no scene to replace.
     with pytest.raises(jointplay.JointplayError, match="study.scene"):
         jointplay.run_study(SWEEP, out=tmp_path / "sys", progress=False, scene=scene)
+
+
+def test_a_run_strobes_its_journal_orbit_without_losing_the_last_period():
+    """A run records the journal's radial eccentricity and its rate, so its phase plane and
+    Poincare section need no rerun; ``Run.strobe`` keeps every drive period up to the run's end
+    and refuses a sampling that misses the strobe times."""
+    scene = jointplay.load_scene(SCENES / "slider-crank-clearance.toml")
+    scene["solver.periods"] = 3
+    period = 2 * np.pi / 523.5987755982989  # s, 5000 rpm
+    scene["output.interval"] = period / 50
+    run = scene.run(progress=False)
+    assert run.units["joints/piston_pin/radial_eccentricity_rate"] == "m/s"
+    times, ecc = run.strobe("joints/piston_pin/radial_eccentricity")
+    # Four strobe points over three periods: t = 0 and the end of each, the last the last sample.
+    assert times.shape == (4,) and ecc.shape == (4, 2)
+    assert times[-1] == run.time[-1]
+    assert np.allclose(times, np.arange(4) * period, rtol=0, atol=1e-12)
+    rows = [int(np.argmin(abs(run.time - t))) for t in times]
+    assert np.array_equal(ecc, run["joints/piston_pin/radial_eccentricity"][rows])
+    _, rate = run.strobe("joints.piston_pin.radial_eccentricity_rate.u", phase=period / 2)
+    assert rate.shape == (3,)
+    assert np.array_equal(rate, run.observable("joints.piston_pin.radial_eccentricity_rate.u")[25::50])
+    with pytest.raises(ValueError, match=r"output.interval = "):
+        run.strobe("joints/piston_pin/radial_eccentricity", period=period * 1.01)

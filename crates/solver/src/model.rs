@@ -296,6 +296,7 @@ pub const ROUNDED_QUANTITIES: &[&str] = &[
     "eccentricity",
     "eccentricity_global",
     "radial_eccentricity",
+    "radial_eccentricity_rate",
     "end_eccentricity",
     "penetration",
     "penetration_rate",

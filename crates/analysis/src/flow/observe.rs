@@ -15,6 +15,7 @@
 //! | `joints.J.eccentricity_global.C` | the same offset in global axes | m |
 //! | `joints.J.eccentricity_global_rate.C` | its rate | m/s |
 //! | `joints.J.radial_eccentricity.U` | eccentricity along the housing's radial directions (`U`: `u`, `w`) | m |
+//! | `joints.J.radial_eccentricity_rate.U` | its rate in housing axes along the same directions | m/s |
 //! | `joints.J.end_eccentricity.E` | spatial revolute: the journal axis at the rim planes (`E`: `P_u`, `P_w`, `Q_u`, `Q_w`) | m |
 //! | `joints.J.penetration.K` | penetration of contact K (negative: gap) | m |
 //! | `joints.J.penetration_rate.K` | its rate (approach positive) | m/s |
@@ -44,7 +45,9 @@
 //!
 //! For a built-in system the observables are its state names (see [`crate::flow::systems`]).
 
+use jointplay_solver::clearance::Clearance;
 use jointplay_solver::dynamics::Workspace;
+use jointplay_solver::kin::Kin;
 use jointplay_solver::model::Model;
 use nalgebra::Vector3;
 
@@ -85,9 +88,11 @@ enum Source {
         rate: bool,
         comp: usize,
     },
-    /// Housing-axes eccentricity along the radial direction u (0) or w (1).
+    /// Housing-axes eccentricity (or its rate in housing axes) along the radial direction u (0)
+    /// or w (1).
     Radial {
         c: usize,
+        rate: bool,
         comp: usize,
     },
     /// Spatial revolute: P side u, w, Q side u, w (0..4).
@@ -202,6 +207,19 @@ fn pick(v: Vector3<f64>, comp: usize) -> f64 {
     if comp == 3 { v.norm() } else { v[comp] }
 }
 
+/// d/dt of the eccentricity e = journal centre - housing centre (global axes, m/s): the
+/// difference of the two centres' velocities.
+fn eccentricity_rate(cl: &Clearance, kh: &Kin, kj: &Kin) -> Vector3<f64> {
+    kj.v + kj.w.cross(&(kj.rot * cl.sj)) - kh.v - kh.w.cross(&(kh.rot * cl.sh))
+}
+
+/// The eccentricity's rate seen in the housing's axes (m/s): d/dt (A_h^T e) =
+/// A_h^T (de/dt - w_h x e).
+fn housing_rate(cl: &Clearance, kh: &Kin, kj: &Kin) -> Vector3<f64> {
+    let e = cl.eccentricity(kh, kj);
+    kh.rot.transpose() * (eccentricity_rate(cl, kh, kj) - kh.w.cross(&e))
+}
+
 /// What an observable reads, and its unit.
 type Resolved = Result<(Source, &'static str), String>;
 
@@ -295,13 +313,17 @@ fn clearance_source(m: &Model, j: &str, ci: usize, what: &str, c: &str) -> Resol
         "eccentricity_rate" => ecc(true, true),
         "eccentricity_global" => ecc(false, false),
         "eccentricity_global_rate" => ecc(false, true),
-        "radial_eccentricity" => Ok((
-            Source::Radial {
-                c: ci,
-                comp: named("radial direction", c, &["u", "w"])?,
-            },
-            "m",
-        )),
+        "radial_eccentricity" | "radial_eccentricity_rate" => {
+            let rate = what == "radial_eccentricity_rate";
+            Ok((
+                Source::Radial {
+                    c: ci,
+                    rate,
+                    comp: named("radial direction", c, &["u", "w"])?,
+                },
+                if rate { "m/s" } else { "m" },
+            ))
+        }
         "end_eccentricity" => {
             if !matches!(
                 geometry,
@@ -342,7 +364,7 @@ fn clearance_source(m: &Model, j: &str, ci: usize, what: &str, c: &str) -> Resol
             Ok((Source::Contact { c: ci, k, what }, unit))
         }
         other => Err(format!(
-            "unknown joint quantity '{other}': use eccentricity, eccentricity_rate, eccentricity_global, eccentricity_global_rate, radial_eccentricity, end_eccentricity, penetration, penetration_rate, normal_force, friction_force, contact_state, contact_force (force_on_journal), moment_on_journal, force_on_housing, moment_on_housing, reaction (reaction_force) or reaction_torque"
+            "unknown joint quantity '{other}': use eccentricity, eccentricity_rate, eccentricity_global, eccentricity_global_rate, radial_eccentricity, radial_eccentricity_rate, end_eccentricity, penetration, penetration_rate, normal_force, friction_force, contact_state, contact_force (force_on_journal), moment_on_journal, force_on_housing, moment_on_housing, reaction (reaction_force) or reaction_torque"
         )),
     }
 }
@@ -495,29 +517,27 @@ impl Observable {
                     m.kinematics_of(cl.housing, ws),
                     m.kinematics_of(cl.journal, ws),
                 );
-                let e = cl.eccentricity(&kh, &kj);
-                let v = if rate {
-                    let de =
-                        kj.v + kj.w.cross(&(kj.rot * cl.sj)) - kh.v - kh.w.cross(&(kh.rot * cl.sh));
-                    if housing {
-                        kh.rot.transpose() * (de - kh.w.cross(&e))
-                    } else {
-                        de
-                    }
-                } else if housing {
-                    kh.rot.transpose() * e
-                } else {
-                    e
+                let v = match (rate, housing) {
+                    (false, false) => cl.eccentricity(&kh, &kj),
+                    (false, true) => kh.rot.transpose() * cl.eccentricity(&kh, &kj),
+                    (true, false) => eccentricity_rate(cl, &kh, &kj),
+                    (true, true) => housing_rate(cl, &kh, &kj),
                 };
                 pick(v, comp)
             }
-            Source::Radial { c, comp } => {
+            Source::Radial { c, rate, comp } => {
                 let cl = &m.clearances[c];
                 let (kh, kj) = (
                     m.kinematics_of(cl.housing, ws),
                     m.kinematics_of(cl.journal, ws),
                 );
-                let el = kh.rot.transpose() * cl.eccentricity(&kh, &kj);
+                // u and w are fixed in the housing's axes, so the rate along them is the
+                // housing-axes rate's component.
+                let el = if rate {
+                    housing_rate(cl, &kh, &kj)
+                } else {
+                    kh.rot.transpose() * cl.eccentricity(&kh, &kj)
+                };
                 let (u, w) = cl.radial_axes();
                 el.dot(if comp == 0 { &u } else { &w })
             }

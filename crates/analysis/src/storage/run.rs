@@ -307,6 +307,12 @@ impl Declare<'_> {
             "eccentricity along the two housing directions normal to its axis (u, w): the journal-centre orbit",
             None,
         )?;
+        self.channel(
+            &p("radial_eccentricity_rate"),
+            &["u", "w"],
+            "rate of the radial eccentricity in the housing's axes (u, w): with it, the orbit's phase plane and its sections",
+            None,
+        )?;
         if matches!(cl.geometry, Geometry::Revolute { .. }) {
             self.channel(
                 &p("end_eccentricity"),
@@ -430,6 +436,68 @@ impl Recording {
         d.drives()?;
         d.diagnostics()?;
         Ok(d.rec)
+    }
+
+    /// The rows of the samples at the strobe times `t0 + phase + k period` (s), k = 0, 1, ...,
+    /// for every such time up to the last sample, `t0` the first sample's time: a stroboscopic
+    /// (Poincare) section of the recorded run, once per drive period. The number of strobe times
+    /// is counted with a tolerance of 1e-9 periods, so that the last one, at the run's end,
+    /// is kept even where rounding puts it a hair past the last sample; each is found among the
+    /// samples (recorded every `interval` s, and at the end time) to 1e-6 of the interval. A
+    /// strobe time that is not a sample time is an error that says which interval would make it
+    /// one: the samples are values the run took, not interpolated ones.
+    pub fn strobe_rows(
+        &self,
+        interval: f64,
+        phase: f64,
+        period: f64,
+    ) -> std::result::Result<Vec<usize>, String> {
+        if !(period.is_finite() && period > 0.0) {
+            return Err(format!(
+                "period: must be a positive number of seconds, not {period}"
+            ));
+        }
+        if !(phase.is_finite() && phase >= 0.0) {
+            return Err(format!(
+                "phase: must be zero or a positive number of seconds, not {phase}"
+            ));
+        }
+        let t = &self.time;
+        let (Some(&t0), Some(&last)) = (t.first(), t.last()) else {
+            return Ok(Vec::new());
+        };
+        let span = (last - t0 - phase) / period;
+        if span < -1e-9 {
+            return Ok(Vec::new());
+        }
+        let count = (span + 1e-9).floor() as usize + 1;
+        let tol = 1e-6 * interval;
+        let mut rows = Vec::with_capacity(count);
+        for k in 0..count {
+            let tk = t0 + phase + k as f64 * period;
+            let grid = (((tk - t0) / interval).round().max(0.0) as usize).min(t.len() - 1);
+            let row = [grid, t.len() - 1]
+                .into_iter()
+                .min_by(|&a, &b| (t[a] - tk).abs().total_cmp(&(t[b] - tk).abs()))
+                .unwrap_or(grid);
+            if (t[row] - tk).abs() > tol {
+                let per = period / interval;
+                return Err(format!(
+                    "the strobe time {tk} s (k = {k}) is not a sample time: the run was sampled \
+                     every {interval} s, {per} samples per period of {period} s{}; record with \
+                     output.interval = {} s (the period over a whole number of samples) and the \
+                     phase a multiple of it",
+                    if phase > 0.0 {
+                        format!(" and a phase of {phase} s")
+                    } else {
+                        String::new()
+                    },
+                    period / per.round().max(1.0)
+                ));
+            }
+            rows.push(row);
+        }
+        Ok(rows)
     }
 
     /// The fewest mantissa bits any channel keeps in the file ([`Channel::bits`]), marked on the
@@ -631,5 +699,49 @@ pub fn drawn(dataset: &str) -> bool {
         "diagnostics" => true,
         "joints" => matches!(quantity, "radial_eccentricity" | "normal_force"),
         _ => false,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn sampled(t0: f64, dt: f64, n: usize) -> Recording {
+        Recording {
+            time: (0..=n).map(|k| t0 + k as f64 * dt).collect(),
+            ..Recording::default()
+        }
+    }
+
+    #[test]
+    fn the_strobe_keeps_every_period_up_to_the_last_sample_and_refuses_a_missed_time() {
+        // Ten periods of 0.1 s sampled every 0.01 s: eleven strobe rows, the last one the run's
+        // last sample although 0.1 * 10 and 100 * 0.01 differ in the last bits.
+        let r = sampled(0.0, 0.01, 100);
+        let rows = r.strobe_rows(0.01, 0.0, 0.1).unwrap();
+        assert_eq!(rows, (0..=10).map(|k| 10 * k).collect::<Vec<_>>());
+        // A span a hair short of a whole number of periods still reaches the last one.
+        let r = sampled(0.25, 0.001, 3000);
+        assert_eq!(r.strobe_rows(0.001, 0.0, 0.3 - 1e-14).unwrap().len(), 11);
+        // With a phase, from t0 + phase.
+        let r = sampled(0.0, 0.01, 100);
+        let rows = r.strobe_rows(0.01, 0.05, 0.1).unwrap();
+        assert_eq!(rows, (0..10).map(|k| 5 + 10 * k).collect::<Vec<_>>());
+        // A period that is not a whole number of samples names the interval that would be.
+        let e = r.strobe_rows(0.01, 0.0, 0.125).unwrap_err();
+        assert!(
+            e.contains("12.5 samples per period") && e.contains("output.interval = 0.0096"),
+            "{e}"
+        );
+        assert!(
+            r.strobe_rows(0.01, 0.0, 0.0)
+                .unwrap_err()
+                .starts_with("period:")
+        );
+        assert!(
+            r.strobe_rows(0.01, f64::NAN, 0.1)
+                .unwrap_err()
+                .starts_with("phase:")
+        );
     }
 }

@@ -75,6 +75,14 @@ class Run:
         value per sample for a scalar; its unit is ``units[dataset]``."""
     def observable(self, path: str) -> npt.NDArray[np.float64]:
         """One recorded column by its observable path (``bodies.bob.position.x``)."""
+    def strobe(
+        self, path: str, phase: float = 0.0, period: Optional[float] = None
+    ) -> tuple[npt.NDArray[np.float64], npt.NDArray[np.float64]]:
+        """A stroboscopic (Poincare) section: ``(times, values)`` of ``path`` (a dataset or an
+        observable path) at ``t0 + phase + k * period`` (s) up to the last sample, ``period``
+        the drives' common period by default. The last strobe time is kept where rounding would
+        drop it; a strobe time that is not a sample time is a ValueError naming the
+        ``output.interval`` that would make it one."""
     @property
     def datasets(self) -> list[str]: ...
     @property
