@@ -17,6 +17,19 @@ pub struct Cli {
     /// chunk indexes and object headers of the 1.10 format) or 1.8 (the oldest format).
     #[arg(long, global = true, value_name = "VERSION", default_value = "1.10")]
     pub hdf5_format: jointplay_analysis::storage::h5::Format,
+    /// The size of one figure panel, WIDTHxHEIGHT in px at scale 1 (a figure of several panels
+    /// is a grid of them).
+    #[arg(long, global = true, value_name = "WxH", default_value = "560x380",
+          value_parser = jointplay_analysis::figures::plot::parse_panel_size)]
+    pub figure_size: (u32, u32),
+    /// The figures' resolution factor: every pixel dimension (size, lines, points, fonts)
+    /// times this, 0.25 to 8 (2 for print: a 1120 x 760 px panel that looks as the default).
+    #[arg(long, global = true, value_name = "F", default_value_t = 1.0)]
+    pub figure_scale: f64,
+    /// The figures' font size factor, 0.5 to 4 (tick labels 13 px, axis labels 15 px, titles
+    /// 20 px at 1, before --figure-scale).
+    #[arg(long, global = true, value_name = "F", default_value_t = 1.0)]
+    pub font_scale: f64,
     #[command(subcommand)]
     pub command: Command,
 }

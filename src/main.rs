@@ -67,6 +67,14 @@ fn main() {
         jointplay_analysis::progress::request_process_stop();
     });
     jointplay_analysis::storage::h5::set_format(cli.hdf5_format);
+    use jointplay_analysis::figures::plot::{Style, set_style};
+    match Style::new(cli.figure_size, cli.figure_scale, cli.font_scale) {
+        Ok(style) => set_style(style),
+        Err(e) => {
+            eprintln!("error: {e}");
+            std::process::exit(2);
+        }
+    }
     if let Err(e) = slurm::threads_from_slurm() {
         eprintln!("error: {e:#}");
         std::process::exit(1);

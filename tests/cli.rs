@@ -2161,3 +2161,60 @@ fn plot_draws_edited_figures_without_running_again() {
         "{se}"
     );
 }
+
+/// The width and height of a PNG file, from its header.
+fn png_size(path: &Path) -> (u32, u32) {
+    let b = std::fs::read(path).unwrap();
+    let be = |i: usize| u32::from_be_bytes([b[i], b[i + 1], b[i + 2], b[i + 3]]);
+    (be(16), be(20))
+}
+
+/// `--figure-size`, `--figure-scale` and `--font-scale` size every figure; a value out of range
+/// is refused naming the option, before anything is drawn.
+#[test]
+fn figure_size_scale_and_fonts_are_options_of_every_command() {
+    let dir = tempfile::tempdir().unwrap();
+    let h5 = small_sweep_file(dir.path());
+    let draw = |args: &[&str], out: &str| {
+        let o = bin()
+            .args(args)
+            .arg("plot")
+            .arg(&h5)
+            .args(["--format", "png", "--out"])
+            .arg(dir.path().join(out))
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{:?}", text(&o));
+        let png = std::fs::read_dir(dir.path().join(out))
+            .unwrap()
+            .map(|e| e.unwrap().path())
+            .find(|p| p.extension().is_some_and(|e| e == "png"))
+            .unwrap();
+        png_size(&png)
+    };
+    let (w, h) = draw(&[], "plain");
+    assert_eq!(w % 560, 0, "{w} x {h}");
+    assert_eq!(h % 380, 0, "{w} x {h}");
+    let (cols, rows) = (w / 560, h / 380);
+    assert_eq!(draw(&["--figure-scale", "2"], "print"), (2 * w, 2 * h));
+    assert_eq!(
+        draw(&["--figure-size", "800x300", "--font-scale", "1.5"], "wide"),
+        (800 * cols, 300 * rows)
+    );
+    for (args, named) in [
+        (["--figure-scale", "20"], "figure scale: 20"),
+        (["--font-scale", "0.1"], "font scale: 0.1"),
+        (["--figure-size", "10x10"], "figure size: 10 x 10"),
+    ] {
+        let o = bin().args(args).arg("plot").arg(&h5).output().unwrap();
+        let (_, e) = text(&o);
+        assert!(!o.status.success() && e.contains(named), "{e}");
+    }
+    let o = bin()
+        .args(["--figure-size", "wide"])
+        .arg("plot")
+        .arg(&h5)
+        .output()
+        .unwrap();
+    assert!(text(&o).1.contains("WIDTHxHEIGHT"), "{:?}", text(&o));
+}

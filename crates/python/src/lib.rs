@@ -460,6 +460,23 @@ impl Scene {
             s.assembly.final_velocity_residual,
         )?;
         d.set_item("assembly", a)?;
+        // The clearance joints the start closed as ideal joints (compile/start.rs), or None.
+        let closed = match &s.closed_start {
+            Some(c) => {
+                let cd = PyDict::new(py);
+                let joints = PyDict::new(py);
+                for (name, e) in &c.joints {
+                    joints.set_item(name, [e.x, e.y, e.z])?;
+                }
+                cd.set_item("joints", joints)?;
+                cd.set_item("moved", c.moved)?;
+                cd.set_item("position_gap", c.gap.map(|g| g.0))?;
+                cd.set_item("velocity_gap", c.gap.map(|g| g.1))?;
+                cd.into_any()
+            }
+            None => py.None().into_bound(py),
+        };
+        d.set_item("closed_start", closed)?;
         d.set_item("effects", &s.effects)?;
         d.set_item("disabled", &s.disabled)?;
         d.set_item("solver", &s.solver)?;
@@ -1203,6 +1220,19 @@ fn set_hdf5_format(version: &str) -> PyResult<()> {
     Ok(())
 }
 
+/// Sets how every figure drawn from now on in this process is sized, as the program's
+/// ``--figure-size``, ``--figure-scale`` and ``--font-scale``: ``size`` is one panel's
+/// ``(width, height)`` in px at scale 1 (default ``(560, 380)``), ``scale`` multiplies every pixel
+/// dimension (0.25 to 8; 2 for print), ``font_scale`` the fonts alone (0.5 to 4). A value out of
+/// range is a ValueError naming it.
+#[pyfunction]
+#[pyo3(signature = (size = (560, 380), scale = 1.0, font_scale = 1.0))]
+fn set_figure_style(size: (u32, u32), scale: f64, font_scale: f64) -> PyResult<()> {
+    use jointplay_analysis::figures::plot::{Style, set_style};
+    set_style(Style::new(size, scale, font_scale).map_err(PyValueError::new_err)?);
+    Ok(())
+}
+
 /// jointplay: nonlinear dynamics of mechanisms whose joints have clearance.
 #[pymodule]
 fn _jointplay(m: &Bound<'_, PyModule>) -> PyResult<()> {
@@ -1217,5 +1247,6 @@ fn _jointplay(m: &Bound<'_, PyModule>) -> PyResult<()> {
     m.add_function(wrap_pyfunction!(load, m)?)?;
     m.add_function(wrap_pyfunction!(run_study, m)?)?;
     m.add_function(wrap_pyfunction!(set_hdf5_format, m)?)?;
+    m.add_function(wrap_pyfunction!(set_figure_style, m)?)?;
     Ok(())
 }

@@ -436,3 +436,41 @@ def test_a_run_strobes_its_journal_orbit_without_losing_the_last_period():
     assert np.array_equal(rate, run.observable("joints.piston_pin.radial_eccentricity_rate.u")[25::50])
     with pytest.raises(ValueError, match=r"output.interval = "):
         run.strobe("joints/piston_pin/radial_eccentricity", period=period * 1.01)
+
+
+def png_size(path):
+    b = pathlib.Path(path).read_bytes()
+    return int.from_bytes(b[16:20], "big"), int.from_bytes(b[20:24], "big")
+
+
+def test_figure_style_sizes_the_figures_and_refuses_values_out_of_range(tmp_path):
+    for kwargs, named in [({"scale": 20}, "figure scale"), ({"font_scale": 0.1}, "font scale"),
+                          ({"size": (10, 10)}, "figure size")]:
+        with pytest.raises(ValueError, match=named):
+            jointplay.set_figure_style(**kwargs)
+    sizes = {}
+    try:
+        for scale in (1, 2):
+            jointplay.set_figure_style(scale=scale)
+            out = tmp_path / f"x{scale}"
+            jointplay.run_study(SWEEP, out=out, progress=False, plots=True)
+            sizes[scale] = png_size(sorted(out.glob("*.png"))[0])
+    finally:
+        jointplay.set_figure_style()
+    (w, h), (w2, h2) = sizes[1], sizes[2]
+    assert (w2, h2) == (2 * w, 2 * h) and w % 560 == 0 and h % 380 == 0
+
+
+def test_check_says_which_clearance_joints_the_start_closed():
+    scene = jointplay.load_scene(SCENES / "slider-crank-clearance.toml")
+    closed = scene.check()["closed_start"]
+    assert closed["joints"] == {"piston_pin": [0.0, 0.0, 0.0]} and closed["moved"] is False
+    scene["joints.piston_pin.clearance.initial_eccentricity"] = [2e-4, 0.0, 0.0]
+    closed = scene.check()["closed_start"]
+    assert closed["joints"]["piston_pin"] == [2e-4, 0.0, 0.0] and closed["moved"] is True
+    assert closed["position_gap"] > 1e-4
+    scene["joints.piston_pin.clearance.start"] = "free"
+    with pytest.raises(jointplay.JointplayError, match="initial_eccentricity"):
+        scene.check()
+    del scene["joints.piston_pin.clearance.initial_eccentricity"]
+    assert scene.check()["closed_start"] is None

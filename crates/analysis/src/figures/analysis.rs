@@ -4,7 +4,7 @@
 //! Kinds (the `[[figures]]` of the study; see [`crate::study::analysis::spec::FigureKind`]): time histories,
 //! phase portraits with the stroboscopic points, Poincare maps (section points over the faint
 //! trajectory, with a zoomed inset when the points cluster within a tenth of the trajectory's
-//! extent), orbits inside a clearance circle, and bifurcation diagrams (section points against
+//! extent but spread over at least 100 integration tolerances, `ZOOM_TOLERANCES`), orbits inside a clearance circle, and bifurcation diagrams (section points against
 //! the swept parameter; a continuation sweep draws the way up and the way down in two colours).
 //! For a sweep, per-value figures draw one panel per selected value (`values`, default the
 //! first six done). Without `[[figures]]`, every observable gets a time history and, in a sweep,
@@ -438,6 +438,27 @@ fn panels_for(d: &Data, f: &FigureSpec) -> Result<Vec<Panel>> {
 
 /// What the panels of one figure share: the figure, the observables on its axes with the scale
 /// and unit each is drawn in, and the section whose points it draws.
+/// The larger of the extents `bx` and `by` of points `x` and `y` (drawn values, the recorded
+/// ones times `sx` and `sy`), each in integration tolerances of its axis: the step's error bound
+/// atol + rtol |v| at the largest recorded |v|, in the drawn unit.
+fn in_tolerances(
+    (x, sx, bx): (&[f64], f64, f64),
+    (y, sy, by): (&[f64], f64, f64),
+    (rtol, atol): (f64, f64),
+) -> f64 {
+    let tol = |v: &[f64], s: f64| {
+        let s = s.abs().max(f64::MIN_POSITIVE);
+        let big = v.iter().fold(0.0f64, |m, x| m.max(x.abs())) / s;
+        (atol + rtol * big) * s
+    };
+    (bx / tol(x, sx)).max(by / tol(y, sy))
+}
+
+/// The fewest integration tolerances (atol + rtol |v| on an axis) the points of a Poincare map
+/// must spread over for a zoomed inset: closer together, they agree to the integrator's error,
+/// and magnifying them would draw its noise as structure.
+const ZOOM_TOLERANCES: f64 = 100.0;
+
 struct Axes<'a> {
     d: &'a Data,
     f: &'a FigureSpec,
@@ -643,7 +664,8 @@ impl<'a> Axes<'a> {
 
     /// Job `j`'s Poincare map: the section points `(px, py)` over the faint trajectory
     /// `(hx, hy)`, with a zoomed inset, away from the points, when they cluster within a tenth of
-    /// the trajectory's extent.
+    /// the trajectory's extent and spread over at least [`ZOOM_TOLERANCES`] integration
+    /// tolerances; the inset's title gives the spread in tolerances.
     fn poincare(&self, j: &Job, hx: Vec<f64>, hy: Vec<f64>, px: Vec<f64>, py: Vec<f64>) -> Panel {
         let (x, y) = (self.x, self.y);
         let traj = bbox(&hx, &hy);
@@ -669,12 +691,29 @@ impl<'a> Axes<'a> {
         if let (Some(t), Some(b)) = (traj, bbox(&px, &py)) {
             let (tw, th) = (t.1 - t.0, t.3 - t.2);
             let (bw, bh) = (b.1 - b.0, b.3 - b.2);
-            if bw < 0.1 * tw && bh < 0.1 * th {
+            // The points' spread in integration tolerances: the step's error bound
+            // atol + rtol |v| on each axis (in the drawn unit). A cluster a few tolerances wide
+            // is the integrator's error, not structure of the map: it gets no zoom, and the
+            // title says how wide it is.
+            let spread = self
+                .d
+                .tolerances
+                .map(|t| in_tolerances((&px, self.sx, bw), (&py, self.sy, bh), t));
+            if let Some(n) = spread.filter(|n| *n < ZOOM_TOLERANCES) {
+                p.title = format!(
+                    "{} (points within {n:.1} integration tolerances: no zoom)",
+                    p.title
+                );
+            } else if bw < 0.1 * tw && bh < 0.1 * th {
                 let pad = |lo: f64, hi: f64, span: f64| {
                     let w = (hi - lo).max(1e-6 * span).max(f64::MIN_POSITIVE);
                     (lo - 0.25 * w, hi + 0.25 * w)
                 };
-                let mut inset = Panel::new("zoom", "", "", Vec::new());
+                let title = match spread {
+                    Some(n) => format!("zoom: {n:.1e} tolerances wide"),
+                    None => "zoom".into(),
+                };
+                let mut inset = Panel::new(&title, "", "", Vec::new());
                 inset.points = vec![pts.clone()];
                 inset.x_range = Some(pad(b.0, b.1, tw));
                 inset.y_range = Some(pad(b.2, b.3, th));
@@ -828,7 +867,26 @@ pub fn render(
 
 #[cfg(test)]
 mod tests {
-    use super::{display_scale, left_out};
+
+    /// A Poincare map's points are measured in integration tolerances: on a period-1 orbit at
+    /// |x| near 1 and rtol 1e-9, atol 1e-11 (the Duffing studies), points 5e-9 apart span 5
+    /// tolerances and get no zoom; drawn in mm (scale 1000) the count is the same.
+    #[test]
+    fn a_cluster_is_measured_in_integration_tolerances_in_any_drawn_unit() {
+        let x = [1.0, 1.0 + 5e-9];
+        let y = [0.5, 0.5 + 1e-9];
+        let t = (1e-9, 1e-11);
+        let n = in_tolerances((&x, 1.0, 5e-9), (&y, 1.0, 1e-9), t);
+        assert!((n - 5e-9 / 1.01e-9).abs() < 1e-6 * n, "{n}");
+        assert!(n < ZOOM_TOLERANCES);
+        let mm = |v: &[f64]| v.iter().map(|a| a * 1e3).collect::<Vec<_>>();
+        let m = in_tolerances((&mm(&x), 1e3, 5e-6), (&mm(&y), 1e3, 1e-6), t);
+        assert!((m - n).abs() < 1e-9 * n, "{m} against {n}");
+        // A cluster a thousand times wider is structure worth a zoom.
+        assert!(in_tolerances((&x, 1.0, 5e-6), (&y, 1.0, 1e-9), t) > ZOOM_TOLERANCES);
+    }
+
+    use super::{ZOOM_TOLERANCES, display_scale, in_tolerances, left_out};
 
     #[test]
     fn a_scaled_axis_names_the_unit_it_is_drawn_in() {

@@ -40,6 +40,8 @@ pub(super) struct Data {
     pub(super) convergence: Option<Convergence>,
     /// The branches of periodic orbits, when the study followed them.
     pub(super) continuation: Option<ContData>,
+    /// The integrator's relative and absolute tolerances; `None` for a fixed step.
+    pub(super) tolerances: Option<(f64, f64)>,
 }
 
 /// Reads the analysis file `path` for its figures: the study, then a sweep's values or a single
@@ -57,6 +59,7 @@ pub(super) fn read(path: &Path) -> Result<Data> {
         numbers,
         convergence,
         continuation,
+        tolerances,
     } = opened.read(&observables, &sections)?;
     let jobs = jobs
         .into_iter()
@@ -81,6 +84,7 @@ pub(super) fn read(path: &Path) -> Result<Data> {
         numbers,
         convergence,
         continuation,
+        tolerances,
     })
 }
 

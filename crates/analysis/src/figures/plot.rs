@@ -21,6 +21,89 @@ fn register_font() {
     });
 }
 
+/// How large figures are drawn: the size of one panel (px at scale 1), a resolution factor that
+/// multiplies every pixel dimension (sizes, lines, points, fonts, margins: `scale = 2` draws the
+/// same figure at twice the resolution, for print), and a factor on the fonts alone.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Style {
+    /// Width and height of one panel (px at scale 1); default 560 x 380.
+    pub panel: (u32, u32),
+    /// Resolution factor, 0.25 to 8; default 1.
+    pub scale: f64,
+    /// Font size factor, 0.5 to 4; default 1 (tick labels 13 px, axis labels 15 px, titles 20 px
+    /// at scale 1).
+    pub font: f64,
+}
+
+impl Default for Style {
+    fn default() -> Self {
+        Style {
+            panel: (560, 380),
+            scale: 1.0,
+            font: 1.0,
+        }
+    }
+}
+
+impl Style {
+    /// A style checked for sizes a figure can be drawn at, naming the option at fault.
+    pub fn new(panel: (u32, u32), scale: f64, font: f64) -> std::result::Result<Style, String> {
+        if !(120..=4000).contains(&panel.0) || !(100..=4000).contains(&panel.1) {
+            return Err(format!(
+                "figure size: {} x {} px per panel is outside 120-4000 x 100-4000",
+                panel.0, panel.1
+            ));
+        }
+        if !(scale.is_finite() && (0.25..=8.0).contains(&scale)) {
+            return Err(format!("figure scale: {scale} is outside 0.25 to 8"));
+        }
+        if !(font.is_finite() && (0.5..=4.0).contains(&font)) {
+            return Err(format!("font scale: {font} is outside 0.5 to 4"));
+        }
+        Ok(Style { panel, scale, font })
+    }
+
+    /// `v` px at scale 1, in pixels of the drawing (at least 1).
+    fn px(&self, v: f64) -> u32 {
+        ((v * self.scale).round() as u32).max(1)
+    }
+
+    /// A font of `v` px at scale 1 and font factor 1.
+    fn font_px(&self, v: f64) -> f64 {
+        (v * self.scale * self.font).round().max(1.0)
+    }
+}
+
+/// The panel size "W x H" of `--figure-size` ("800x500").
+pub fn parse_panel_size(s: &str) -> std::result::Result<(u32, u32), String> {
+    let (w, h) = s
+        .split_once(['x', 'X'])
+        .ok_or_else(|| format!("'{s}': give the panel size as WIDTHxHEIGHT in px, e.g. 800x500"))?;
+    let n = |v: &str| {
+        v.trim()
+            .parse::<u32>()
+            .map_err(|_| format!("'{s}': '{v}' is not a whole number of px"))
+    };
+    Ok((n(w)?, n(h)?))
+}
+
+static STYLE: std::sync::RwLock<Style> = std::sync::RwLock::new(Style {
+    panel: (560, 380),
+    scale: 1.0,
+    font: 1.0,
+});
+
+/// Sets the [`Style`] of every figure drawn from now on, in this process.
+pub fn set_style(style: Style) {
+    // A poisoned lock holds a valid style still (it is replaced whole).
+    *STYLE.write().unwrap_or_else(|e| e.into_inner()) = style;
+}
+
+/// The [`Style`] figures are drawn in.
+pub fn style() -> Style {
+    *STYLE.read().unwrap_or_else(|e| e.into_inner())
+}
+
 /// One line of a panel.
 #[derive(Debug, Clone)]
 pub struct Series {
@@ -212,6 +295,7 @@ fn fill_chart<'a, DB, X, Y>(
     y_fmt: &dyn Fn(&f64) -> String,
     keep: fn(f64) -> bool,
     small: bool,
+    legend: &Legend,
 ) -> Result<Drawn, String>
 where
     DB: DrawingBackend + 'a,
@@ -219,6 +303,7 @@ where
     X: Ranged<ValueType = f64> + ValueFormatter<f64>,
     Y: Ranged<ValueType = f64> + ValueFormatter<f64>,
 {
+    let st = style();
     chart
         .configure_mesh()
         .x_desc(&panel.x_label)
@@ -227,12 +312,13 @@ where
         .y_label_formatter(y_fmt)
         .x_labels(if small { 3 } else { 10 })
         .y_labels(if small { 4 } else { 10 })
-        .label_style(("sans-serif", if small { 10 } else { 13 }))
-        .axis_desc_style(("sans-serif", if small { 11 } else { 15 }))
+        .label_style(("sans-serif", st.font_px(if small { 10.0 } else { 13.0 })))
+        .axis_desc_style(("sans-serif", st.font_px(if small { 11.0 } else { 15.0 })))
         .draw()
         .map_err(|e| e.to_string())?;
     let (xr, yr) = (chart.x_range(), chart.y_range());
     let frame = (xr.start, xr.end, yr.start, yr.end);
+    let mut entries = Vec::new();
     for b in &panel.bands {
         let c = COLORS[b.color % COLORS.len()];
         // Clamped to the frame (a polygon is not clipped as a line is); points with an edge
@@ -266,7 +352,8 @@ where
         if !b.label.is_empty() {
             drawn
                 .label(&b.label)
-                .legend(move |(x, y)| Rectangle::new([(x, y - 5), (x + 20, y + 5)], fill));
+                .legend(move |at| mark(Mark::Band(c), at, st));
+            entries.push((b.label.clone(), Mark::Band(c)));
         }
     }
     for (i, s) in panel.series.iter().enumerate() {
@@ -286,12 +373,12 @@ where
             .into_iter()
             .flat_map(|p| split_sharp(p, |q| chart.backend_coord(q)))
             .collect();
-        let stroke = c.stroke_width(panel.line_width);
+        let stroke = c.stroke_width(st.px(panel.line_width as f64));
         let mut legend_done = s.label.is_empty();
         for piece in pieces {
             let drawn = if style.dashed {
                 chart
-                    .draw_series(DashedLineSeries::new(piece, 6, 4, stroke))
+                    .draw_series(DashedLineSeries::new(piece, st.px(6.0), st.px(4.0), stroke))
                     .map_err(|e| e.to_string())?
             } else {
                 chart
@@ -299,9 +386,10 @@ where
                     .map_err(|e| e.to_string())?
             };
             if !legend_done {
-                drawn.label(&s.label).legend(move |(x, y)| {
-                    PathElement::new(vec![(x, y), (x + 20, y)], c.stroke_width(2))
-                });
+                drawn
+                    .label(&s.label)
+                    .legend(move |at| mark(Mark::Line(c), at, st));
+                entries.push((s.label.clone(), Mark::Line(c)));
                 legend_done = true;
             }
         }
@@ -309,15 +397,15 @@ where
     for (i, s) in panel.points.iter().enumerate() {
         let c =
             POINT_COLORS[panel.point_colors.get(i).copied().unwrap_or(i % 4) % POINT_COLORS.len()];
-        let r = if small {
-            1
+        let r = st.px(if small {
+            1.0
         } else {
             panel
                 .point_radii
                 .get(i)
                 .copied()
-                .unwrap_or(panel.point_size) as i32
-        };
+                .unwrap_or(panel.point_size) as f64
+        }) as i32;
         let anno = chart
             .draw_series(
                 s.x.iter()
@@ -329,23 +417,19 @@ where
             .map_err(|e| e.to_string())?;
         if !s.label.is_empty() {
             anno.label(&s.label)
-                .legend(move |(x, y)| Circle::new((x + 10, y), 3, c.filled()));
+                .legend(move |at| mark(Mark::Point(c), at, st));
+            entries.push((s.label.clone(), Mark::Point(c)));
         }
     }
-    if panel.series.len() + panel.points.len() + panel.bands.len() > 1 && !small {
-        let labels: Vec<&str> = panel
-            .series
-            .iter()
-            .chain(&panel.points)
-            .map(|s| s.label.as_str())
-            .chain(panel.bands.iter().map(|b| b.label.as_str()))
-            .collect();
+    if let Legend::Inside(position) = legend {
         chart
             .configure_series_labels()
-            .position(legend_corner(panel, frame, &labels))
+            .position(position.clone())
+            .margin(st.px(10.0))
+            .legend_area_size(st.px(30.0))
             .background_style(WHITE.mix(0.8))
             .border_style(BLACK)
-            .label_font(("sans-serif", 13))
+            .label_font(("sans-serif", st.font_px(13.0)))
             .draw()
             .map_err(|e| e.to_string())?;
     }
@@ -354,6 +438,8 @@ where
         x: (frame.0, frame.1),
         y: (frame.2, frame.3),
         pixels: (w, h),
+        origin: chart.plotting_area().get_base_pixel(),
+        entries,
     })
 }
 
@@ -480,19 +566,30 @@ pub fn split_sharp(
     out
 }
 
-/// The corner of the plotting area for the legend that covers the fewest data points: the
-/// legend box (about 11 px of text per character of the longest label, 20 px per entry, as
-/// fractions of a 470 x 300 px plotting area) is tried at each corner and on the right
-/// middle, and the emptiest wins (ties: upper right, upper left, lower right, lower left, middle
-/// right). Fractions are taken in the axes' own scale.
-fn legend_corner(
+/// Where a panel's legend goes: inside the plotting area at a spot it covers no data in, or,
+/// when every spot would cover data, outside it, to the right of the frame (the plotting area
+/// is narrowed to make room).
+#[derive(Debug, Clone)]
+enum Legend {
+    None,
+    Inside(SeriesLabelPosition),
+    /// Right of the frame, `width` px wide.
+    Outside {
+        width: u32,
+    },
+}
+
+/// The spot of the plotting area for a legend box of `box_frac` (width and height as
+/// fractions of the plotting area) that covers the fewest data points (a line's points and the
+/// midpoints between them), with that count: each corner and the right middle are tried (ties:
+/// upper right, upper left, lower right, lower left, middle right). Fractions are taken in the
+/// axes' own scale.
+fn legend_spot(
     panel: &Panel,
     frame: (f64, f64, f64, f64),
-    labels: &[&str],
-) -> SeriesLabelPosition {
-    let longest = labels.iter().map(|l| l.chars().count()).max().unwrap_or(0);
-    let w = ((40.0 + 7.5 * longest as f64) / 470.0).min(0.9);
-    let h = ((10.0 + 20.0 * labels.len() as f64) / 300.0).min(0.9);
+    box_frac: (f64, f64),
+) -> Option<(SeriesLabelPosition, usize)> {
+    let (w, h) = (box_frac.0.min(0.9), box_frac.1.min(0.9));
     let frac = |v: f64, a: f64, b: f64, log: bool| {
         if log {
             if v <= 0.0 || a <= 0.0 || b <= 0.0 {
@@ -523,24 +620,45 @@ fn legend_corner(
         .map(|s| (&s.x, &s.y))
         .chain(edges);
     for (xs, ys) in lines {
-        for (x, y) in xs.iter().zip(ys) {
-            let (u, v) = (frac(*x, x0, x1, panel.log_x), frac(*y, y0, y1, panel.log_y));
-            for (k, b) in boxes.iter().enumerate() {
-                if u >= b.0 && u <= b.1 && v >= b.2 && v <= b.3 {
-                    counts[k] += 1;
+        // A line between two points crosses the box too: its midpoints count as well.
+        for (k, (x, y)) in xs.iter().zip(ys).enumerate() {
+            let mut probe = |x: f64, y: f64| {
+                let (u, v) = (frac(x, x0, x1, panel.log_x), frac(y, y0, y1, panel.log_y));
+                for (k, b) in boxes.iter().enumerate() {
+                    if u >= b.0 && u <= b.1 && v >= b.2 && v <= b.3 {
+                        counts[k] += 1;
+                    }
                 }
+            };
+            probe(*x, *y);
+            if k > 0 {
+                probe(0.5 * (x + xs[k - 1]), 0.5 * (y + ys[k - 1]));
             }
         }
     }
-    let best = (0..5).min_by_key(|k| (counts[*k], *k)).unwrap_or(0);
-    [
-        SeriesLabelPosition::UpperRight,
-        SeriesLabelPosition::UpperLeft,
-        SeriesLabelPosition::LowerRight,
-        SeriesLabelPosition::LowerLeft,
-        SeriesLabelPosition::MiddleRight,
-    ][best]
-        .clone()
+    let fewest = (0..5).min_by_key(|k| (counts[*k], *k)).unwrap_or(0);
+    Some((
+        [
+            SeriesLabelPosition::UpperRight,
+            SeriesLabelPosition::UpperLeft,
+            SeriesLabelPosition::LowerRight,
+            SeriesLabelPosition::LowerLeft,
+            SeriesLabelPosition::MiddleRight,
+        ][fewest]
+            .clone(),
+        counts[fewest],
+    ))
+}
+
+/// The labels of a panel's legend entries, in drawing order.
+fn legend_labels(panel: &Panel) -> Vec<&str> {
+    panel
+        .series
+        .iter()
+        .chain(&panel.points)
+        .map(|s| s.label.as_str())
+        .chain(panel.bands.iter().map(|b| b.label.as_str()))
+        .collect()
 }
 
 /// A logarithmic axis range from `lo` to `hi` (positive data): widened to whole decades, at least
@@ -578,11 +696,164 @@ pub fn equal_aspect_ranges(
 }
 
 /// What a drawn panel shows: its axis ranges and the plotting area in pixels.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct Drawn {
     pub x: (f64, f64),
     pub y: (f64, f64),
     pub pixels: (u32, u32),
+    /// The plotting area's top left corner (px, in the drawing's coordinates).
+    pub origin: (i32, i32),
+    /// The legend's entries: each label and its mark, in drawing order.
+    entries: Vec<(String, Mark)>,
+}
+
+/// The mark of a legend entry: a band's shade, a line, a point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+enum Mark {
+    Band(RGBColor),
+    Line(RGBColor),
+    Point(RGBColor),
+}
+
+/// The legend mark `m` with its left end at `(x, y)` (px), in style `st`: what plotters draws
+/// in a legend inside the frame, and what [`legend_outside`] draws beside it.
+fn mark<DB: DrawingBackend>(
+    m: Mark,
+    (x, y): (i32, i32),
+    st: Style,
+) -> DynElement<'static, DB, (i32, i32)> {
+    let (d, w) = (st.px(5.0) as i32, st.px(20.0) as i32);
+    match m {
+        Mark::Band(c) => {
+            Rectangle::new([(x, y - d), (x + w, y + d)], c.mix(0.25).filled()).into_dyn()
+        }
+        Mark::Line(c) => {
+            PathElement::new(vec![(x, y), (x + w, y)], c.stroke_width(st.px(2.0))).into_dyn()
+        }
+        Mark::Point(c) => Circle::new((x + w / 2, y), st.px(3.0), c.filled()).into_dyn(),
+    }
+}
+
+/// A legend of `entries` drawn on `area` with its top left corner at `at` (px in `area`) and
+/// `width` px wide: a white box with a black border, each entry's mark and label on a line.
+fn legend_outside<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    entries: &[(String, Mark)],
+    at: (i32, i32),
+    width: u32,
+) -> Result<(), String>
+where
+    DB::ErrorType: 'static,
+{
+    let st = style();
+    let (margin, line) = (st.px(10.0) as i32, (st.font_px(13.0) * 1.25) as i32);
+    let height = 2 * margin + line * entries.len() as i32;
+    let corners = [at, (at.0 + width as i32, at.1 + height)];
+    let err = |e: plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
+    area.draw(&Rectangle::new(corners, WHITE.filled()))
+        .map_err(err)?;
+    area.draw(&Rectangle::new(corners, BLACK)).map_err(err)?;
+    let font: TextStyle = ("sans-serif", st.font_px(13.0)).into_font().into();
+    let font = font.pos(plotters::style::text_anchor::Pos::new(
+        plotters::style::text_anchor::HPos::Left,
+        plotters::style::text_anchor::VPos::Center,
+    ));
+    for (k, (label, m)) in entries.iter().enumerate() {
+        let y = at.1 + margin + line * k as i32 + line / 2;
+        area.draw(&mark::<DB>(*m, (at.0 + margin, y), st))
+            .map_err(err)?;
+        let x = at.0 + margin + st.px(30.0) as i32;
+        area.draw(&Text::new(label.clone(), (x, y), font.clone()))
+            .map_err(err)?;
+    }
+    Ok(())
+}
+
+/// The title's font size (px): 20 (12 in an inset) at scale 1 and font factor 1, made smaller,
+/// down to 60 % of that, until the title fits the panel's width.
+fn title_px<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    title: &str,
+    small: bool,
+) -> Result<f64, String> {
+    let full = style().font_px(if small { 12.0 } else { 20.0 });
+    let room = f64::from(area.dim_in_pixel().0) * 0.96;
+    let mut px = full;
+    while px > 0.6 * full {
+        let font: TextStyle = ("sans-serif", px).into_font().into();
+        let (w, _) = area
+            .estimate_text_size(title, &font)
+            .map_err(|e| e.to_string())?;
+        if f64::from(w) <= room {
+            break;
+        }
+        px = (px * 0.95).floor();
+    }
+    Ok(px)
+}
+
+/// Pixels between the frame and a legend drawn outside it, at scale 1.
+const LEGEND_GAP: f64 = 8.0;
+
+/// The legend of `panel` drawn in `area` with the given margin and label areas (px) over the
+/// frame (x0, x1, y0, y1) before log axes widen it to decades: none for an inset or a single
+/// entry; else inside the plotting area where it covers no data, else outside on the right.
+fn legend_for<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    panel: &Panel,
+    small: bool,
+    (margin, x_lab, y_lab): (u32, u32, u32),
+    (x0, x1, y0, y1): (f64, f64, f64, f64),
+) -> Result<Legend, String> {
+    let labels = legend_labels(panel);
+    if labels.len() < 2 || small {
+        return Ok(Legend::None);
+    }
+    let st = style();
+    let font: TextStyle = ("sans-serif", st.font_px(13.0)).into_font().into();
+    let mut text_w = 0;
+    for l in &labels {
+        let (w, _) = area
+            .estimate_text_size(l, &font)
+            .map_err(|e| e.to_string())?;
+        text_w = text_w.max(w);
+    }
+    // The box plotters draws: the entries' text, the legend marks' area and a margin around.
+    let width = text_w + st.px(30.0) + 2 * st.px(10.0);
+    let height = (labels.len() as f64 * st.font_px(13.0) * 1.25) as u32 + 2 * st.px(10.0);
+    let (aw, ah) = area.dim_in_pixel();
+    let plot = (
+        aw.saturating_sub(2 * margin + y_lab).max(1),
+        ah.saturating_sub(2 * margin + x_lab).max(1),
+    );
+    let frame = (
+        if panel.log_x {
+            x0.max(f64::MIN_POSITIVE)
+        } else {
+            x0
+        },
+        x1,
+        if panel.log_y {
+            y0.max(f64::MIN_POSITIVE)
+        } else {
+            y0
+        },
+        y1,
+    );
+    let fracs = (
+        f64::from(width) / f64::from(plot.0),
+        f64::from(height) / f64::from(plot.1),
+    );
+    Ok(match legend_spot(panel, frame, fracs) {
+        Some((p, 0)) => Legend::Inside(p),
+        // Outside while the data keep at least 55 % of the plotting width; a legend wider than
+        // that stays inside, where it covers the fewest points.
+        _ if f64::from(width + st.px(LEGEND_GAP)) < 0.45 * f64::from(plot.0) => {
+            Legend::Outside { width }
+        }
+        Some((p, _)) => Legend::Inside(p),
+        None => Legend::Inside(SeriesLabelPosition::UpperRight),
+    })
 }
 
 /// One panel in `area`; `small` for an inset (smaller fonts, no legend).
@@ -595,6 +866,7 @@ where
     DB::ErrorType: 'static,
 {
     register_font();
+    let st = style();
     // A band's edges count as lines for the axes' ranges.
     let edges: Vec<Series> = panel
         .bands
@@ -622,14 +894,44 @@ where
     let area = if panel.title.is_empty() {
         area.clone()
     } else {
-        area.titled(&panel.title, ("sans-serif", if small { 12 } else { 20 }))
+        let px = title_px(area, &panel.title, small)?;
+        // The glyphs rise above the height plotters reserves for the title by about a fifth
+        // of the font size at large sizes: that much room above it.
+        let top = if st.scale * st.font > 1.0 {
+            (0.2 * px) as u32
+        } else {
+            0
+        };
+        area.margin(top, 0, 0, 0)
+            .titled(&panel.title, ("sans-serif", px))
             .map_err(|e| e.to_string())?
     };
-    let (margin, x_lab, y_lab) = if small { (4, 22, 55) } else { (10, 40, 80) };
+    // Label areas grow with the fonts they hold.
+    let (margin, x_lab, y_lab) = if small {
+        (4.0, 22.0, 55.0)
+    } else {
+        (10.0, 40.0, 80.0)
+    };
+    let (margin, x_lab, y_lab) = (
+        st.px(margin),
+        st.px(x_lab * st.font),
+        st.px(y_lab * st.font),
+    );
+    let legend = legend_for(
+        &area,
+        panel,
+        small,
+        (margin, x_lab, y_lab),
+        (x0, x1, y0, y1),
+    )?;
+    let right = match legend {
+        Legend::Outside { width } => width + st.px(LEGEND_GAP),
+        _ => 0,
+    };
     if panel.equal_aspect && !panel.log_x && !panel.log_y {
         let (w, h) = area.dim_in_pixel();
         let pixels = (
-            w.saturating_sub(2 * margin + y_lab),
+            w.saturating_sub(2 * margin + y_lab + right),
             h.saturating_sub(2 * margin + x_lab),
         );
         ((x0, x1), (y0, y1)) = equal_aspect_ranges((x0, x1), (y0, y1), pixels);
@@ -637,6 +939,7 @@ where
     let mut builder = ChartBuilder::on(&area);
     builder
         .margin(margin)
+        .margin_right(margin + right)
         .x_label_area_size(x_lab)
         .y_label_area_size(y_lab);
     let xs = x1 - x0;
@@ -657,27 +960,60 @@ where
     let yspan = y1 - y0;
     let y_fmt = |v: &f64| tick(*v, yspan);
     let err = |e: plotters::drawing::DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
-    if panel.log_y {
+    let drawn = if panel.log_y {
         let (lo, hi) = decades(ys().fold(f64::INFINITY, f64::min), ys().fold(0.0, f64::max));
         let y_log = (lo..hi).log_scale();
         if panel.log_x {
             let mut chart = builder
                 .build_cartesian_2d((lx0..lx1).log_scale(), y_log)
                 .map_err(err)?;
-            fill_chart(&mut chart, panel, &log_fmt, &log_fmt, |y| y > 0.0, small)
+            fill_chart(
+                &mut chart,
+                panel,
+                &log_fmt,
+                &log_fmt,
+                |y| y > 0.0,
+                small,
+                &legend,
+            )
         } else {
             let mut chart = builder.build_cartesian_2d(x0..x1, y_log).map_err(err)?;
-            fill_chart(&mut chart, panel, &x_fmt, &log_fmt, |y| y > 0.0, small)
+            fill_chart(
+                &mut chart,
+                panel,
+                &x_fmt,
+                &log_fmt,
+                |y| y > 0.0,
+                small,
+                &legend,
+            )
         }
     } else if panel.log_x {
         let mut chart = builder
             .build_cartesian_2d((lx0..lx1).log_scale(), y_lin)
             .map_err(err)?;
-        fill_chart(&mut chart, panel, &log_fmt, &y_fmt, |_| true, small)
+        fill_chart(
+            &mut chart,
+            panel,
+            &log_fmt,
+            &y_fmt,
+            |_| true,
+            small,
+            &legend,
+        )
     } else {
         let mut chart = builder.build_cartesian_2d(x0..x1, y_lin).map_err(err)?;
-        fill_chart(&mut chart, panel, &x_fmt, &y_fmt, |_| true, small)
+        fill_chart(&mut chart, panel, &x_fmt, &y_fmt, |_| true, small, &legend)
+    }?;
+    if let Legend::Outside { width } = legend {
+        let base = area.get_base_pixel();
+        let at = (
+            drawn.origin.0 - base.0 + drawn.pixels.0 as i32 + st.px(LEGEND_GAP) as i32,
+            drawn.origin.1 - base.1,
+        );
+        legend_outside(&area, &drawn.entries, at, width)?;
     }
+    Ok(drawn)
 }
 
 fn draw<DB: DrawingBackend>(
@@ -692,20 +1028,35 @@ where
     let rows = panels.len().div_ceil(cols);
     let areas = root.split_evenly((rows, cols));
     for (panel, area) in panels.iter().zip(areas) {
-        draw_panel(&area, panel, false)?;
+        let drawn = draw_panel(&area, panel, false)?;
         if let Some(inset) = &panel.inset {
-            // A quarter of the plotting area, on white with a frame.
+            // About a quarter of the plotting area, inside its frame (clear of a legend beside
+            // it), on white with a frame, in the corner the panel asks for.
             let (w, h) = area.dim_in_pixel();
-            let (w, h) = (w as i32, h as i32);
+            let base = area.get_base_pixel();
+            let (ox, oy) = (drawn.origin.0 - base.0, drawn.origin.1 - base.1);
+            let (pw, ph) = (drawn.pixels.0 as i32, drawn.pixels.1 as i32);
+            let (iw, ih) = (pw * 48 / 100, ph * 46 / 100);
             let (right, top) = panel.inset_corner;
-            let x0 = if right { w * 52 / 100 } else { w * 17 / 100 };
-            let y0 = if top { h * 10 / 100 } else { h * 42 / 100 };
-            let sub = area.shrink((x0, y0), (w * 45 / 100, h * 42 / 100));
+            let x0 = if right {
+                ox + pw - iw - pw / 50
+            } else {
+                ox + pw / 50
+            };
+            let y0 = if top {
+                oy + ph / 30
+            } else {
+                oy + ph - ih - ph / 30
+            };
+            let sub = area.shrink(
+                (x0.max(0), y0.max(0)),
+                (iw.min(w as i32) as u32, ih.min(h as i32) as u32),
+            );
             sub.fill(&WHITE).map_err(|e| e.to_string())?;
             let (sw, sh) = sub.dim_in_pixel();
             sub.draw(&Rectangle::new(
                 [(0, 0), (sw as i32 - 1, sh as i32 - 1)],
-                BLACK.stroke_width(1),
+                BLACK.stroke_width(style().px(1.0)),
             ))
             .map_err(|e| e.to_string())?;
             draw_panel(&sub, inset, true)?;
@@ -744,7 +1095,11 @@ pub fn figure(
     register_font();
     let cols = cols.max(1).min(panels.len().max(1));
     let rows = panels.len().div_ceil(cols).max(1);
-    let size = (560 * cols as u32, 380 * rows as u32);
+    let st = style();
+    let size = (
+        st.px(f64::from(st.panel.0)) * cols as u32,
+        st.px(f64::from(st.panel.1)) * rows as u32,
+    );
     let path = file_of(path_stem, format);
     let res = match format {
         Format::Png => draw(
@@ -967,17 +1322,55 @@ mod tests {
         };
         let panel = Panel::new("", "", "", vec![top.clone(), rising.clone()]);
         let frame = (0.0, 1.0, 0.0, 1.0);
-        let pos = legend_corner(&panel, frame, &["top", "second"]);
-        assert!(matches!(pos, SeriesLabelPosition::LowerRight), "{pos:?}");
+        let pos = legend_spot(&panel, frame, (0.2, 0.2));
+        assert!(
+            matches!(pos, Some((SeriesLabelPosition::LowerRight, 0))),
+            "{pos:?}"
+        );
         // Data in the lower right and the upper right: the upper left is free.
         let corner = Series {
             label: "c".into(),
             x: vec![0.95, 0.9, 0.95, 0.9],
             y: vec![0.05, 0.1, 0.95, 0.9],
         };
-        let panel = Panel::new("", "", "", vec![corner, rising]);
-        let pos = legend_corner(&panel, frame, &["c", "second"]);
-        assert!(matches!(pos, SeriesLabelPosition::UpperLeft), "{pos:?}");
+        let panel = Panel::new("", "", "", vec![corner, rising.clone()]);
+        let pos = legend_spot(&panel, frame, (0.2, 0.2));
+        assert!(
+            matches!(pos, Some((SeriesLabelPosition::UpperLeft, 0))),
+            "{pos:?}"
+        );
+        // A line through every spot (a zigzag over the whole frame): no spot is free, and the
+        // legend is drawn right of the frame, which narrows to make room.
+        let zigzag = Series {
+            label: "zigzag".into(),
+            x: (0..=40).map(|k| k as f64 / 40.0).collect(),
+            y: (0..=40).map(|k| (k % 2) as f64).collect(),
+        };
+        let full = Panel::new("", "", "", vec![zigzag, rising]);
+        assert!(matches!(legend_spot(&full, frame, (0.2, 0.2)), Some((_, n)) if n > 0));
+        let draw = |panel: &Panel| {
+            let mut buf = vec![0u8; 560 * 380 * 3];
+            let area = BitMapBackend::with_buffer(&mut buf, (560, 380)).into_drawing_area();
+            let drawn = draw_panel(&area, panel, false).unwrap();
+            drop(area);
+            (drawn, buf)
+        };
+        let (outside, buf) = draw(&full);
+        let (inside, _) = draw(&Panel::new("", "", "", vec![top.clone(), top]));
+        assert!(
+            outside.pixels.0 + 60 < inside.pixels.0,
+            "{outside:?} against {inside:?}"
+        );
+        // The legend's black border stands right of the frame's right edge (the frame ends at
+        // margin + y label area + plotting width = 10 + 80 + width px).
+        let frame_right = 10 + 80 + outside.pixels.0 as usize;
+        let dark_right = (0..380).any(|y| {
+            (frame_right + 4..560).any(|x| {
+                let p = &buf[3 * (560 * y + x)..3 * (560 * y + x) + 3];
+                p.iter().all(|c| *c < 60)
+            })
+        });
+        assert!(dark_right, "nothing drawn right of the frame");
     }
 
     #[test]

@@ -91,6 +91,9 @@ pub struct Recorded {
     pub convergence: Option<Convergence>,
     /// The branches of periodic orbits, when the study followed them.
     pub continuation: Option<ContData>,
+    /// The integrator's relative and absolute tolerances (root attribute `integrator`); `None`
+    /// for a fixed-step method.
+    pub tolerances: Option<(f64, f64)>,
 }
 
 /// An analysis file, its kind checked: the study text it was written from and the study's name.
@@ -137,6 +140,9 @@ impl Opened {
         } else {
             d.read_single(&file, path, &names)?;
         }
+        d.tolerances = read_str(&file, "integrator")
+            .ok()
+            .and_then(|s| jointplay_solver::ode::Method::tolerances_in(&s));
         d.continuation = match file.group("continuation") {
             Ok(g) => Some(read_continuation(&g, observables).map_err(&e)?),
             Err(_) => None,

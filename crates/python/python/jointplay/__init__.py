@@ -11,6 +11,8 @@ The package is the jointplay program's own Rust code (not a wrapper around the c
   and work-precision studies, returning the HDF5 file loaded as a ``StudyResult``;
 * ``load(path)``: any HDF5 file jointplay writes, dataset by dataset as numpy arrays;
 * ``set_hdf5_format("1.8")``: files from then on in the oldest HDF5 format (default ``"1.10"``).
+* ``set_figure_style(size=(800, 500), scale=2, font_scale=1.2)``: how figures are sized from
+  then on (panel size in px, resolution factor, font factor).
 
 All quantities are SI: m, kg, s, rad, N, N m, J. Errors raise ``JointplayError`` with the
 program's message (file, field or path, value, time). Long runs release the GIL and show a
@@ -29,6 +31,7 @@ from ._jointplay import (
     load,
     load_scene,
     run_study,
+    set_figure_style,
     set_hdf5_format,
 )
 
@@ -43,5 +46,6 @@ __all__ = [
     "load",
     "load_scene",
     "run_study",
+    "set_figure_style",
     "set_hdf5_format",
 ]

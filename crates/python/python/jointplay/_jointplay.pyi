@@ -54,7 +54,10 @@ class Scene:
         """What ``jointplay check`` prints, as a dict: ``dof``, ``rank``, ``joint_rank``,
         ``redundant_joint_rows``, ``redundant_drives``, ``coordinates``, ``bodies`` (mass in kg,
         inertia in kg m^2), ``joints``, ``drives`` (period in s), ``assembly`` (residuals in m or
-        rad, m/s or rad/s), ``effects``, ``disabled``, ``solver``, ``start_time`` and
+        rad, m/s or rad/s), ``closed_start`` (the clearance joints the start closed as ideal
+        joints with their eccentricities in m, whether that moved the start, and how far the
+        start assembled without closing them was, in m or rad and m/s or rad/s; None without
+        such joints), ``effects``, ``disabled``, ``solver``, ``start_time`` and
         ``end_time`` (s), ``period`` (s), ``output``, ``warnings`` and the printed ``lines``."""
     def run(self, progress: bool = True) -> Run:
         """Simulates the scene from its start to its end time; the GIL is released, a progress
@@ -167,6 +170,12 @@ def run_study(
     ``[continuation]`` is followed after the analysis, into the same file. A failed case or value raises
     ``JointplayError`` after the file is written. Ctrl-C raises ``Interrupted``."""
 
+def set_figure_style(
+    size: tuple[int, int] = (560, 380), scale: float = 1.0, font_scale: float = 1.0
+) -> None:
+    """How every figure drawn from now on is sized: one panel's (width, height) in px at scale
+    1, a resolution factor on every pixel dimension (0.25 to 8), a factor on the fonts (0.5 to
+    4); as the program's --figure-size, --figure-scale and --font-scale."""
 def set_hdf5_format(version: str) -> None:
     """Sets the HDF5 format of every file written from now on in this process: ``"1.10"`` (the
     default; smaller files, read by HDF5 1.10 and later) or ``"1.8"`` (the oldest format, for

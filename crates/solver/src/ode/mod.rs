@@ -391,6 +391,16 @@ impl Method {
         self.accuracy
     }
 
+    /// The relative and absolute tolerances in a text [`Method::describe`] wrote ("dopri5, rtol
+    /// 1e-9, atol 1e-11"); `None` for a fixed-step method's text.
+    pub fn tolerances_in(described: &str) -> Option<(f64, f64)> {
+        let after = |key: &str| -> Option<f64> {
+            let rest = &described[described.find(key)? + key.len()..];
+            rest.split([',', ' ']).next()?.parse().ok()
+        };
+        Some((after("rtol ")?, after("atol ")?))
+    }
+
     /// Human-readable settings, e.g. "rk4, fixed step 1e-4 s".
     pub fn describe(&self) -> String {
         let name = self.integrator.name;

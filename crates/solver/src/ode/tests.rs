@@ -640,6 +640,12 @@ fn every_registered_integrator_is_complete() {
         // The scene's method is the family of the integrator's name.
         let scene = integrator.method(1e-3, 1e-6, 1e-9, 0.5);
         assert_eq!(scene.family(), name);
+        // The tolerances are read back from the description a file keeps.
+        let tolerances = Method::tolerances_in(&scene.describe());
+        match integrator.adaptive {
+            Some(_) => assert_eq!(tolerances, Some((1e-6, 1e-9)), "{}", scene.describe()),
+            None => assert_eq!(tolerances, None, "{}", scene.describe()),
+        }
         assert_eq!(scene.fixed_step().is_some(), integrator.adaptive.is_none());
         let families: Vec<&str> = Method::families()
             .filter(|f| {
