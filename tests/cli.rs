@@ -2218,3 +2218,45 @@ fn figure_size_scale_and_fonts_are_options_of_every_command() {
         .unwrap();
     assert!(text(&o).1.contains("WIDTHxHEIGHT"), "{:?}", text(&o));
 }
+
+/// A time history marks a hyperplane section's crossings: on the Newton impact oscillator the
+/// clock-sampled history misses the stop (its largest sample is 0.904 at 20 samples a period),
+/// and the section on the impact surface puts every impact at x = 1, one per period on this
+/// period-1 orbit. A time figure cannot name the stroboscopic section.
+#[test]
+fn a_time_history_marks_the_impacts_its_samples_miss() {
+    let dir = tempfile::tempdir().unwrap();
+    let study = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("analyses/impact/history.toml");
+    let o = bin()
+        .arg("run")
+        .arg(&study)
+        .arg("--out")
+        .arg(dir.path())
+        .arg("-q")
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{:?}", text(&o));
+    let f = hdf5::File::open(dir.path().join("impact-history.h5")).unwrap();
+    let x: Vec<f64> = f.dataset("history/x").unwrap().read_raw().unwrap();
+    let at_impacts: Vec<f64> = f.dataset("sections/impact/x").unwrap().read_raw().unwrap();
+    let top = x.iter().fold(f64::MIN, |m, v| m.max(*v));
+    // The located crossings lie on the stop to the locator's tolerance (1e-13 of a step, far
+    // below any sampling error); the samples fall short of it by a tenth.
+    assert!(top < 0.95, "the samples reach {top}");
+    assert_eq!(at_impacts.len(), 20);
+    assert!(
+        at_impacts.iter().all(|v| (v - 1.0).abs() < 1e-9),
+        "{at_impacts:?}"
+    );
+    assert!(dir.path().join("impact-history-time-x.png").exists());
+
+    let text_of = std::fs::read_to_string(&study).unwrap();
+    let bad = text_of.replace("section = \"impact\"", "section = \"strobe\"");
+    let bad_file = dir.path().join("bad.toml");
+    std::fs::write(&bad_file, bad).unwrap();
+    let (_, e) = text(&bin().arg("check").arg(&bad_file).output().unwrap());
+    assert!(
+        e.contains("figures[0].section") && e.contains("hyperplane"),
+        "{e}"
+    );
+}

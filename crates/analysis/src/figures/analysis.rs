@@ -628,16 +628,7 @@ impl<'a> Axes<'a> {
             .map(|v| scaled(v, sy))
             .unwrap_or_default();
         match self.f.kind {
-            FigureKind::Time => Panel::new(
-                self.title(format!("{y} against time"), j),
-                "time (s)",
-                self.label(y),
-                vec![Series {
-                    label: y.into(),
-                    x: j.history_time.clone(),
-                    y: hy,
-                }],
-            ),
+            FigureKind::Time => self.time(j, hy),
             FigureKind::Phase => {
                 let mut p = Panel::new(
                     self.title(format!("Phase portrait {y} against {x}"), j),
@@ -660,6 +651,50 @@ impl<'a> Axes<'a> {
             FigureKind::Orbit => self.orbit(j, hx, hy),
             FigureKind::Bifurcation | FigureKind::Branches => unreachable!("handled above"),
         }
+    }
+
+    /// Job `j`'s time history `hy` of the figure's `y`; with a hyperplane `section`, its
+    /// crossings inside the history's span marked on it. The history is sampled on a clock, so
+    /// it cuts the corners of sharp turns (an impact, a stop) and its samples' extremes miss
+    /// them; the crossings are located on the integrator's dense output (a section on the
+    /// impact surface marks every impact where it happens).
+    fn time(&self, j: &Job, hy: Vec<f64>) -> Panel {
+        let y = self.y;
+        let mut p = Panel::new(
+            self.title(format!("{y} against time"), j),
+            "time (s)",
+            self.label(y),
+            vec![Series {
+                label: y.into(),
+                x: j.history_time.clone(),
+                y: hy,
+            }],
+        );
+        let (Some(name), Some(&t0), Some(&t1)) = (
+            self.f.section.as_ref(),
+            j.history_time.first(),
+            j.history_time.last(),
+        ) else {
+            return p;
+        };
+        if let (Some(times), Some(values)) = (
+            j.crossing_times.get(name),
+            j.sections.get(name).and_then(|m| m.get(y)),
+        ) {
+            let (x, v): (Vec<f64>, Vec<f64>) = times
+                .iter()
+                .zip(values)
+                .filter(|(t, _)| (t0..=t1).contains(*t))
+                .map(|(t, v)| (*t, v * self.sy))
+                .unzip();
+            p.points = vec![Series {
+                label: format!("section '{name}' crossings"),
+                x,
+                y: v,
+            }];
+            p.point_size = 2;
+        }
+        p
     }
 
     /// Job `j`'s Poincare map: the section points `(px, py)` over the faint trajectory

@@ -21,6 +21,8 @@ pub(super) struct Job {
     pub(super) history: BTreeMap<String, Vec<f64>>,
     /// Section name ("strobe" or a hyperplane) to observable to points.
     pub(super) sections: BTreeMap<String, BTreeMap<String, Vec<f64>>>,
+    /// Hyperplane section name to its crossing times (s).
+    pub(super) crossing_times: BTreeMap<String, Vec<f64>>,
 }
 
 pub(super) struct Data {
@@ -72,6 +74,7 @@ pub(super) fn read(path: &Path) -> Result<Data> {
             history_time: j.history_time,
             history: j.history,
             sections: j.sections,
+            crossing_times: j.crossing_times,
         })
         .collect();
     Ok(Data {

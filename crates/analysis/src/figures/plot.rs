@@ -35,13 +35,16 @@ pub struct Style {
     pub font: f64,
 }
 
+/// The style of figures unless told otherwise.
+const DEFAULT_STYLE: Style = Style {
+    panel: (560, 380),
+    scale: 1.0,
+    font: 1.0,
+};
+
 impl Default for Style {
     fn default() -> Self {
-        Style {
-            panel: (560, 380),
-            scale: 1.0,
-            font: 1.0,
-        }
+        DEFAULT_STYLE
     }
 }
 
@@ -87,11 +90,7 @@ pub fn parse_panel_size(s: &str) -> std::result::Result<(u32, u32), String> {
     Ok((n(w)?, n(h)?))
 }
 
-static STYLE: std::sync::RwLock<Style> = std::sync::RwLock::new(Style {
-    panel: (560, 380),
-    scale: 1.0,
-    font: 1.0,
-});
+static STYLE: std::sync::RwLock<Style> = std::sync::RwLock::new(DEFAULT_STYLE);
 
 /// Sets the [`Style`] of every figure drawn from now on, in this process.
 pub fn set_style(style: Style) {

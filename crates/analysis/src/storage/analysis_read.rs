@@ -27,6 +27,8 @@ pub struct RecordedJob {
     pub history: BTreeMap<String, Vec<f64>>,
     /// Section name ("strobe" or a hyperplane) to observable to points.
     pub sections: BTreeMap<String, BTreeMap<String, Vec<f64>>>,
+    /// Hyperplane section name to its crossing times (s).
+    pub crossing_times: BTreeMap<String, Vec<f64>>,
 }
 
 /// A sweep's parameter: its path, its unit and every value of the sweep (done or not).
@@ -220,6 +222,11 @@ fn read_tail_rows(g: &hdf5::Group, name: &str, done: &[u8]) -> hdf5::Result<Vec<
         .collect()
 }
 
+/// A hyperplane section group's crossing times (s).
+fn read_times(g: &hdf5::Group) -> hdf5::Result<Vec<f64>> {
+    g.dataset("time")?.read_raw::<f64>()
+}
+
 fn read_group(g: &hdf5::Group, observables: &[&str]) -> hdf5::Result<BTreeMap<String, Vec<f64>>> {
     let mut m = BTreeMap::new();
     for o in observables {
@@ -300,6 +307,7 @@ impl Recorded {
                     .map(|(k, v)| (k.clone(), v[j].clone()))
                     .collect(),
             );
+            let mut crossing_times = BTreeMap::new();
             if let Ok(sj) = g.group(&format!("sections/{j}")) {
                 for s in names.sections {
                     let gs = sj.group(s).map_err(&e)?;
@@ -307,6 +315,7 @@ impl Recorded {
                         s.to_string(),
                         read_group(&gs, names.observables).map_err(&e)?,
                     );
+                    crossing_times.insert(s.to_string(), read_times(&gs).map_err(&e)?);
                 }
             }
             self.jobs.push(RecordedJob {
@@ -318,6 +327,7 @@ impl Recorded {
                     .map(|(k, v)| (k.clone(), v[j].clone()))
                     .collect(),
                 sections,
+                crossing_times,
             });
         }
         if let Ok(c) = g.group("chaos") {
@@ -416,6 +426,8 @@ impl Recorded {
                 s.to_string(),
                 read_group(&g, names.observables).map_err(&e)?,
             );
+            job.crossing_times
+                .insert(s.to_string(), read_times(&g).map_err(&e)?);
         }
         self.jobs.push(job);
         Ok(())

@@ -180,7 +180,8 @@ pub struct FigureSpec {
     pub y: String,
     #[serde(default)]
     pub title: Option<String>,
-    /// Section for `poincare` (default the stroboscopic one).
+    /// Section for `poincare` and `bifurcation` (default the stroboscopic one); for `time`, a
+    /// hyperplane section whose crossings are marked on the history.
     #[serde(default)]
     pub section: Option<String>,
     /// Sweep values to draw (one panel each; default every value, up to 6).
@@ -390,6 +391,14 @@ impl AnalysisStudy {
                 path,
                 format!("figures[{i}].kind"),
                 "a bifurcation diagram needs a [sweep]",
+            ));
+        }
+        if f.kind == FigureKind::Time && f.section.as_deref() == Some("strobe") {
+            return Err(invalid(
+                path,
+                format!("figures[{i}].section"),
+                "a time history marks the crossings of a hyperplane section ([[sections]]); \
+                 the stroboscopic points are drawn by phase and poincare figures",
             ));
         }
         if let Some(s) = &f.section
