@@ -596,6 +596,25 @@ struct Run {
 }
 
 impl Run {
+    /// The channel that records observable `path`, and its column there.
+    fn column(&self, path: &str) -> PyResult<(&jointplay_analysis::storage::run::Channel, usize)> {
+        self.result
+            .recording
+            .channels
+            .iter()
+            .find_map(|ch| {
+                ch.columns
+                    .iter()
+                    .position(|o| o.path == path)
+                    .map(|k| (ch, k))
+            })
+            .ok_or_else(|| {
+                PyKeyError::new_err(format!(
+                    "{path}: not recorded in this run (see Run.columns)"
+                ))
+            })
+    }
+
     fn channel(&self, dataset: &str) -> PyResult<&jointplay_analysis::storage::run::Channel> {
         self.result.recording.channel(dataset).ok_or_else(|| {
             PyKeyError::new_err(format!(
@@ -648,15 +667,9 @@ impl Run {
     fn observable<'py>(slf: Bound<'py, Self>, path: &str) -> PyResult<Bound<'py, PyAny>> {
         let r = slf.get();
         let n = r.result.recording.time.len();
-        for ch in &r.result.recording.channels {
-            if let Some(k) = ch.columns.iter().position(|o| o.path == path) {
-                let all = ArrayView2::from_shape((n, ch.width()), &ch.values[..]).map_err(err)?;
-                return borrowed(all.column(k), slf.clone().into_any());
-            }
-        }
-        Err(PyKeyError::new_err(format!(
-            "{path}: not recorded in this run (see Run.columns)"
-        )))
+        let (ch, k) = r.column(path)?;
+        let all = ArrayView2::from_shape((n, ch.width()), &ch.values[..]).map_err(err)?;
+        borrowed(all.column(k), slf.clone().into_any())
     }
 
     /// A stroboscopic (Poincare) section of the run: the samples of ``path`` at
@@ -703,20 +716,7 @@ impl Run {
                 PyArray2::from_owned_array(py, a).into_any()
             }
         } else {
-            let (ch, k) = rec
-                .channels
-                .iter()
-                .find_map(|ch| {
-                    ch.columns
-                        .iter()
-                        .position(|o| o.path == path)
-                        .map(|k| (ch, k))
-                })
-                .ok_or_else(|| {
-                    PyKeyError::new_err(format!(
-                        "{path}: not recorded in this run (see Run.columns)"
-                    ))
-                })?;
+            let (ch, k) = r.column(path)?;
             let w = ch.width();
             debug_assert_eq!(ch.values.len(), n * w);
             PyArray1::from_vec(py, rows.iter().map(|&i| ch.values[i * w + k]).collect()).into_any()

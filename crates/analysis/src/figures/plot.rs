@@ -587,7 +587,7 @@ fn legend_spot(
     panel: &Panel,
     frame: (f64, f64, f64, f64),
     box_frac: (f64, f64),
-) -> Option<(SeriesLabelPosition, usize)> {
+) -> (SeriesLabelPosition, usize) {
     let (w, h) = (box_frac.0.min(0.9), box_frac.1.min(0.9));
     let frac = |v: f64, a: f64, b: f64, log: bool| {
         if log {
@@ -636,7 +636,7 @@ fn legend_spot(
         }
     }
     let fewest = (0..5).min_by_key(|k| (counts[*k], *k)).unwrap_or(0);
-    Some((
+    (
         [
             SeriesLabelPosition::UpperRight,
             SeriesLabelPosition::UpperLeft,
@@ -646,7 +646,7 @@ fn legend_spot(
         ][fewest]
             .clone(),
         counts[fewest],
-    ))
+    )
 }
 
 /// The labels of a panel's legend entries, in drawing order.
@@ -844,14 +844,13 @@ fn legend_for<DB: DrawingBackend>(
         f64::from(height) / f64::from(plot.1),
     );
     Ok(match legend_spot(panel, frame, fracs) {
-        Some((p, 0)) => Legend::Inside(p),
+        (p, 0) => Legend::Inside(p),
         // Outside while the data keep at least 55 % of the plotting width; a legend wider than
         // that stays inside, where it covers the fewest points.
         _ if f64::from(width + st.px(LEGEND_GAP)) < 0.45 * f64::from(plot.0) => {
             Legend::Outside { width }
         }
-        Some((p, _)) => Legend::Inside(p),
-        None => Legend::Inside(SeriesLabelPosition::UpperRight),
+        (p, _) => Legend::Inside(p),
     })
 }
 
@@ -1267,6 +1266,15 @@ mod tests {
         assert!(shaded > area / 5, "{shaded} of {area}");
     }
 
+    /// `panel` drawn alone in a 560 x 380 px RGB buffer: what was drawn, and the pixels.
+    fn draw_in_memory(panel: &Panel) -> (Drawn, Vec<u8>) {
+        let mut buf = vec![0u8; 560 * 380 * 3];
+        let area = BitMapBackend::with_buffer(&mut buf, (560, 380)).into_drawing_area();
+        let drawn = draw_panel(&area, panel, false).unwrap();
+        drop(area);
+        (drawn, buf)
+    }
+
     #[test]
     fn an_equal_aspect_panel_draws_a_circle_round() {
         // A unit circle on +-1.25 in a panel of the usual 560 x 380 px: the drawn ranges give
@@ -1280,11 +1288,7 @@ mod tests {
         let mut panel = Panel::new("orbit", "x (mm)", "y (mm)", vec![circle]);
         panel.x_range = Some((-1.25, 1.25));
         panel.y_range = Some((-1.25, 1.25));
-        let draw = |panel: &Panel| {
-            let mut buf = vec![0u8; 560 * 380 * 3];
-            let area = BitMapBackend::with_buffer(&mut buf, (560, 380)).into_drawing_area();
-            draw_panel(&area, panel, false).unwrap()
-        };
+        let draw = |panel: &Panel| draw_in_memory(panel).0;
         let per_px = |d: &Drawn| {
             (
                 (d.x.1 - d.x.0) / d.pixels.0 as f64,
@@ -1323,7 +1327,7 @@ mod tests {
         let frame = (0.0, 1.0, 0.0, 1.0);
         let pos = legend_spot(&panel, frame, (0.2, 0.2));
         assert!(
-            matches!(pos, Some((SeriesLabelPosition::LowerRight, 0))),
+            matches!(pos, (SeriesLabelPosition::LowerRight, 0)),
             "{pos:?}"
         );
         // Data in the lower right and the upper right: the upper left is free.
@@ -1335,7 +1339,7 @@ mod tests {
         let panel = Panel::new("", "", "", vec![corner, rising.clone()]);
         let pos = legend_spot(&panel, frame, (0.2, 0.2));
         assert!(
-            matches!(pos, Some((SeriesLabelPosition::UpperLeft, 0))),
+            matches!(pos, (SeriesLabelPosition::UpperLeft, 0)),
             "{pos:?}"
         );
         // A line through every spot (a zigzag over the whole frame): no spot is free, and the
@@ -1346,16 +1350,9 @@ mod tests {
             y: (0..=40).map(|k| (k % 2) as f64).collect(),
         };
         let full = Panel::new("", "", "", vec![zigzag, rising]);
-        assert!(matches!(legend_spot(&full, frame, (0.2, 0.2)), Some((_, n)) if n > 0));
-        let draw = |panel: &Panel| {
-            let mut buf = vec![0u8; 560 * 380 * 3];
-            let area = BitMapBackend::with_buffer(&mut buf, (560, 380)).into_drawing_area();
-            let drawn = draw_panel(&area, panel, false).unwrap();
-            drop(area);
-            (drawn, buf)
-        };
-        let (outside, buf) = draw(&full);
-        let (inside, _) = draw(&Panel::new("", "", "", vec![top.clone(), top]));
+        assert!(matches!(legend_spot(&full, frame, (0.2, 0.2)), (_, n) if n > 0));
+        let (outside, buf) = draw_in_memory(&full);
+        let (inside, _) = draw_in_memory(&Panel::new("", "", "", vec![top.clone(), top]));
         assert!(
             outside.pixels.0 + 60 < inside.pixels.0,
             "{outside:?} against {inside:?}"

@@ -152,12 +152,15 @@ fn gap(copy: &Model, rows: &[std::ops::Range<usize>], state: &State) -> (f64, f6
     (max(&ws.phi), max(&ws.phi_dot))
 }
 
-/// The rows of `model` in `range` (whole primitives), appended to `rows`.
+/// The rows of `model` in `range` (whole primitives), appended to `rows`. The primitives are
+/// in row order, so the range's are found by bisection rather than by a scan per joint.
 fn copy_rows(model: &Model, range: std::ops::Range<usize>, rows: &mut Rows) {
-    for (p, r0) in &model.prims {
-        if range.contains(r0) {
-            rows.push(p.clone());
-        }
+    let first = model.prims.partition_point(|(_, r0)| *r0 < range.start);
+    for (p, _) in model.prims[first..]
+        .iter()
+        .take_while(|(_, r0)| *r0 < range.end)
+    {
+        rows.push(p.clone());
     }
 }
 
