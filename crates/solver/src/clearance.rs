@@ -32,6 +32,7 @@
 use nalgebra::Vector3;
 
 use crate::contact::{FrictionLaw, NormalLaw};
+use crate::film::Film;
 use crate::kin::{Kin, any_normal};
 
 /// Clearance geometry of one joint (lengths in m).
@@ -177,6 +178,8 @@ pub struct Clearance {
     pub geometry: Geometry,
     pub law: NormalLaw,
     pub friction: FrictionLaw,
+    /// The oil film of a lubricated journal bearing ([`crate::film`]).
+    pub film: Option<Film>,
     /// First slot of this joint's contacts in the workspace contact arrays.
     pub first: usize,
 }
@@ -396,7 +399,26 @@ impl Clearance {
             r.force_h -= f;
             r.moment_h -= (c.ph - kh.r).cross(&f);
         }
+        if let Some(film) = &self.film {
+            let f = self.film_force(film, kh, kj);
+            let (rh, rj) = (kh.r + kh.rot * self.sh, kj.r + kj.rot * self.sj);
+            r.force_j += f;
+            r.moment_j += (rj - kj.r).cross(&f);
+            r.force_h -= f;
+            r.moment_h -= (rh - kh.r).cross(&f);
+        }
         r
+    }
+
+    /// The film force on the journal (N, global), applied at the journal centre (the bearing
+    /// takes the opposite force at its centre): from the journal centre's eccentricity and its
+    /// rate in the plane normal to the housing axis, and the two bodies' spins about that axis.
+    pub fn film_force(&self, film: &Film, kh: &Kin, kj: &Kin) -> Vector3<f64> {
+        let a = kh.rot * self.axis_h;
+        let (rh, rj) = (kh.r + kh.rot * self.sh, kj.r + kj.rot * self.sj);
+        let e = perp(&(rj - rh), &a);
+        let e_dot = perp(&(vel(kj, &rj) - vel(kh, &rh)), &a);
+        film.force(&e, &e_dot, &a, (kj.w + kh.w).dot(&a))
     }
 }
 
@@ -482,6 +504,7 @@ mod tests {
                 el: Elastic::Power { k: 8.62e10, n: 1.5 },
             },
             friction: FrictionLaw::None,
+            film: None,
             first: 0,
         }
     }

@@ -10,6 +10,7 @@
 //! | `friction`, `J.friction` | the friction law of every clearance joint (or of J) | `friction = { law = "none" }` |
 //! | `contact_damping`, `J.contact_damping` | the damping of the normal law: Hertz with the same stiffness and exponent | `law = "hertz"` |
 //! | `axial_contact`, `J.axial_contact` | the end-face contacts M, N of spatial revolute clearances; the axial position is held by a constraint row again | the block without `axial_clearance` and `face_radius` |
+//! | `lubrication`, `J.lubrication` | the oil film of lubricated revolute clearances: the joint is dry | the block without its `lubrication` table |
 //! | `accelerations`, `diagnostics`, `energy` | recording of accelerations, of drift and energy, of energy alone | `[output]` with them off |
 //!
 //! Each entry is parsed into a [`Disable`] (an [`Effect`], for one joint or all) and applied to the
@@ -45,6 +46,8 @@ pub enum JointEffect {
     ContactDamping,
     /// The end-face contacts of spatial revolute clearances.
     AxialContact,
+    /// The oil film of lubricated revolute clearances.
+    Lubrication,
 }
 
 /// The recorded quantities an entry can switch off.
@@ -57,7 +60,7 @@ pub enum Recorded {
 
 impl Effect {
     /// Every effect, in the order the error messages list them.
-    pub const ALL: [Effect; 10] = [
+    pub const ALL: [Effect; 11] = [
         Effect::Gravity,
         Effect::Springs,
         Effect::Loads,
@@ -65,6 +68,7 @@ impl Effect {
         Effect::Joint(JointEffect::Friction),
         Effect::Joint(JointEffect::ContactDamping),
         Effect::Joint(JointEffect::AxialContact),
+        Effect::Joint(JointEffect::Lubrication),
         Effect::Recording(Recorded::Accelerations),
         Effect::Recording(Recorded::Diagnostics),
         Effect::Recording(Recorded::Energy),
@@ -84,11 +88,12 @@ impl Effect {
 
 impl JointEffect {
     /// Every joint effect, in the order the error messages list them.
-    pub const ALL: [JointEffect; 4] = [
+    pub const ALL: [JointEffect; 5] = [
         JointEffect::Clearance,
         JointEffect::Friction,
         JointEffect::ContactDamping,
         JointEffect::AxialContact,
+        JointEffect::Lubrication,
     ];
 
     pub fn name(self) -> &'static str {
@@ -97,6 +102,7 @@ impl JointEffect {
             JointEffect::Friction => "friction",
             JointEffect::ContactDamping => "contact_damping",
             JointEffect::AxialContact => "axial_contact",
+            JointEffect::Lubrication => "lubrication",
         }
     }
 }
@@ -257,6 +263,7 @@ fn disable_in_joint(clearance: &mut Option<ClearanceSpec>, effect: JointEffect) 
             c.face_radius = None;
             had
         }
+        JointEffect::Lubrication => c.lubrication.take().is_some(),
     }
 }
 
@@ -280,7 +287,7 @@ mod tests {
                     assert_eq!(
                         scoped,
                         Err(format!(
-                            "'{}' is not a joint effect; per joint: clearance, friction, contact_damping, axial_contact",
+                            "'{}' is not a joint effect; per joint: clearance, friction, contact_damping, axial_contact, lubrication",
                             e.name()
                         ))
                     )
@@ -291,7 +298,7 @@ mod tests {
             Disable::parse("wobble").map_err(|e| e.to_string()),
             Err(
                 "unknown effect 'wobble'; known: gravity, springs, loads, clearance, friction, \
-                 contact_damping, axial_contact, accelerations, diagnostics, energy"
+                 contact_damping, axial_contact, lubrication, accelerations, diagnostics, energy"
                     .into()
             )
         );

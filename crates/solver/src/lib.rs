@@ -29,6 +29,7 @@ pub mod coupling;
 pub mod disable;
 pub mod dynamics;
 pub mod error;
+pub mod film;
 pub mod guard;
 pub mod kin;
 pub mod linalg;

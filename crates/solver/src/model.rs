@@ -180,6 +180,8 @@ pub struct Effects {
     pub clearance: bool,
     pub friction: bool,
     pub axial_contact: bool,
+    /// An oil film in any revolute clearance.
+    pub lubrication: bool,
 }
 
 impl Effects {
@@ -216,7 +218,7 @@ impl Effects {
         }
         if self.clearance {
             v.push(format!(
-                "clearance contact: {} joints, {} contact points{}{}",
+                "clearance contact: {} joints, {} contact points{}{}{}",
                 m.clearances.len(),
                 m.n_contacts,
                 if self.axial_contact {
@@ -224,6 +226,7 @@ impl Effects {
                 } else {
                     ""
                 },
+                if self.lubrication { ", oil films" } else { "" },
                 if self.friction {
                     ", friction"
                 } else {
@@ -234,6 +237,9 @@ impl Effects {
                 v.push(format!("    {}: {}", c.name, c.geometry.describe()));
                 v.push(format!("    {}: normal law {}", c.name, c.law.describe()));
                 v.push(format!("    {}: {}", c.name, c.friction.describe()));
+                if let Some(film) = &c.film {
+                    v.push(format!("    {}: {}", c.name, film.describe()));
+                }
             }
         }
         v

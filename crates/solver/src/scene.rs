@@ -19,6 +19,7 @@ use std::path::{Path, PathBuf};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
+use crate::film::FilmModel;
 use crate::ode::{Integrator, Method};
 
 pub mod units;
@@ -336,6 +337,28 @@ pub struct ClearanceSpec {
     /// Only with `start = "closed"`.
     #[serde(default)]
     pub initial_eccentricity: Option<[f64; 3]>,
+    /// Revolute joints: an oil film in the clearance ([`crate::film`]), with the dry laws above
+    /// for asperity contact at the wall.
+    #[serde(default)]
+    pub lubrication: Option<LubricationSpec>,
+}
+
+/// A clearance block's `lubrication` table ([`crate::film`]; SI units, lengths may carry a
+/// unit).
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(deny_unknown_fields)]
+pub struct LubricationSpec {
+    /// The film model: `short` (Ocvirk's short bearing, the default).
+    #[serde(default)]
+    pub model: FilmModel,
+    /// Dynamic viscosity of the oil (Pa s).
+    pub viscosity: f64,
+    /// Length of the bearing (m); a spatial revolute's default is its bushing length.
+    #[serde(default, deserialize_with = "units::option_length")]
+    pub length: Option<f64>,
+    /// Eccentricity ratio above which the film force is held at its value there (default 0.95).
+    #[serde(default)]
+    pub eccentricity_limit: Option<f64>,
 }
 
 /// How a clearance joint starts (see [`ClearanceSpec::start`]).

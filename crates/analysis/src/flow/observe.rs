@@ -22,7 +22,8 @@
 //! | `joints.J.normal_force.K` | normal force of contact K | N |
 //! | `joints.J.friction_force.K` | magnitude of the friction force of contact K | N |
 //! | `joints.J.contact_state.K` | 1 while contact K is in contact, 0 while free | 1 |
-//! | `joints.J.contact_force.C` (or `force_on_journal.C`) | resultant contact force on the journal | N |
+//! | `joints.J.contact_force.C` (or `force_on_journal.C`) | resultant contact force on the journal (film included) | N |
+//! | `joints.J.film_force.C` | a lubricated joint's oil-film force on the journal (part of the resultant) | N |
 //! | `joints.J.moment_on_journal.C` | resultant contact moment on the journal, about its centre of mass | N m |
 //! | `joints.J.force_on_housing.C` / `moment_on_housing.C` | the same on the housing | N / N m |
 //! | `joints.J.reaction.C` (or `reaction_force.C`) | reaction force of an ideal joint on its second body | N |
@@ -108,6 +109,11 @@ enum Source {
     Resultant {
         c: usize,
         what: ResultantQ,
+        comp: usize,
+    },
+    /// The oil film's force on the journal of lubricated joint `c`.
+    Film {
+        c: usize,
         comp: usize,
     },
     Reaction {
@@ -342,6 +348,20 @@ fn clearance_source(m: &Model, j: &str, ci: usize, what: &str, c: &str) -> Resol
             ))
         }
         "contact_force" | "force_on_journal" => resultant(ResultantQ::ForceOnJournal, "N"),
+        "film_force" => {
+            if m.clearances[ci].film.is_none() {
+                return Err(format!(
+                    "joint '{j}' is not lubricated, so it has no film_force"
+                ));
+            }
+            Ok((
+                Source::Film {
+                    c: ci,
+                    comp: component(c)?,
+                },
+                "N",
+            ))
+        }
         "moment_on_journal" => resultant(ResultantQ::MomentOnJournal, "N m"),
         "force_on_housing" => resultant(ResultantQ::ForceOnHousing, "N"),
         "moment_on_housing" => resultant(ResultantQ::MomentOnHousing, "N m"),
@@ -364,7 +384,7 @@ fn clearance_source(m: &Model, j: &str, ci: usize, what: &str, c: &str) -> Resol
             Ok((Source::Contact { c: ci, k, what }, unit))
         }
         other => Err(format!(
-            "unknown joint quantity '{other}': use eccentricity, eccentricity_rate, eccentricity_global, eccentricity_global_rate, radial_eccentricity, radial_eccentricity_rate, end_eccentricity, penetration, penetration_rate, normal_force, friction_force, contact_state, contact_force (force_on_journal), moment_on_journal, force_on_housing, moment_on_housing, reaction (reaction_force) or reaction_torque"
+            "unknown joint quantity '{other}': use eccentricity, eccentricity_rate, eccentricity_global, eccentricity_global_rate, radial_eccentricity, radial_eccentricity_rate, end_eccentricity, penetration, penetration_rate, normal_force, friction_force, contact_state, contact_force (force_on_journal), film_force, moment_on_journal, force_on_housing, moment_on_housing, reaction (reaction_force) or reaction_torque"
         )),
     }
 }
@@ -540,6 +560,16 @@ impl Observable {
                 };
                 let (u, w) = cl.radial_axes();
                 el.dot(if comp == 0 { &u } else { &w })
+            }
+            Source::Film { c, comp } => {
+                let cl = &m.clearances[c];
+                let (kh, kj) = (
+                    m.kinematics_of(cl.housing, ws),
+                    m.kinematics_of(cl.journal, ws),
+                );
+                cl.film
+                    .as_ref()
+                    .map_or(f64::NAN, |f| pick(cl.film_force(f, &kh, &kj), comp))
             }
             Source::End { c, comp } => {
                 let cl = &m.clearances[c];

@@ -335,7 +335,7 @@ impl Declare<'_> {
             (
                 "force_on_journal",
                 "force",
-                "resultant contact force on the journal body (body_b), global axes",
+                "resultant contact force on the journal body (body_b), global axes (an oil film's included)",
             ),
             (
                 "moment_on_journal",
@@ -358,6 +358,14 @@ impl Declare<'_> {
                 &XYZ,
                 desc,
                 Some(format!("contact {what} of clearance joint '{name}'")),
+            )?;
+        }
+        if cl.film.is_some() {
+            self.channel(
+                &p("film_force"),
+                &XYZ,
+                "oil-film force on the journal at its centre, global axes (part of force_on_journal)",
+                Some(format!("film force of lubricated joint '{name}'")),
             )?;
         }
         Ok(())

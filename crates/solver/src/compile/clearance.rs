@@ -15,7 +15,8 @@ use super::laws;
 use super::rows::{JointFrame, Rows};
 use crate::clearance::{Clearance, Geometry};
 use crate::error::Result;
-use crate::scene::{ClearanceSpec, JointKind, JointSpec, RevoluteModel};
+use crate::film::{DEFAULT_ECCENTRICITY_LIMIT, Film, FilmModel};
+use crate::scene::{ClearanceSpec, JointKind, JointSpec, LubricationSpec, RevoluteModel};
 
 /// The element of joint `j` (index `joint`, field path `jf`) with its clearance block `c`; its
 /// contacts start at slot `first`.
@@ -32,6 +33,10 @@ pub(crate) fn compile(
     let geometry = geometry(c, j.kind, &f, cx)?;
     let law = laws::normal(&c.normal, &geometry, &format!("{f}.normal"), cx)?;
     let friction = laws::friction(&c.friction, &format!("{f}.friction"), cx)?;
+    let film = match &c.lubrication {
+        Some(l) => Some(film(l, &geometry, &format!("{f}.lubrication"), cx)?),
+        None => None,
+    };
     Ok(Clearance {
         name: j.name.clone(),
         joint,
@@ -44,7 +49,78 @@ pub(crate) fn compile(
         geometry,
         law,
         friction,
+        film,
         first,
+    })
+}
+
+/// The oil film of a revolute clearance (`f`: the `lubrication` table's path).
+fn film(l: &LubricationSpec, geometry: &Geometry, f: &str, cx: &Ctx) -> Result<Film> {
+    let (radius, default_length) = match *geometry {
+        Geometry::Planar { journal_radius, .. } => (journal_radius, None),
+        Geometry::Revolute {
+            journal_radius,
+            bushing_length,
+            ..
+        } => (journal_radius, Some(bushing_length)),
+        Geometry::Spherical { .. } => {
+            return Err(cx.err(
+                f,
+                "an oil film is modelled in revolute clearances (journal bearings), not in spherical ones",
+            ));
+        }
+    };
+    if !l.viscosity.is_finite() || l.viscosity <= 0.0 {
+        return Err(cx.err(
+            format!("{f}.viscosity"),
+            format!(
+                "the oil's dynamic viscosity must be a positive number (Pa s), got {}",
+                l.viscosity
+            ),
+        ));
+    }
+    let length = match (l.length, default_length) {
+        (Some(x), _) if !x.is_finite() || x <= 0.0 => {
+            return Err(cx.err(
+                format!("{f}.length"),
+                format!("the bearing length must be a positive number (m), got {x}"),
+            ));
+        }
+        (Some(x), _) | (None, Some(x)) => x,
+        (None, None) => {
+            return Err(cx.err(
+                format!("{f}.length"),
+                "missing: the bearing length (m) a planar bearing's film acts over",
+            ));
+        }
+    };
+    let limit = l.eccentricity_limit.unwrap_or(DEFAULT_ECCENTRICITY_LIMIT);
+    if !(limit > 0.0 && limit < 1.0) {
+        return Err(cx.err(
+            format!("{f}.eccentricity_limit"),
+            format!("an eccentricity ratio between 0 and 1 (exclusive), got {limit}"),
+        ));
+    }
+    let ratio = length / (2.0 * radius);
+    match l.model {
+        FilmModel::Short => {
+            if ratio > 1.0 {
+                cx.warn(
+                    format!("{f}.length"),
+                    format!(
+                        "L/D = {ratio:.2}: the short-bearing film is accurate for L/D below about 0.5 and overestimates the load above"
+                    ),
+                );
+            }
+        }
+    }
+    Ok(Film {
+        model: l.model,
+        viscosity: l.viscosity,
+        length,
+        radius,
+        clearance: geometry.radial_clearance(),
+        eccentricity_limit: limit,
     })
 }
 

@@ -259,5 +259,6 @@ pub(crate) fn effects(m: &Model) -> Effects {
                 }
             )
         }),
+        lubrication: m.clearances.iter().any(|c| c.film.is_some()),
     }
 }

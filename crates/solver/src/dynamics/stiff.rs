@@ -3,6 +3,8 @@
 //! directions), and the contacts' part of the Jacobian df/dy along given directions,
 //! `da = M^-1 (dQ - G^T dlambda)` with `(G M^-1 G^T) dlambda = G M^-1 dQ`.
 
+use nalgebra::Vector3;
+
 use super::blocks::dot6;
 use crate::kin::GROUND;
 use crate::model::Model;
@@ -22,7 +24,9 @@ impl Model {
     /// So per contact: the gradient of `delta` with respect to the positions (translations `d`,
     /// Euler parameters `2 G(q) (r x d) / |q|^2`, where `q' = 1/2 G(q) w`), and the velocity
     /// directions of the normal and, with friction, of the two tangents. `pattern` lists the
-    /// contact slots used. The forces' other dependences (the normal's turning, the levers) are
+    /// contact slots used. A lubricated joint's oil film adds, at every state, the position
+    /// gradients and velocity directions of its journal centre's offset along two directions
+    /// normal to the bearing axis. The forces' other dependences (the normal's turning, the levers) are
     /// of the order of the force over the journal's radius, negligible beside these.
     pub fn stiff_directions(
         &self,
@@ -38,9 +42,8 @@ impl Model {
             return;
         }
         let nb = self.nb();
-        let (n, np) = (13 * nb, 7 * nb);
         self.contact_geometry(y, ws);
-        for c in &self.clearances {
+        for (ci, c) in self.clearances.iter().enumerate() {
             let slots = c.first..c.first + c.geometry.n_contacts();
             let friction = self.effects.friction && !c.friction.is_none();
             for s in slots {
@@ -54,38 +57,27 @@ impl Model {
                 let t1 = crate::kin::any_normal(&ce.n);
                 let t2 = ce.n.cross(&t1);
                 let sides = [(c.journal, ce.pj, 1.0), (c.housing, ce.ph, -1.0)];
-                // The gradient of delta with respect to the positions.
-                let start = dirs.len();
-                dirs.resize(start + n, 0.0);
-                // The sides that move (the ground's coordinates are not in the state).
-                let moving = || sides.iter().filter(|side| side.0 != GROUND);
-                for &(b, p, sign) in moving() {
-                    let d = &mut dirs[start..start + n];
-                    let k = &ws.kin[b];
-                    let m = (p - k.r).cross(&ce.n) * sign;
-                    let q = &y[7 * b + 3..7 * b + 7];
-                    let s2 = 2.0 / (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
-                    for i in 0..3 {
-                        d[7 * b + i] += sign * ce.n[i];
-                    }
-                    d[7 * b + 3] += s2 * (-q[1] * m.x - q[2] * m.y - q[3] * m.z);
-                    d[7 * b + 4] += s2 * (q[0] * m.x + q[3] * m.y - q[2] * m.z);
-                    d[7 * b + 5] += s2 * (-q[3] * m.x + q[0] * m.y + q[1] * m.z);
-                    d[7 * b + 6] += s2 * (q[2] * m.x - q[1] * m.y + q[0] * m.z);
-                }
-                // The velocity directions.
+                position_gradient(y, ws, &sides, &ce.n, dirs);
                 let count = if friction { 3 } else { 1 };
                 for dir in [ce.n, t1, t2].iter().take(count) {
-                    let start = dirs.len();
-                    dirs.resize(start + n, 0.0);
-                    for &(b, p, sign) in moving() {
-                        let d = &mut dirs[start..start + n];
-                        let m = (p - ws.kin[b].r).cross(dir);
-                        for i in 0..3 {
-                            d[np + 6 * b + i] += sign * dir[i];
-                            d[np + 6 * b + 3 + i] += sign * m[i];
-                        }
-                    }
+                    velocity_direction(ws, &sides, dir, dirs);
+                }
+            }
+            // An oil film acts at every eccentricity and grows stiff towards the wall: its force
+            // depends on the journal centre's offset and its rate in the bearing plane.
+            if c.film.is_some() {
+                pattern.push(FILM | ci as u32);
+                let idx = |b: usize| if b == GROUND { nb } else { b };
+                let (kh, kj) = (&ws.kin[idx(c.housing)], &ws.kin[idx(c.journal)]);
+                let a = kh.rot * c.axis_h;
+                let sides = [
+                    (c.journal, kj.r + kj.rot * c.sj, 1.0),
+                    (c.housing, kh.r + kh.rot * c.sh, -1.0),
+                ];
+                let u = crate::kin::any_normal(&a);
+                for d in [u, a.cross(&u)] {
+                    position_gradient(y, ws, &sides, &d, dirs);
+                    velocity_direction(ws, &sides, &d, dirs);
                 }
             }
         }
@@ -196,6 +188,61 @@ impl Model {
                 }
                 out[np + 6 * b..np + 6 * b + 6].copy_from_slice(&scratch.minv_q[b]);
             }
+        }
+    }
+}
+
+/// The pattern entry of a clearance joint's oil film (its index in the low bits), apart from
+/// the contact slots.
+const FILM: u32 = 1 << 31;
+
+/// Appends the gradient of `d . (p_journal - p_housing)` with respect to the positions: `sides`
+/// holds each body with the point and the sign (+1 journal, -1 housing); translations give `d`,
+/// Euler parameters `2 G(q) (r x d) / |q|^2` (module docs of [`Model::stiff_directions`]).
+fn position_gradient(
+    y: &[f64],
+    ws: &Workspace,
+    sides: &[(usize, Vector3<f64>, f64); 2],
+    dir: &Vector3<f64>,
+    dirs: &mut Vec<f64>,
+) {
+    let n = ws.kin.len().saturating_sub(1) * 13;
+    let start = dirs.len();
+    dirs.resize(start + n, 0.0);
+    // The sides that move (the ground's coordinates are not in the state).
+    for &(b, p, sign) in sides.iter().filter(|side| side.0 != GROUND) {
+        let d = &mut dirs[start..start + n];
+        let k = &ws.kin[b];
+        let m = (p - k.r).cross(dir) * sign;
+        let q = &y[7 * b + 3..7 * b + 7];
+        let s2 = 2.0 / (q[0] * q[0] + q[1] * q[1] + q[2] * q[2] + q[3] * q[3]);
+        for i in 0..3 {
+            d[7 * b + i] += sign * dir[i];
+        }
+        d[7 * b + 3] += s2 * (-q[1] * m.x - q[2] * m.y - q[3] * m.z);
+        d[7 * b + 4] += s2 * (q[0] * m.x + q[3] * m.y - q[2] * m.z);
+        d[7 * b + 5] += s2 * (-q[3] * m.x + q[0] * m.y + q[1] * m.z);
+        d[7 * b + 6] += s2 * (q[2] * m.x - q[1] * m.y + q[0] * m.z);
+    }
+}
+
+/// Appends the velocity direction of `dir . (v_journal - v_housing)` at the points of `sides`.
+fn velocity_direction(
+    ws: &Workspace,
+    sides: &[(usize, Vector3<f64>, f64); 2],
+    dir: &Vector3<f64>,
+    dirs: &mut Vec<f64>,
+) {
+    let nb = ws.kin.len().saturating_sub(1);
+    let (n, np) = (13 * nb, 7 * nb);
+    let start = dirs.len();
+    dirs.resize(start + n, 0.0);
+    for &(b, p, sign) in sides.iter().filter(|side| side.0 != GROUND) {
+        let d = &mut dirs[start..start + n];
+        let m = (p - ws.kin[b].r).cross(dir);
+        for i in 0..3 {
+            d[np + 6 * b + i] += sign * dir[i];
+            d[np + 6 * b + 3 + i] += sign * m[i];
         }
     }
 }
