@@ -2260,3 +2260,59 @@ fn a_time_history_marks_the_impacts_its_samples_miss() {
         "{e}"
     );
 }
+
+#[test]
+fn a_lubricated_bearing_records_its_film_and_a_fixed_step_too_long_for_the_film_is_warned() {
+    let dir = tempfile::tempdir().unwrap();
+    let good = std::fs::read_to_string(scenes().join("journal-bearing.toml")).unwrap();
+    // RK4 at 1 ms: the settled film (stiffness about 2.5e7 N/m, damping 7e4 N s/m on the 20
+    // kg rotor) has a mode at about -3000 1/s, outside RK4's stability region at that step.
+    let coarse = good
+        .replace(
+            "integrator = \"dopri5\"",
+            "integrator = \"rk4\"\nstep = 1e-3",
+        )
+        .replace("rtol = 1e-9\n", "")
+        .replace("atol = 1e-12\n", "");
+    assert!(coarse.contains("step = 1e-3") && !coarse.contains("rtol"));
+    let p = write_scene(dir.path(), "coarse.toml", &coarse);
+    let out = bin()
+        .args(["run", "--no-plots", "-q", "--out"])
+        .arg(dir.path())
+        .arg(&p)
+        .output()
+        .unwrap();
+    let (_, err) = text(&out);
+    assert!(
+        err.contains("lubricated joint 'bearing', oil film: at t = ")
+            && err.contains("unstable for rk4, fixed step 1e-3 s"),
+        "{err}"
+    );
+    // The scene as bundled: the film's force is recorded, and once settled it carries the
+    // rotor's weight (20 kg x 9.81 m/s^2) along +y.
+    let p = write_scene(dir.path(), "good.toml", &good);
+    let out = bin()
+        .args(["run", "--no-plots", "-q", "--out"])
+        .arg(dir.path())
+        .arg(&p)
+        .output()
+        .unwrap();
+    let (_, err) = text(&out);
+    assert!(out.status.success() && !err.contains("warning"), "{err}");
+    let file = hdf5::File::open(dir.path().join("journal-bearing.h5")).unwrap();
+    let film = read2(&file, "joints/bearing/film_force");
+    let last = film.last().unwrap();
+    // Settled to far below 1e-9 of the load (the orbit decays by e every 8 ms over 0.5 s).
+    assert!(
+        last[0].abs() < 1e-6 && (last[1] - 196.2).abs() < 1e-6,
+        "{last:?}"
+    );
+    let unit = file
+        .dataset("joints/bearing/film_force")
+        .unwrap()
+        .attr("unit")
+        .unwrap()
+        .read_scalar::<hdf5::types::VarLenUnicode>()
+        .unwrap();
+    assert_eq!(unit.as_str(), "N");
+}

@@ -4,8 +4,9 @@
 //!
 //! Variants, each built from `data/scenes/4ups-rpu-mixed.toml` by the study path edits:
 //! ideal joints; clearance in S2; S2 + S5; + R1 radial (rims P, Q, the axial position a
-//! constraint row); + R1 axial (faces M, N); + friction in all three. Friction stays off until
-//! the last step. Every variant is first integrated for 0.15 s (RK4, h = 1e-4 s) so the timed
+//! constraint row); + R1 axial (faces M, N); + friction in all three; + an oil film in R1 (a
+//! short-bearing film of 0.04 Pa s over the bushing's length). Friction stays off until its
+//! step. Every variant is first integrated for 0.15 s (RK4, h = 1e-4 s) so the timed
 //! evaluation sees the contacts active, as they are for most of a run; the time is per
 //! evaluation of the right-hand side at that state.
 
@@ -22,13 +23,14 @@ fn main() {
     divan::main();
 }
 
-const STEPS: [&str; 6] = [
+const STEPS: [&str; 7] = [
     "1 ideal (0 contacts, 67 rows)",
     "2 +S2 (1 contact, 64 rows)",
     "3 +S5 (2 contacts, 61 rows)",
     "4 +R1 radial (4 contacts, 57 rows)",
     "5 +R1 axial (6 contacts, 56 rows)",
     "6 +friction (6 contacts, 56 rows)",
+    "7 +R1 oil film (6 contacts, 56 rows)",
 ];
 
 /// The scene of step `k` of [`STEPS`] and its state after 0.15 s.
@@ -38,6 +40,14 @@ fn prepared(k: usize) -> (Model, f64, Vec<f64>) {
     let text = std::fs::read_to_string(&path).unwrap();
     let mut t: Table = text.parse().unwrap();
     let rm = |t: &mut Table, p: &str| edit(t, p, None).unwrap();
+    if k == 6 {
+        edit(
+            &mut t,
+            "joints.R1.clearance.lubrication",
+            Some(&Value::Table(toml::toml! { viscosity = 0.04 })),
+        )
+        .unwrap();
+    }
     if k < 5 {
         edit(
             &mut t,

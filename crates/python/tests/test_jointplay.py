@@ -474,3 +474,20 @@ def test_check_says_which_clearance_joints_the_start_closed():
         scene.check()
     del scene["joints.piston_pin.clearance.initial_eccentricity"]
     assert scene.check()["closed_start"] is None
+
+
+def test_a_lubricated_bearing_from_python_carries_its_weight_on_the_film():
+    scene = jointplay.load_scene(SCENES / "journal-bearing.toml")
+    scene["solver.end_time"] = 0.2
+    run = scene.run(progress=False)
+    film = run["joints/bearing/film_force"]
+    assert run.units["joints/bearing/film_force"] == "N"
+    # Settled well before 0.2 s (the orbit decays by e every 8 ms): the film carries the 20 kg
+    # rotor's weight, and the resultant on the journal is the film alone (no asperity contact).
+    assert abs(film[-1, 1] - 20.0 * 9.81) < 1e-6 and abs(film[-1, 0]) < 1e-6
+    assert np.array_equal(film, run["joints/bearing/force_on_journal"])
+    # The same scene without its film: the rotor falls onto the wall.
+    scene["disable"] = ["bearing.lubrication"]
+    dry = scene.run(progress=False)
+    assert "joints/bearing/film_force" not in dry.datasets
+    assert dry["joints/bearing/penetration"].max() > 0.0

@@ -36,6 +36,10 @@
 //! state each contact reached over the step's stages: a step that overshoots into a contact can
 //! leave it again before the step ends.
 //!
+//! A lubricated joint's oil film is linearised the same way along its eccentricity, at every
+//! state (`crate::film::Film::linearised`: the film's stiffness and damping there), with the
+//! effective mass at the journal centre.
+//!
 //! Ignoring the constraints can only lower the effective mass (the subtracted term is a
 //! quadratic form of a positive semi-definite matrix), which raises the mode's frequency and
 //! damping rate; the guard first tests that cheap bound and solves with the constraints only
@@ -502,29 +506,80 @@ impl Model {
                         )
                         .map(|m| (m, format!("friction damping {ct:.3e} N s/m (sliding speed {speed:.3e} m/s)")));
                 }
-                if let Some(((lambda, m, stable), what)) = found {
+                if let Some((found, what)) = found {
                     guard.warned[ci] = true;
-                    let mode = if lambda.1 != 0.0 {
-                        format!("{:.3e} +- {:.3e}i 1/s", lambda.0, lambda.1)
-                    } else {
-                        format!("{:.3e} 1/s", lambda.0)
-                    };
-                    out.push(Warning {
-                        time: t,
-                        message: format!(
-                            "clearance joint '{}', contact '{name}': at t = {t} s its {what} on an \
-                             effective mass of {m:.3e} kg give the mode {mode}, unstable for {} \
-                             (largest stable step {stable:.3e} s): use step = {:e} s or smaller, \
-                             or integrator = \"dopri5\"",
-                            cl.name,
-                            method.describe(),
-                            suggested_step(stable)
-                        ),
-                    });
+                    out.push(unstable_warning(
+                        t,
+                        &format!("clearance joint '{}', contact '{name}'", cl.name),
+                        found,
+                        &what,
+                        &method,
+                    ));
                     break;
                 }
             }
+            // An oil film is a spring and damper along the eccentricity at every state.
+            if let (false, Some(film)) = (guard.warned[ci], &cl.film) {
+                let (kh, kj) = (*self.kin_of(cl.housing, ws), *self.kin_of(cl.journal, ws));
+                let a = kh.rot * cl.axis_h;
+                let (rh, rj) = (kh.r + kh.rot * cl.sh, kj.r + kj.rot * cl.sj);
+                let e = perp(rj - rh, &a);
+                let e_dot = perp(
+                    (kj.v + kj.w.cross(&(rj - kj.r))) - (kh.v + kh.w.cross(&(rh - kh.r))),
+                    &a,
+                );
+                let (k, c, n) = film.linearised(&e, &e_dot, &a, (kj.w + kh.w).dot(&a));
+                let (inv0, blocks) = self.free_inverse_mass(cl, &n, (&rj, &rh), ws);
+                let found = self.unstable_mode(
+                    (&method, h),
+                    (k.max(0.0), c.max(0.0)),
+                    (inv0, &blocks),
+                    ws,
+                    (&mut guard.u, &mut guard.x),
+                );
+                if let Some(found) = found {
+                    guard.warned[ci] = true;
+                    out.push(unstable_warning(
+                        t,
+                        &format!("lubricated joint '{}', oil film", cl.name),
+                        found,
+                        &format!("film stiffness {k:.3e} N/m, damping {c:.3e} N s/m"),
+                        &method,
+                    ));
+                }
+            }
         }
+    }
+}
+
+#[inline]
+fn perp(v: Vector3<f64>, a: &Vector3<f64>) -> Vector3<f64> {
+    v - a * v.dot(a)
+}
+
+/// The step-size guard's warning for the unstable mode `(lambda, m, stable)` of `what` (a
+/// stiffness and damping) at `who` (a contact or a film), at time `t`.
+fn unstable_warning(
+    t: f64,
+    who: &str,
+    (lambda, m, stable): ((f64, f64), f64, f64),
+    what: &str,
+    method: &Method,
+) -> Warning {
+    let mode = if lambda.1 != 0.0 {
+        format!("{:.3e} +- {:.3e}i 1/s", lambda.0, lambda.1)
+    } else {
+        format!("{:.3e} 1/s", lambda.0)
+    };
+    Warning {
+        time: t,
+        message: format!(
+            "{who}: at t = {t} s its {what} on an effective mass of {m:.3e} kg give the mode \
+             {mode}, unstable for {} (largest stable step {stable:.3e} s): use step = {:e} s or \
+             smaller, or integrator = \"dopri5\"",
+            method.describe(),
+            suggested_step(stable)
+        ),
     }
 }
 

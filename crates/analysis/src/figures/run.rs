@@ -14,7 +14,8 @@ use crate::storage::run::{Channel, RunResult};
 /// * `<name>-diagnostics`: the constraint drift and the change of mechanical energy, when
 ///   diagnostics are recorded;
 /// * `<name>-<joint>-clearance`: for each clearance joint, the journal-centre orbit inside the
-///   clearance circle and the normal contact force of each contact.
+///   clearance circle and the normal contact force of each contact (and the magnitude of a
+///   lubricated joint's film force).
 pub fn run_figures(out: &Path, name: &str, run: &RunResult) -> Result<Vec<PathBuf>> {
     let rec = &run.recording;
     let t = &rec.time;
@@ -139,19 +140,41 @@ pub fn run_figures(out: &Path, name: &str, run: &RunResult) -> Result<Vec<PathBu
                 ],
             )
         };
+        let mut series: Vec<Series> = c
+            .contacts
+            .iter()
+            .enumerate()
+            .map(|(k, n)| Series {
+                label: n.clone(),
+                x: t.clone(),
+                y: normal.column(k),
+            })
+            .collect();
+        // A lubricated joint's film carries the journal between contacts: its force beside them.
+        let film = rec.channel(&format!("joints/{}/film_force", c.name));
+        if let Some(film) = film {
+            series.push(Series {
+                label: "oil film".into(),
+                x: t.clone(),
+                y: film
+                    .rows()
+                    .map(|r| r.iter().map(|v| v * v).sum::<f64>().sqrt())
+                    .collect(),
+            });
+        }
         let force = Panel::new(
-            format!("{}: normal contact force", c.name),
+            if film.is_some() {
+                format!("{}: normal contact and oil-film forces", c.name)
+            } else {
+                format!("{}: normal contact force", c.name)
+            },
             "time t (s)",
-            "normal force (N)",
-            c.contacts
-                .iter()
-                .enumerate()
-                .map(|(k, n)| Series {
-                    label: n.clone(),
-                    x: t.clone(),
-                    y: normal.column(k),
-                })
-                .collect(),
+            if film.is_some() {
+                "force (N)"
+            } else {
+                "normal force (N)"
+            },
+            series,
         );
         sets.push((format!("{name}-{}-clearance", c.name), vec![orbit, force]));
     }

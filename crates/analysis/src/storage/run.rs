@@ -695,7 +695,8 @@ impl RunResult {
 
 /// True for the datasets of a run (its [`Channel::dataset`]) that [`run_figures`](crate::figures::run_figures) draws: the
 /// bodies' positions, the drives' forces, the diagnostics, and each clearance joint's orbit and
-/// normal forces. A run written to its file while it goes keeps only these in memory.
+/// normal forces (and a lubricated joint's film force). A run written to its file while it goes
+/// keeps only these in memory.
 pub fn drawn(dataset: &str) -> bool {
     let (kind, quantity) = (
         dataset.split('/').next().unwrap_or(""),
@@ -705,7 +706,10 @@ pub fn drawn(dataset: &str) -> bool {
         "bodies" => quantity == "position",
         "drives" => quantity == "force",
         "diagnostics" => true,
-        "joints" => matches!(quantity, "radial_eccentricity" | "normal_force"),
+        "joints" => matches!(
+            quantity,
+            "radial_eccentricity" | "normal_force" | "film_force"
+        ),
         _ => false,
     }
 }
