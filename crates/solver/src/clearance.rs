@@ -28,6 +28,16 @@
 //!   parallel: face contact, no tilt moment), delta = sigma (M_B - J_a).e_J, n = -sigma e_J.
 //!   Axial contact is simulated only when the scene gives an axial clearance; otherwise the joint
 //!   keeps its axial constraint row.
+//! * Planar translational (a slider in a guide; Flores, Leine and Glocker, Multibody Syst. Dyn.
+//!   23 (2010) 165-190, with compliant contact at the corners): the slider is the rectangle of
+//!   half-length a along its axis e_S and half-height b along its reference direction u_S,
+//!   centred at the journal point J; the guide's faces are the planes at distance b + c from the
+//!   housing point H along the guide's reference direction +-u_G. Corner k = (s_l, s_h) in
+//!   {+-1}^2 is C_k = J + s_l a e_S + s_h b u_S, n = s_h u_G, delta = (C_k - H).n - (b + c): each
+//!   corner meets the face on its own side, so free flight, one corner, two corners on one face
+//!   and the crossed configuration (diagonal corners on opposite faces) are all the same four
+//!   contacts. The guide is taken longer than the slider's stroke. The joint keeps three rows:
+//!   the slider stays in the plane of e_G and u_G.
 
 use nalgebra::Vector3;
 
@@ -54,6 +64,14 @@ pub enum Geometry {
         /// L_J = L_B + 2 C_a when axial contact is simulated.
         journal_length: Option<f64>,
     },
+    /// A slider in a guide, planar: a rectangle of half-length `half_length` along the axis and
+    /// half-height `half_height` across it (along the reference direction), between two parallel
+    /// guide faces `clearance` away from it on each side when centred.
+    Translational {
+        half_length: f64,
+        half_height: f64,
+        clearance: f64,
+    },
 }
 
 impl Geometry {
@@ -68,6 +86,7 @@ impl Geometry {
                     2
                 }
             }
+            Geometry::Translational { .. } => 4,
         }
     }
 
@@ -82,11 +101,12 @@ impl Geometry {
                     &["P", "Q"]
                 }
             }
+            Geometry::Translational { .. } => &CORNERS,
         }
     }
 
     /// The divergence guard's default limit on penetration (m): one tenth of the journal (ball)
-    /// radius. Elastic contact of metal parts penetrates micrometres; a penetration of this size
+    /// radius, or of the slider's half-height. Elastic contact of metal parts penetrates micrometres; a penetration of this size
     /// means the contact law is far outside its validity and the integration is running away.
     pub fn runaway_penetration(&self) -> f64 {
         let r = match *self {
@@ -94,6 +114,7 @@ impl Geometry {
             Geometry::Planar { journal_radius, .. } | Geometry::Revolute { journal_radius, .. } => {
                 journal_radius
             }
+            Geometry::Translational { half_height, .. } => half_height,
         };
         0.1 * r
     }
@@ -101,8 +122,19 @@ impl Geometry {
     /// True for a journal in a bearing (planar or spatial), false for a ball in a socket.
     pub fn is_revolute(&self) -> bool {
         match self {
-            Geometry::Spherical { .. } => false,
+            Geometry::Spherical { .. } | Geometry::Translational { .. } => false,
             Geometry::Planar { .. } | Geometry::Revolute { .. } => true,
+        }
+    }
+
+    /// True for a joint whose clearance lies normal to its axis (a journal in a bearing, a
+    /// slider in a guide): an offset along the axis is no eccentricity.
+    pub fn has_axis(&self) -> bool {
+        match self {
+            Geometry::Spherical { .. } => false,
+            Geometry::Planar { .. }
+            | Geometry::Revolute { .. }
+            | Geometry::Translational { .. } => true,
         }
     }
 
@@ -119,6 +151,7 @@ impl Geometry {
                 bushing_radius,
                 ..
             } => bushing_radius - journal_radius,
+            Geometry::Translational { clearance, .. } => clearance,
         }
     }
 
@@ -157,9 +190,23 @@ impl Geometry {
                 }
                 s
             }
+            Geometry::Translational {
+                half_length,
+                half_height,
+                clearance,
+            } => format!(
+                "planar translational, slider {} m long x {} m high, clearance {clearance:.4e} m per side; contacts: corners {}",
+                2.0 * half_length,
+                2.0 * half_height,
+                CORNERS.join(", ")
+            ),
         }
     }
 }
+
+/// The corners of a slider, in contact order: front (+axis) and rear, upper (+reference
+/// direction) and lower.
+const CORNERS: [&str; 4] = ["front_upper", "front_lower", "rear_upper", "rear_lower"];
 
 /// A compiled clearance joint.
 #[derive(Debug, Clone)]
@@ -175,6 +222,10 @@ pub struct Clearance {
     /// Unit axes in body axes (unused for spherical).
     pub axis_h: Vector3<f64>,
     pub axis_j: Vector3<f64>,
+    /// Unit reference directions normal to the axes, body axes: across a slider (its height)
+    /// and across its guide (the faces' normal); the joint's `reference_a`, `reference_b`.
+    pub ref_h: Vector3<f64>,
+    pub ref_j: Vector3<f64>,
     pub geometry: Geometry,
     pub law: NormalLaw,
     pub friction: FrictionLaw,
@@ -233,6 +284,8 @@ impl Clearance {
         let a = match self.geometry {
             Geometry::Spherical { .. } => Vector3::z(),
             Geometry::Planar { .. } | Geometry::Revolute { .. } => self.axis_h,
+            // Across the guide (the reference direction) and out of the slider's plane.
+            Geometry::Translational { .. } => return (self.ref_h, self.axis_h.cross(&self.ref_h)),
         };
         let u = any_normal(&a);
         (u, a.cross(&u))
@@ -355,6 +408,35 @@ impl Clearance {
                             ..Default::default()
                         };
                     }
+                }
+            }
+            Geometry::Translational {
+                half_length,
+                half_height,
+                clearance,
+            } => {
+                let (up, bx, bu) = (
+                    kh.rot * self.ref_h,
+                    kj.rot * self.axis_j,
+                    kj.rot * self.ref_j,
+                );
+                let wall = half_height + clearance;
+                for (k, (sl, sh)) in [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)]
+                    .into_iter()
+                    .enumerate()
+                {
+                    let pj = rj + bx * (sl * half_length) + bu * (sh * half_height);
+                    let n = up * sh;
+                    let delta = (pj - rh).dot(&n) - wall;
+                    let ph = pj - n * delta;
+                    out[k] = ContactEval {
+                        delta,
+                        delta_dot: (vel(kj, &pj) - vel(kh, &ph)).dot(&n),
+                        n,
+                        pj,
+                        ph,
+                        ..Default::default()
+                    };
                 }
             }
         }
@@ -505,6 +587,8 @@ mod tests {
             },
             friction: FrictionLaw::None,
             film: None,
+            ref_h: Vector3::x(),
+            ref_j: Vector3::x(),
             first: 0,
         }
     }

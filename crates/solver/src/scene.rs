@@ -271,8 +271,9 @@ pub struct JointSpec {
     /// (default: reference_a as seen from body b in the initial pose).
     #[serde(default)]
     pub reference_b: Option<VecRef>,
-    /// Turns a spherical or revolute joint into a joint with clearance: the housing (socket,
-    /// bushing) is on body_a at point_a, the journal (ball, pin) on body_b at point_b.
+    /// Turns a spherical, revolute or prismatic joint into a joint with clearance: the housing
+    /// (socket, bushing, guide) is on body_a at point_a, the journal (ball, pin, slider) on
+    /// body_b at point_b.
     #[serde(default)]
     pub clearance: Option<ClearanceSpec>,
 }
@@ -310,9 +311,16 @@ pub struct ClearanceSpec {
     /// Revolute: bushing (bearing) inner radius; default journal_radius + radial_clearance.
     #[serde(default, deserialize_with = "units::option_length")]
     pub bushing_radius: Option<f64>,
-    /// Radial clearance (socket radius - ball radius, or bushing - journal radius).
+    /// Radial clearance (socket radius - ball radius, or bushing - journal radius); for a
+    /// prismatic joint the gap on each side between slider and guide.
     #[serde(default, deserialize_with = "units::option_length")]
     pub radial_clearance: Option<f64>,
+    /// Prismatic: the slider's length along the axis and its height across it, along the
+    /// joint's `reference_a` (the guide's faces are normal to that direction).
+    #[serde(default, deserialize_with = "units::option_length")]
+    pub slider_length: Option<f64>,
+    #[serde(default, deserialize_with = "units::option_length")]
+    pub slider_height: Option<f64>,
     /// Spatial revolute: bushing length L_B.
     #[serde(default, deserialize_with = "units::option_length")]
     pub bushing_length: Option<f64>,

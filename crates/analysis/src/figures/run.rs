@@ -122,23 +122,49 @@ pub fn run_figures(out: &Path, name: &str, run: &RunResult) -> Result<Vec<PathBu
         let lim = 1.25 * c.radial_clearance * 1e3;
         let orbit = channel(format!("joints/{}/radial_eccentricity", c.name));
         let normal = channel(format!("joints/{}/normal_force", c.name));
-        let orbit = Panel {
-            x_range: Some((-lim, lim)),
-            y_range: Some((-lim, lim)),
-            equal_aspect: true,
-            ..Panel::new(
-                format!("{}: journal-centre orbit", c.name),
-                "eccentricity along u (mm)",
-                "eccentricity along w (mm)",
-                vec![
-                    Series {
-                        label: "journal centre".into(),
-                        x: mm(&orbit.column(0)),
-                        y: mm(&orbit.column(1)),
-                    },
-                    circle(c.radial_clearance * 1e3),
-                ],
-            )
+        // Both guide faces in one series, broken between them (a non-finite point ends a line).
+        let (t0, t1, cl) = (t[0], t[t.len() - 1], c.radial_clearance * 1e3);
+        let faces = Series {
+            label: "guide faces (clearance)".into(),
+            x: vec![t0, t1, f64::NAN, t0, t1],
+            y: vec![cl, cl, f64::NAN, -cl, -cl],
+        };
+        let orbit = if c.translational {
+            Panel {
+                y_range: Some((-lim, lim)),
+                ..Panel::new(
+                    format!("{}: slider offset across the guide", c.name),
+                    "time t (s)",
+                    "offset along the reference direction (mm)",
+                    vec![
+                        Series {
+                            label: "slider centre".into(),
+                            x: t.clone(),
+                            y: mm(&orbit.column(0)),
+                        },
+                        faces,
+                    ],
+                )
+            }
+        } else {
+            Panel {
+                x_range: Some((-lim, lim)),
+                y_range: Some((-lim, lim)),
+                equal_aspect: true,
+                ..Panel::new(
+                    format!("{}: journal-centre orbit", c.name),
+                    "eccentricity along u (mm)",
+                    "eccentricity along w (mm)",
+                    vec![
+                        Series {
+                            label: "journal centre".into(),
+                            x: mm(&orbit.column(0)),
+                            y: mm(&orbit.column(1)),
+                        },
+                        circle(c.radial_clearance * 1e3),
+                    ],
+                )
+            }
         };
         let mut series: Vec<Series> = c
             .contacts

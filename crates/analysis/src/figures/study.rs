@@ -167,6 +167,41 @@ fn journal_orbits<'a>(
     } else {
         vec![("centre", None)]
     };
+    if with.iter().all(|(_, _, c)| c.translational) {
+        // Sliders: the offset across the guide against time, between the guide's faces.
+        let mut series: Vec<Series> = with
+            .iter()
+            .map(|(label, rec, _)| Series {
+                label: (*label).to_string(),
+                x: rec.time.clone(),
+                y: mm(&ch(rec, "radial_eccentricity").column(0)),
+            })
+            .collect();
+        let t1 = with
+            .iter()
+            .filter_map(|(_, rec, _)| rec.time.last().copied())
+            .fold(0.0, f64::max);
+        let t0 = with
+            .iter()
+            .filter_map(|(_, rec, _)| rec.time.first().copied())
+            .fold(t1, f64::min);
+        let c = cmax * 1e3;
+        series.push(Series {
+            label: "guide faces (largest clearance)".into(),
+            x: vec![t0, t1, f64::NAN, t0, t1],
+            y: vec![c, c, f64::NAN, -c, -c],
+        });
+        panels.push(Panel {
+            y_range: Some((-lim, lim)),
+            ..Panel::new(
+                format!("{j}: slider offset across the guide"),
+                "time t (s)",
+                "offset along the reference direction (mm)",
+                series,
+            )
+        });
+        return panels;
+    }
     let spherical = with.iter().all(|(_, _, c)| c.spherical);
     let (p0, p1) = orbit_plane(axes);
     for (end, col) in ends {

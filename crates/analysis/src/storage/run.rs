@@ -91,6 +91,9 @@ pub struct Clearance {
     pub radial_clearance: f64,
     /// A spherical joint: its orbit is three-dimensional (the eccentricity), not a plane one.
     pub spherical: bool,
+    /// A slider in a guide: its offset across the guide is drawn against time, between the
+    /// guide's faces, not as an orbit in a circle.
+    pub translational: bool,
 }
 
 /// Everything one run recorded: the sample times and one [`Channel`] per dataset of the run file
@@ -287,6 +290,7 @@ impl Declare<'_> {
             contacts: contacts.iter().map(|s| s.to_string()).collect(),
             radial_clearance: cl.geometry.radial_clearance(),
             spherical: matches!(cl.geometry, Geometry::Spherical { .. }),
+            translational: matches!(cl.geometry, Geometry::Translational { .. }),
         });
         let p = |q: &str| format!("joints.{name}.{q}");
         self.channel(

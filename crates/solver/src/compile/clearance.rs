@@ -16,6 +16,7 @@ use super::rows::{JointFrame, Rows};
 use crate::clearance::{Clearance, Geometry};
 use crate::error::Result;
 use crate::film::{DEFAULT_ECCENTRICITY_LIMIT, Film, FilmModel};
+use crate::model::Prim;
 use crate::scene::{ClearanceSpec, JointKind, JointSpec, LubricationSpec, RevoluteModel};
 
 /// The element of joint `j` (index `joint`, field path `jf`) with its clearance block `c`; its
@@ -31,6 +32,12 @@ pub(crate) fn compile(
 ) -> Result<Clearance> {
     let f = format!("{jf}.clearance");
     let geometry = geometry(c, j.kind, &f, cx)?;
+    if matches!(geometry, Geometry::Translational { .. }) && j.reference_a.is_none() {
+        return Err(cx.err(
+            format!("{jf}.reference_a"),
+            "missing: a prismatic joint with clearance needs the direction across its guide (normal to the guide's faces, in the plane of motion)",
+        ));
+    }
     let law = laws::normal(&c.normal, &geometry, &format!("{f}.normal"), cx)?;
     let friction = laws::friction(&c.friction, &format!("{f}.friction"), cx)?;
     let film = match &c.lubrication {
@@ -46,6 +53,8 @@ pub(crate) fn compile(
         sj: fr.sb,
         axis_h: fr.axis_a,
         axis_j: fr.axis_b,
+        ref_h: fr.ua,
+        ref_j: fr.ub,
         geometry,
         law,
         friction,
@@ -63,10 +72,10 @@ fn film(l: &LubricationSpec, geometry: &Geometry, f: &str, cx: &Ctx) -> Result<F
             bushing_length,
             ..
         } => (journal_radius, Some(bushing_length)),
-        Geometry::Spherical { .. } => {
+        Geometry::Spherical { .. } | Geometry::Translational { .. } => {
             return Err(cx.err(
                 f,
-                "an oil film is modelled in revolute clearances (journal bearings), not in spherical ones",
+                "an oil film is modelled in revolute clearances (journal bearings), not in spherical or prismatic ones",
             ));
         }
     };
@@ -125,8 +134,8 @@ fn film(l: &LubricationSpec, geometry: &Geometry, f: &str, cx: &Ctx) -> Result<F
 }
 
 /// The contact element replaces the joint's rows; what it leaves unconstrained stays a
-/// constraint: the out-of-plane rows of a planar bearing, the axial position of a spatial one
-/// without axial contact.
+/// constraint: the out-of-plane rows of a planar bearing or a slider in its guide, the axial
+/// position of a spatial bearing without axial contact.
 pub(crate) fn remaining_rows(geometry: &Geometry, fr: &JointFrame, rows: &mut Rows) {
     match geometry {
         Geometry::Planar { .. } => {
@@ -142,6 +151,27 @@ pub(crate) fn remaining_rows(geometry: &Geometry, fr: &JointFrame, rows: &mut Ro
             ..
         }
         | Geometry::Spherical { .. } => {}
+        Geometry::Translational { .. } => {
+            // The slider stays in the plane of axis_a and reference_a: no translation along
+            // w_a, and its own normal to that plane, axis_b x u_b, parallel to w_a.
+            rows.push(Prim::Distance {
+                a: fr.a,
+                u: fr.wa,
+                sa: fr.sa,
+                b: fr.b,
+                sb: fr.sb,
+                drive: None,
+            });
+            let wb = fr.axis_b.cross(&fr.ub);
+            for u in [fr.axis_a, fr.ua] {
+                rows.push(Prim::Perpendicular {
+                    a: fr.a,
+                    u,
+                    b: fr.b,
+                    v: wb,
+                });
+            }
+        }
     }
 }
 
@@ -155,6 +185,12 @@ enum Block {
     },
     /// Journal in bearing in the plane normal to the axis.
     Planar { journal: f64, bushing: f64 },
+    /// Slider in a guide, in the plane of the axis and the reference direction.
+    Translational {
+        length: f64,
+        height: f64,
+        clearance: f64,
+    },
     /// Journal free to translate and tilt in its bushing.
     Spatial {
         journal: f64,
@@ -189,6 +225,15 @@ fn geometry(c: &ClearanceSpec, kind: JointKind, f: &str, cx: &Ctx) -> Result<Geo
             journal_radius: journal,
             bearing_radius: bushing,
         }),
+        Block::Translational {
+            length,
+            height,
+            clearance,
+        } => Ok(Geometry::Translational {
+            half_length: 0.5 * length,
+            half_height: 0.5 * height,
+            clearance,
+        }),
         Block::Spatial {
             journal,
             bushing,
@@ -218,10 +263,11 @@ impl Block {
         match kind {
             JointKind::Spherical => Block::spherical(c, f, cx),
             JointKind::Revolute => Block::revolute(c, f, cx),
+            JointKind::Prismatic => Block::translational(c, f, cx),
             k => Err(cx.err(
                 f,
                 format!(
-                    "clearance is available for spherical and revolute joints, not {}",
+                    "clearance is available for spherical, revolute and prismatic joints, not {}",
                     k.name()
                 ),
             )),
@@ -239,6 +285,8 @@ impl Block {
             (c.bushing_length, "bushing_length"),
             (c.face_radius, "face_radius"),
             (c.axial_clearance, "axial_clearance"),
+            (c.slider_length, "slider_length"),
+            (c.slider_height, "slider_height"),
         ] {
             if v.is_some() {
                 return Err(cx.err(
@@ -261,6 +309,17 @@ impl Block {
                 format!("{f}.ball_radius"),
                 "a revolute clearance has a journal_radius",
             ));
+        }
+        for (v, n) in [
+            (c.slider_length, "slider_length"),
+            (c.slider_height, "slider_height"),
+        ] {
+            if v.is_some() {
+                return Err(cx.err(
+                    format!("{f}.{n}"),
+                    "not a field of a revolute clearance (a prismatic joint's slider has it)",
+                ));
+            }
         }
         // Any two of journal radius, bushing radius and radial clearance, each positive.
         let given = |v: Option<f64>, n: &str| {
@@ -333,6 +392,56 @@ impl Block {
                 axial_clearance: c.axial_clearance,
             }),
         }
+    }
+}
+
+impl Block {
+    /// Slider in guide: its length and height and the clearance per side; planar only.
+    fn translational(c: &ClearanceSpec, f: &str, cx: &Ctx) -> Result<Block> {
+        for (v, n) in [
+            (c.ball_radius, "ball_radius"),
+            (c.journal_radius, "journal_radius"),
+            (c.bushing_radius, "bushing_radius"),
+            (c.bushing_length, "bushing_length"),
+            (c.face_radius, "face_radius"),
+            (c.axial_clearance, "axial_clearance"),
+        ] {
+            if v.is_some() {
+                return Err(cx.err(
+                    format!("{f}.{n}"),
+                    "not a field of a prismatic clearance (give slider_length, slider_height and radial_clearance)",
+                ));
+            }
+        }
+        match c.model {
+            None | Some(RevoluteModel::Planar) => {}
+            Some(RevoluteModel::Spatial) => {
+                return Err(cx.err(
+                    format!("{f}.model"),
+                    "a prismatic clearance is planar (four corners in the plane of axis_a and reference_a); the spatial slider is not modelled",
+                ));
+            }
+        }
+        Ok(Block::Translational {
+            length: positive(
+                c.slider_length,
+                format!("{f}.slider_length"),
+                "the slider's length along the axis (m)",
+                cx,
+            )?,
+            height: positive(
+                c.slider_height,
+                format!("{f}.slider_height"),
+                "the slider's height across the guide, along reference_a (m)",
+                cx,
+            )?,
+            clearance: positive(
+                c.radial_clearance,
+                format!("{f}.radial_clearance"),
+                "the gap on each side between slider and guide (m)",
+                cx,
+            )?,
+        })
     }
 }
 

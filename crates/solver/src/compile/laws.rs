@@ -56,6 +56,12 @@ pub(crate) fn elastic(n: &ElasticSpec, g: &Geometry, nf: &str, cx: &Ctx) -> Resu
                             bushing_radius,
                             ..
                         } => (journal_radius, bushing_radius),
+                        Geometry::Translational { .. } => {
+                            return Err(cx.err(
+                                format!("{nf}.youngs_modulus"),
+                                "a slider's corners have no radius to derive a point-contact stiffness from: give stiffness (N/m^n)",
+                            ));
+                        }
                     };
                     point_contact_stiffness(ri, rj, e, nu, e, nu)
                 }

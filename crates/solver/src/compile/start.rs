@@ -180,16 +180,17 @@ fn eccentricity(
     let e = Vector3::from(e);
     let element = &model.clearances[k];
     let c = element.geometry.radial_clearance();
-    if element.geometry.is_revolute() {
-        // Along the axis the ideal revolute joint holds the journal centred; an axial offset
-        // would be silently dropped, so it is refused. 1e-9 of the clearance is rounding.
+    if element.geometry.has_axis() {
+        // Along the axis the ideal revolute joint holds the journal centred (and the prismatic
+        // joint leaves the slider free); an axial offset would be silently dropped, so it is
+        // refused. 1e-9 of the clearance is rounding.
         let along = e.dot(&fr.axis_a);
         if along.abs() > 1e-9 * c {
             return Err(cx.err(
                 field,
                 format!(
-                    "has a component of {along:.4e} m along the bearing axis; the eccentricity of a \
-                     revolute joint is normal to its axis (axis_a in the housing's axes: [{}, {}, {}])",
+                    "has a component of {along:.4e} m along the joint axis; the eccentricity of a \
+                     revolute or prismatic joint is normal to its axis (axis_a in the housing's axes: [{}, {}, {}])",
                     fr.axis_a.x, fr.axis_a.y, fr.axis_a.z
                 ),
             ));

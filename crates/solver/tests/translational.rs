@@ -1,0 +1,260 @@
+//! Planar translational clearance joints (a slider in a guide, contact at its four corners)
+//! through the whole solver, on `data/scenes/slider-in-guide.toml` (0.5 kg, 100 x 50 mm, 1 mm
+//! per side): resting on its lower corners at Hertz's static penetration; spinning free of
+//! gravity between the faces, with its energy kept between impacts and the crossed
+//! configuration (diagonal corners on opposite faces) reached; an eccentric closed start; and
+//! bad blocks refused naming their field.
+
+mod common;
+
+use std::path::Path;
+
+use jointplay_solver::dynamics::Workspace;
+use jointplay_solver::model::{Model, State};
+use jointplay_solver::scene::{SceneFile, SceneSpec};
+
+const M: f64 = 0.5;
+const K: f64 = 1e9;
+const C: f64 = 1e-3;
+
+fn scene() -> String {
+    std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../data/scenes/slider-in-guide.toml"),
+    )
+    .unwrap()
+}
+
+fn edit(text: &str, from: &str, to: &str) -> String {
+    assert!(text.contains(from), "the scene no longer has {from:?}");
+    text.replacen(from, to, 1)
+}
+
+fn compile(text: &str) -> jointplay_solver::error::Result<(Model, State)> {
+    let path = Path::new("slider-in-guide.toml");
+    let file = SceneFile {
+        path: path.to_path_buf(),
+        spec: SceneSpec::parse(text, path)?,
+        text: text.to_string(),
+    };
+    let (m, mut s) = Model::compile(&file)?;
+    m.assemble(&mut s)?;
+    Ok((m, s))
+}
+
+/// A state and its four corner penetrations (m).
+type Sample = (Vec<f64>, [f64; 4]);
+
+/// The run's states at `samples`, with each sample's four corner penetrations (m; front_upper,
+/// front_lower, rear_upper, rear_lower).
+fn run(text: &str, t_end: f64, samples: &[f64]) -> (Model, Vec<Sample>) {
+    let (m, mut s) = compile(text).unwrap();
+    let method = m.settings.method;
+    let traj = common::run_samples(&m, &mut s, method, t_end, samples);
+    let mut ws = Workspace::new(&m);
+    let mut rates = Vec::new();
+    let out = traj
+        .into_iter()
+        .map(|(_, y)| {
+            m.contact_rates(&y, &mut ws, &mut rates);
+            let d = [rates[0].0, rates[1].0, rates[2].0, rates[3].0];
+            (y, d)
+        })
+        .collect();
+    (m, out)
+}
+
+#[test]
+fn a_slider_rests_on_its_lower_corners_at_hertzs_static_penetration() {
+    let (m, states) = run(&scene(), 0.3, &[0.3]);
+    assert_eq!(
+        m.clearances[0].geometry.contact_names(),
+        ["front_upper", "front_lower", "rear_upper", "rear_lower"]
+    );
+    let (y, d) = &states[0];
+    // The two lower corners share the weight: 2 K delta^1.5 = m g. The impacts die out within
+    // 0.05 s (restitution 0.5); what remains after 0.3 s is below the integrator's tolerance
+    // (rtol 1e-9), so 1e-6 of delta checks the corners' geometry and the load sharing.
+    let want = (M * 9.81 / (2.0 * K)).powf(2.0 / 3.0);
+    for k in [1, 3] {
+        assert!(
+            (d[k] - want).abs() <= 1e-6 * want,
+            "corner {k}: {} against {want}",
+            d[k]
+        );
+    }
+    // The upper corners are a clearance and a penetration away from their face.
+    for k in [0, 2] {
+        assert!(
+            (d[k] + 2.0 * C + want).abs() <= 1e-9,
+            "corner {k}: {}",
+            d[k]
+        );
+    }
+    // Level, and the centre sits the clearance plus the penetration below the guide's centre.
+    assert!(
+        (y[1] + C + want).abs() <= 1e-9 && y[0].abs() <= 1e-12,
+        "{:?}",
+        &y[..3]
+    );
+}
+
+#[test]
+fn a_spinning_slider_keeps_its_energy_and_meets_both_faces_crossed() {
+    // No gravity, no damping, no friction: the slider slides at 0.1 m/s and spins at 2 rad/s
+    // between the faces, rattling on its corners. The slider stays in the plane (the joint's
+    // three rows), so its energy is m v^2 / 2 + I_zz w^2 / 2 while no corner touches.
+    let text = edit(
+        &scene(),
+        "gravity = [0.0, -9.81, 0.0]",
+        "gravity = [0.0, 0.0, 0.0]",
+    );
+    let text = edit(
+        &text,
+        "normal = { law = \"carvalho_martins\", stiffness = 1e9, restitution = 0.5 }",
+        "normal = { law = \"hertz\", stiffness = 1e9 }",
+    );
+    let text = edit(
+        &text,
+        "axes = { x = [1.0, 0.0, 0.0], y = [0.0, 1.0, 0.0] }\n\n[[joints]]",
+        "axes = { x = [1.0, 0.0, 0.0], y = [0.0, 1.0, 0.0] }\nvelocity = [0.1, 0.0, 0.0]\nangular_velocity = [0.0, 0.0, 2.0]\n\n[[joints]]",
+    );
+    let text = edit(&text, "rtol = 1e-9", "rtol = 1e-11");
+    // A closed start would hold the slider as the ideal prismatic joint, which allows no spin.
+    let text = edit(
+        &text,
+        "radial_clearance = 1e-3",
+        "radial_clearance = 1e-3\nstart = \"free\"",
+    );
+    let samples: Vec<f64> = (0..=20_000).map(|k| k as f64 * 1e-5).collect();
+    let (m, states) = run(&text, 0.2, &samples);
+    let np = m.n_pos();
+    let izz = 5.2083e-4;
+    let energy = |y: &[f64]| {
+        let v = &y[np..np + 6];
+        0.5 * M * (v[0] * v[0] + v[1] * v[1] + v[2] * v[2]) + 0.5 * izz * v[5] * v[5]
+    };
+    let e0 = energy(&states[0].0);
+    let (mut free, mut crossed, mut impacts) = (0, 0, 0);
+    let mut touching = false;
+    for (y, d) in &states {
+        let any = d.iter().any(|&x| x > 0.0);
+        if any && !touching {
+            impacts += 1;
+        }
+        touching = any;
+        if !any {
+            free += 1;
+            // Between impacts the energy is the start's: Hertz's law is conservative, and the
+            // integration at rtol 1e-11 keeps it to 1.4e-9 (measured) over the run's ten
+            // impacts.
+            assert!(
+                (energy(y) - e0).abs() <= 1e-8 * e0,
+                "energy {} against {e0}",
+                energy(y)
+            );
+        }
+        // Diagonal corners on opposite faces at once.
+        if (d[0] > 0.0 && d[3] > 0.0) || (d[1] > 0.0 && d[2] > 0.0) {
+            crossed += 1;
+        }
+        // The slider never leaves the guide: no corner deeper than a Hertz impact's micrometres.
+        assert!(d.iter().all(|&x| x < 1e-4), "{d:?}");
+    }
+    assert!(impacts >= 5, "{impacts} impacts");
+    assert!(
+        crossed > 0 && free > 10_000,
+        "crossed {crossed}, free {free}"
+    );
+}
+
+#[test]
+fn a_closed_start_places_the_slider_at_its_initial_offset() {
+    let text = edit(
+        &scene(),
+        "radial_clearance = 1e-3",
+        "radial_clearance = 1e-3\ninitial_eccentricity = [0.0, 5e-4, 0.0]",
+    );
+    let (m, s) = compile(&text).unwrap();
+    assert!(
+        (s.y[1] - 5e-4).abs() < 1e-12 && s.y[0].abs() < 1e-12,
+        "{:?}",
+        &s.y[..3]
+    );
+    assert!(m.closed_start.as_ref().is_some_and(|c| c.moved));
+    // Along the axis is no offset of a slider: refused.
+    let along = edit(
+        &scene(),
+        "radial_clearance = 1e-3",
+        "radial_clearance = 1e-3\ninitial_eccentricity = [2e-4, 0.0, 0.0]",
+    );
+    let err = compile(&along).unwrap_err().to_string();
+    assert!(
+        err.contains("joints[0].clearance.initial_eccentricity")
+            && err.contains("along the joint axis"),
+        "{err}"
+    );
+}
+
+#[test]
+fn bad_prismatic_clearance_blocks_are_refused_naming_the_field() {
+    for (from, to, field, words) in [
+        (
+            "reference_a = \"y\"",
+            "",
+            "joints[0].reference_a",
+            "direction across its guide",
+        ),
+        (
+            "slider_height = 0.05\n",
+            "",
+            "joints[0].clearance.slider_height",
+            "missing",
+        ),
+        (
+            "slider_length = 0.1",
+            "slider_length = -0.1",
+            "joints[0].clearance.slider_length",
+            "positive",
+        ),
+        (
+            "slider_length = 0.1",
+            "slider_length = 0.1\nmodel = \"spatial\"",
+            "joints[0].clearance.model",
+            "planar",
+        ),
+        (
+            "slider_length = 0.1",
+            "slider_length = 0.1\njournal_radius = 0.01",
+            "joints[0].clearance.journal_radius",
+            "not a field of a prismatic clearance",
+        ),
+        (
+            "stiffness = 1e9",
+            "youngs_modulus = 2e11, poisson_ratio = 0.3",
+            "joints[0].clearance.normal.youngs_modulus",
+            "give stiffness",
+        ),
+        (
+            "slider_length = 0.1",
+            "slider_length = 0.1\nlubrication = { viscosity = 0.04, length = 0.01 }",
+            "joints[0].clearance.lubrication",
+            "revolute",
+        ),
+    ] {
+        let err = compile(&edit(&scene(), from, to)).unwrap_err().to_string();
+        assert!(err.contains(field) && err.contains(words), "{to}: {err}");
+    }
+    // A revolute block does not take a slider's keys.
+    let pendulum = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../data/scenes/slider-crank-clearance.toml"),
+    )
+    .unwrap();
+    let err = compile(&edit(
+        &pendulum,
+        "journal_radius = 0.0095",
+        "journal_radius = 0.0095\nslider_height = 0.01",
+    ))
+    .unwrap_err()
+    .to_string();
+    assert!(err.contains("clearance.slider_height"), "{err}");
+}
