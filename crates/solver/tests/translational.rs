@@ -258,3 +258,80 @@ fn bad_prismatic_clearance_blocks_are_refused_naming_the_field() {
     .to_string();
     assert!(err.contains("clearance.slider_height"), "{err}");
 }
+
+/// Siconos's slider-crank with a translational clearance (Flores, Leine and Glocker 2010),
+/// every 0.1 ms for the first 10 ms and every 1 ms after in `data/reference/`: (time, crank angle, crank rate, the four gaps).
+fn siconos() -> Vec<(f64, f64, f64, [f64; 4])> {
+    let text = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../data/reference/siconos-slider-crank-translational.csv"),
+    )
+    .unwrap();
+    text.lines()
+        .filter(|l| !l.starts_with('#') && !l.starts_with("time"))
+        .map(|l| {
+            let v: Vec<f64> = l.split(',').map(|x| x.parse().unwrap()).collect();
+            (v[0], v[1], v[4], [v[7], v[8], v[9], v[10]])
+        })
+        .collect()
+}
+
+#[test]
+fn the_slider_crank_meets_siconos_until_its_energy_drifts() {
+    let text = std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../data/scenes/slider-crank-translational.toml"),
+    )
+    .unwrap();
+    let reference = siconos();
+    let times: Vec<f64> = reference.iter().map(|r| r.0).collect();
+    let (m, states) = run(&text, 0.2, &times);
+    let mut ws = Workspace::new(&m);
+    let crank = |y: &[f64]| 2.0 * y[6].atan2(y[3]);
+    let mut angle = 0.0f64;
+    let (mut first_ours, mut first_theirs) = (None, None);
+    let mut last_energy = f64::INFINITY;
+    for ((y, d), (t, theirs, _, gaps)) in states.iter().zip(&reference) {
+        // The crank's angle, unwrapped (it turns about 3 times).
+        let a = crank(y);
+        angle += (a - angle + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
+            - std::f64::consts::PI;
+        // Both reach the upper face first, with both upper corners, 2.7 and 2.8 ms after the
+        // start (sampled every 0.1 ms there): Siconos steps 0.1 ms, so 0.2 ms bounds the
+        // difference.
+        if first_ours.is_none() && d.iter().any(|&x| x > 0.0) {
+            first_ours = Some((*t, d[0] > 0.0 && d[2] > 0.0));
+        }
+        if first_theirs.is_none() && gaps.iter().any(|&g| g <= 1e-9) {
+            first_theirs = Some((*t, gaps[0] <= 1e-9 && gaps[1] <= 1e-9));
+        }
+        // Up to 50 ms the crank turns as Siconos's does, within 2.5 % (measured: at most 1.9 %,
+        // at 34 ms). Siconos's fixed-step scheme is itself 0.3 % off in the crank rate before
+        // the first contact (120.82 against 120.46 rad/s at 2 ms, against this run at rtol
+        // 1e-8), and the impacts compound it.
+        if *t <= 0.05 && *t > 0.0 {
+            assert!(
+                (angle - theirs).abs() <= 0.025 * theirs.abs(),
+                "t = {t}: crank at {angle} rad, Siconos {theirs} rad"
+            );
+        }
+        // The contacts dissipate (Flores's law, restitution 0.4) and friction takes energy
+        // out: with no drive the energy never grows beyond the integration's rounding
+        // (rtol 1e-8 of 7.5 J). Siconos's grows from 7.50 J to 8.54 J over the 0.2 s (its
+        // projection steps add energy), which is why its crank runs ahead after 50 ms: 3.05
+        // turns against 2.88 here at 0.2 s.
+        let e = m.energy(y, &mut ws);
+        assert!(
+            e <= last_energy + 1e-6,
+            "t = {t}: energy {e} J after {last_energy} J"
+        );
+        last_energy = e;
+    }
+    let (ours, theirs) = (first_ours.unwrap(), first_theirs.unwrap());
+    assert!(
+        ours.1 && theirs.1,
+        "first contacts: {ours:?}, Siconos {theirs:?}"
+    );
+    assert!((ours.0 - theirs.0).abs() <= 2e-4, "{ours:?} {theirs:?}");
+    assert!(last_energy < 7.4955 && last_energy > 6.9, "{last_energy}");
+}
