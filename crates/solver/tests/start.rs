@@ -149,7 +149,7 @@ fn an_impossible_or_misplaced_eccentricity_is_refused_naming_the_field() {
     let e = err("initial_eccentricity = [1e-4, 0.0, 1e-4]");
     assert!(
         e.contains("joints[3].clearance.initial_eccentricity")
-            && e.contains("along the bearing axis"),
+            && e.contains("along the joint axis"),
         "{e}"
     );
     let e = err("start = \"free\"\ninitial_eccentricity = [1e-4, 0.0, 0.0]");

@@ -193,6 +193,14 @@ fn a_closed_start_places_the_slider_at_its_initial_offset() {
             && err.contains("along the joint axis"),
         "{err}"
     );
+    // Nor out of the slider's plane.
+    let out = edit(
+        &scene(),
+        "radial_clearance = 1e-3",
+        "radial_clearance = 1e-3\ninitial_eccentricity = [0.0, 0.0, 2e-4]",
+    );
+    let err = compile(&out).unwrap_err().to_string();
+    assert!(err.contains("out of the slider's plane"), "{err}");
 }
 
 #[test]

@@ -196,6 +196,24 @@ fn eccentricity(
             ));
         }
     }
+    if matches!(
+        element.geometry,
+        crate::clearance::Geometry::Translational { .. }
+    ) {
+        // A planar slider moves in the plane of its axis and reference direction; an offset
+        // out of that plane contradicts the rows that hold it there.
+        let out = e.dot(&fr.wa);
+        if out.abs() > 1e-9 * c {
+            return Err(cx.err(
+                field,
+                format!(
+                    "has a component of {out:.4e} m out of the slider's plane; the offset of a \
+                     prismatic clearance lies along reference_a (in the housing's axes: [{}, {}, {}])",
+                    fr.ua.x, fr.ua.y, fr.ua.z
+                ),
+            ));
+        }
+    }
     if e.norm() > c {
         return Err(cx.err(
             field,
