@@ -2275,14 +2275,16 @@ fn a_lubricated_bearing_records_its_film_and_a_fixed_step_too_long_for_the_film_
         .replace("rtol = 1e-9\n", "")
         .replace("atol = 1e-12\n", "");
     assert!(coarse.contains("step = 1e-3") && !coarse.contains("rtol"));
-    let p = write_scene(dir.path(), "coarse.toml", &coarse);
-    let out = bin()
-        .args(["run", "--no-plots", "-q", "--out"])
-        .arg(dir.path())
-        .arg(&p)
-        .output()
-        .unwrap();
-    let (_, err) = text(&out);
+    let run = |name: &str, scene: &str| {
+        let p = write_scene(dir.path(), name, scene);
+        bin()
+            .args(["run", "--no-plots", "-q", "--out"])
+            .arg(dir.path())
+            .arg(&p)
+            .output()
+            .unwrap()
+    };
+    let (_, err) = text(&run("coarse.toml", &coarse));
     assert!(
         err.contains("lubricated joint 'bearing', oil film: at t = ")
             && err.contains("unstable for rk4, fixed step 1e-3 s"),
@@ -2290,13 +2292,7 @@ fn a_lubricated_bearing_records_its_film_and_a_fixed_step_too_long_for_the_film_
     );
     // The scene as bundled: the film's force is recorded, and once settled it carries the
     // rotor's weight (20 kg x 9.81 m/s^2) along +y.
-    let p = write_scene(dir.path(), "good.toml", &good);
-    let out = bin()
-        .args(["run", "--no-plots", "-q", "--out"])
-        .arg(dir.path())
-        .arg(&p)
-        .output()
-        .unwrap();
+    let out = run("good.toml", &good);
     let (_, err) = text(&out);
     assert!(out.status.success() && !err.contains("warning"), "{err}");
     let file = hdf5::File::open(dir.path().join("journal-bearing.h5")).unwrap();

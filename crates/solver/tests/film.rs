@@ -11,7 +11,6 @@ use std::f64::consts::PI;
 use std::path::Path;
 
 use jointplay_solver::model::{Model, State};
-use jointplay_solver::scene::{SceneFile, SceneSpec};
 
 const C: f64 = 5e-5;
 const MU: f64 = 0.04;
@@ -32,15 +31,7 @@ fn edit(text: &str, from: &str, to: &str) -> String {
 }
 
 fn compile(text: &str) -> jointplay_solver::error::Result<(Model, State)> {
-    let path = Path::new("journal-bearing.toml");
-    let file = SceneFile {
-        path: path.to_path_buf(),
-        spec: SceneSpec::parse(text, path)?,
-        text: text.to_string(),
-    };
-    let (m, mut s) = Model::compile(&file)?;
-    m.assemble(&mut s)?;
-    Ok((m, s))
+    common::compile("journal-bearing.toml", text)
 }
 
 /// The rotor centre's (x, y) at the sample times (the rotor is body 0; its centre of mass is

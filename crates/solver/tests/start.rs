@@ -4,10 +4,11 @@
 //! The mechanism is the book tutorial's four-bar (0.25 mm planar clearance in the coupler-rocker
 //! pin, crank at 2400 rpm).
 
+mod common;
+
 use std::path::Path;
 
 use jointplay_solver::model::{Model, State};
-use jointplay_solver::scene::{SceneFile, SceneSpec};
 use nalgebra::{Quaternion, UnitQuaternion, Vector3};
 
 const CLEARANCE: f64 = 2.5e-4;
@@ -38,15 +39,7 @@ fn with_clearance_line(text: &str, line: &str) -> String {
 }
 
 fn compile(text: &str) -> jointplay_solver::error::Result<(Model, State)> {
-    let path = Path::new("four-bar.toml");
-    let file = SceneFile {
-        path: path.to_path_buf(),
-        spec: SceneSpec::parse(text, path)?,
-        text: text.to_string(),
-    };
-    let (m, mut s) = Model::compile(&file)?;
-    m.assemble(&mut s)?;
-    Ok((m, s))
+    common::compile("four-bar.toml", text)
 }
 
 /// The position (m) and velocity (m/s) of joint point `s` (COM-relative, body axes) of body `b`.

@@ -11,7 +11,6 @@ use std::path::Path;
 
 use jointplay_solver::dynamics::Workspace;
 use jointplay_solver::model::{Model, State};
-use jointplay_solver::scene::{SceneFile, SceneSpec};
 
 const M: f64 = 0.5;
 const K: f64 = 1e9;
@@ -30,15 +29,7 @@ fn edit(text: &str, from: &str, to: &str) -> String {
 }
 
 fn compile(text: &str) -> jointplay_solver::error::Result<(Model, State)> {
-    let path = Path::new("slider-in-guide.toml");
-    let file = SceneFile {
-        path: path.to_path_buf(),
-        spec: SceneSpec::parse(text, path)?,
-        text: text.to_string(),
-    };
-    let (m, mut s) = Model::compile(&file)?;
-    m.assemble(&mut s)?;
-    Ok((m, s))
+    common::compile("slider-in-guide.toml", text)
 }
 
 /// A state and its four corner penetrations (m).

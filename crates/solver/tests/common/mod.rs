@@ -1,10 +1,28 @@
 //! Helpers shared by the solver's integration tests.
 
+use std::path::Path;
+
 use jointplay_solver::dynamics::Mechanism;
 use jointplay_solver::model::{Model, State};
 use jointplay_solver::ode::{Flow, Method, integrate};
+use jointplay_solver::scene::{SceneFile, SceneSpec};
+
+/// The scene `text` (as if read from the file `name`) compiled and assembled.
+#[allow(dead_code)] // not every test file compiles scenes from text
+pub fn compile(name: &str, text: &str) -> jointplay_solver::error::Result<(Model, State)> {
+    let path = Path::new(name);
+    let file = SceneFile {
+        path: path.to_path_buf(),
+        spec: SceneSpec::parse(text, path)?,
+        text: text.to_string(),
+    };
+    let (m, mut s) = Model::compile(&file)?;
+    m.assemble(&mut s)?;
+    Ok((m, s))
+}
 
 /// Integrates `model` from `state` to `t_end` and returns (t, y) at the `samples` times.
+#[allow(dead_code)] // not every test file integrates
 pub fn run_samples(
     model: &Model,
     state: &mut State,
