@@ -38,6 +38,10 @@
 //!   and the crossed configuration (diagonal corners on opposite faces) are all the same four
 //!   contacts. The guide is taken longer than the slider's stroke. The joint keeps three rows:
 //!   the slider stays in the plane of e_G and u_G.
+//! * Spatial translational (a box of half-width d along w_S = e_S x u_S in a channel): each of
+//!   the eight corners C = J + s_l a e_S + s_h b u_S + s_w d w_S meets the face across it,
+//!   n = s_h u_G, delta = (C - H).n - (b + c), and the face beside it, n = s_w w_G with
+//!   w_G = e_G x u_G, delta = (C - H).n - (d + c): sixteen contacts, and no rows kept.
 
 use nalgebra::Vector3;
 
@@ -64,13 +68,16 @@ pub enum Geometry {
         /// L_J = L_B + 2 C_a when axial contact is simulated.
         journal_length: Option<f64>,
     },
-    /// A slider in a guide, planar: a rectangle of half-length `half_length` along the axis and
+    /// A slider in a guide: a rectangle of half-length `half_length` along the axis and
     /// half-height `half_height` across it (along the reference direction), between two parallel
-    /// guide faces `clearance` away from it on each side when centred.
+    /// guide faces `clearance` away from it on each side when centred (planar); or, with
+    /// `half_width`, a box of that half-width along the third direction in a channel with two
+    /// more faces beside it, `clearance` away too (spatial).
     Translational {
         half_length: f64,
         half_height: f64,
         clearance: f64,
+        half_width: Option<f64>,
     },
 }
 
@@ -86,7 +93,13 @@ impl Geometry {
                     2
                 }
             }
-            Geometry::Translational { .. } => 4,
+            Geometry::Translational { half_width, .. } => {
+                if half_width.is_some() {
+                    16
+                } else {
+                    4
+                }
+            }
         }
     }
 
@@ -101,7 +114,13 @@ impl Geometry {
                     &["P", "Q"]
                 }
             }
-            Geometry::Translational { .. } => &CORNERS,
+            Geometry::Translational { half_width, .. } => {
+                if half_width.is_some() {
+                    &BOX_CONTACTS
+                } else {
+                    &CORNERS
+                }
+            }
         }
     }
 
@@ -194,11 +213,23 @@ impl Geometry {
                 half_length,
                 half_height,
                 clearance,
+                half_width: None,
             } => format!(
                 "planar translational, slider {} m long x {} m high, clearance {clearance:.4e} m per side; contacts: corners {}",
                 2.0 * half_length,
                 2.0 * half_height,
                 CORNERS.join(", ")
+            ),
+            Geometry::Translational {
+                half_length,
+                half_height,
+                clearance,
+                half_width: Some(d),
+            } => format!(
+                "spatial translational, slider {} m long x {} m high x {} m wide in a channel, clearance {clearance:.4e} m per side; contacts: each of the 8 corners with the face above or below it (_on_upper, _on_lower) and beside it (_on_right, _on_left)",
+                2.0 * half_length,
+                2.0 * half_height,
+                2.0 * d
             ),
         }
     }
@@ -207,6 +238,27 @@ impl Geometry {
 /// The corners of a slider, in contact order: front (+axis) and rear, upper (+reference
 /// direction) and lower.
 const CORNERS: [&str; 4] = ["front_upper", "front_lower", "rear_upper", "rear_lower"];
+
+/// The contacts of a box slider, in order: each corner (front and rear, upper and lower, right
+/// (+axis x reference) and left) with the face across (above or below) and beside it.
+const BOX_CONTACTS: [&str; 16] = [
+    "front_upper_right_on_upper",
+    "front_upper_right_on_right",
+    "front_upper_left_on_upper",
+    "front_upper_left_on_left",
+    "front_lower_right_on_lower",
+    "front_lower_right_on_right",
+    "front_lower_left_on_lower",
+    "front_lower_left_on_left",
+    "rear_upper_right_on_upper",
+    "rear_upper_right_on_right",
+    "rear_upper_left_on_upper",
+    "rear_upper_left_on_left",
+    "rear_lower_right_on_lower",
+    "rear_lower_right_on_right",
+    "rear_lower_left_on_lower",
+    "rear_lower_left_on_left",
+];
 
 /// A compiled clearance joint.
 #[derive(Debug, Clone)]
@@ -414,29 +466,42 @@ impl Clearance {
                 half_length,
                 half_height,
                 clearance,
+                half_width,
             } => {
                 let (up, bx, bu) = (
                     kh.rot * self.ref_h,
                     kj.rot * self.axis_j,
                     kj.rot * self.ref_j,
                 );
-                let wall = half_height + clearance;
-                for (k, (sl, sh)) in [(1.0, 1.0), (1.0, -1.0), (-1.0, 1.0), (-1.0, -1.0)]
-                    .into_iter()
-                    .enumerate()
-                {
-                    let pj = rj + bx * (sl * half_length) + bu * (sh * half_height);
-                    let n = up * sh;
+                let (side, bw) = (kh.rot * self.axis_h.cross(&self.ref_h), bx.cross(&bu));
+                let contact = |pj: Vector3<f64>, n: Vector3<f64>, wall: f64| {
                     let delta = (pj - rh).dot(&n) - wall;
                     let ph = pj - n * delta;
-                    out[k] = ContactEval {
+                    ContactEval {
                         delta,
                         delta_dot: (vel(kj, &pj) - vel(kh, &ph)).dot(&n),
                         n,
                         pj,
                         ph,
                         ..Default::default()
-                    };
+                    }
+                };
+                let mut k = 0;
+                for sl in [1.0, -1.0] {
+                    for sh in [1.0, -1.0] {
+                        let mid = rj + bx * (sl * half_length) + bu * (sh * half_height);
+                        let Some(d) = half_width else {
+                            out[k] = contact(mid, up * sh, half_height + clearance);
+                            k += 1;
+                            continue;
+                        };
+                        for sw in [1.0, -1.0] {
+                            let corner = mid + bw * (sw * d);
+                            out[k] = contact(corner, up * sh, half_height + clearance);
+                            out[k + 1] = contact(corner, side * sw, d + clearance);
+                            k += 2;
+                        }
+                    }
                 }
             }
         }

@@ -321,6 +321,9 @@ pub struct ClearanceSpec {
     pub slider_length: Option<f64>,
     #[serde(default, deserialize_with = "units::option_length")]
     pub slider_height: Option<f64>,
+    /// Prismatic, spatial model: the slider's width along axis_a x reference_a.
+    #[serde(default, deserialize_with = "units::option_length")]
+    pub slider_width: Option<f64>,
     /// Spatial revolute: bushing length L_B.
     #[serde(default, deserialize_with = "units::option_length")]
     pub bushing_length: Option<f64>,

@@ -130,20 +130,28 @@ pub fn run_figures(out: &Path, name: &str, run: &RunResult) -> Result<Vec<PathBu
             y: vec![cl, cl, f64::NAN, -cl, -cl],
         };
         let orbit = if c.translational {
+            let mut series = vec![Series {
+                label: "slider centre, across".into(),
+                x: t.clone(),
+                y: mm(&orbit.column(0)),
+            }];
+            // A box in a channel also moves towards its side faces.
+            let beside = orbit.column(1);
+            if beside.iter().any(|&v| v != 0.0) {
+                series.push(Series {
+                    label: "slider centre, beside".into(),
+                    x: t.clone(),
+                    y: mm(&beside),
+                });
+            }
+            series.push(faces);
             Panel {
                 y_range: Some((-lim, lim)),
                 ..Panel::new(
-                    format!("{}: slider offset across the guide", c.name),
+                    format!("{}: slider offset in the guide", c.name),
                     "time t (s)",
-                    "offset along the reference direction (mm)",
-                    vec![
-                        Series {
-                            label: "slider centre".into(),
-                            x: t.clone(),
-                            y: mm(&orbit.column(0)),
-                        },
-                        faces,
-                    ],
+                    "offset from the guide's centre (mm)",
+                    series,
                 )
             }
         } else {

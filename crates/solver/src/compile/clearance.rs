@@ -151,7 +151,13 @@ pub(crate) fn remaining_rows(geometry: &Geometry, fr: &JointFrame, rows: &mut Ro
             ..
         }
         | Geometry::Spherical { .. } => {}
-        Geometry::Translational { .. } => {
+        Geometry::Translational {
+            half_width: Some(_),
+            ..
+        } => {}
+        Geometry::Translational {
+            half_width: None, ..
+        } => {
             // The slider stays in the plane of axis_a and reference_a: no translation along
             // w_a, and its own normal to that plane, axis_b x u_b, parallel to w_a.
             rows.push(Prim::Distance {
@@ -190,6 +196,8 @@ enum Block {
         length: f64,
         height: f64,
         clearance: f64,
+        /// The box's width (spatial model); none for the planar one.
+        width: Option<f64>,
     },
     /// Journal free to translate and tilt in its bushing.
     Spatial {
@@ -229,10 +237,12 @@ fn geometry(c: &ClearanceSpec, kind: JointKind, f: &str, cx: &Ctx) -> Result<Geo
             length,
             height,
             clearance,
+            width,
         } => Ok(Geometry::Translational {
             half_length: 0.5 * length,
             half_height: 0.5 * height,
             clearance,
+            half_width: width.map(|w| 0.5 * w),
         }),
         Block::Spatial {
             journal,
@@ -287,6 +297,7 @@ impl Block {
             (c.axial_clearance, "axial_clearance"),
             (c.slider_length, "slider_length"),
             (c.slider_height, "slider_height"),
+            (c.slider_width, "slider_width"),
         ] {
             if v.is_some() {
                 return Err(cx.err(
@@ -313,6 +324,7 @@ impl Block {
         for (v, n) in [
             (c.slider_length, "slider_length"),
             (c.slider_height, "slider_height"),
+            (c.slider_width, "slider_width"),
         ] {
             if v.is_some() {
                 return Err(cx.err(
@@ -413,15 +425,23 @@ impl Block {
                 ));
             }
         }
-        match c.model {
-            None | Some(RevoluteModel::Planar) => {}
-            Some(RevoluteModel::Spatial) => {
-                return Err(cx.err(
-                    format!("{f}.model"),
-                    "a prismatic clearance is planar (four corners in the plane of axis_a and reference_a); the spatial slider is not modelled",
-                ));
+        let width = match c.model {
+            None | Some(RevoluteModel::Planar) => {
+                if c.slider_width.is_some() {
+                    return Err(cx.err(
+                        format!("{f}.slider_width"),
+                        "a planar slider has no width: give model = \"spatial\" for a box in a channel",
+                    ));
+                }
+                None
             }
-        }
+            Some(RevoluteModel::Spatial) => Some(positive(
+                c.slider_width,
+                format!("{f}.slider_width"),
+                "a spatial slider's width along axis_a x reference_a (m)",
+                cx,
+            )?),
+        };
         Ok(Block::Translational {
             length: positive(
                 c.slider_length,
@@ -441,6 +461,7 @@ impl Block {
                 "the gap on each side between slider and guide (m)",
                 cx,
             )?,
+            width,
         })
     }
 }

@@ -198,7 +198,10 @@ fn eccentricity(
     }
     if matches!(
         element.geometry,
-        crate::clearance::Geometry::Translational { .. }
+        crate::clearance::Geometry::Translational {
+            half_width: None,
+            ..
+        }
     ) {
         // A planar slider moves in the plane of its axis and reference direction; an offset
         // out of that plane contradicts the rows that hold it there.
