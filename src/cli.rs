@@ -174,6 +174,27 @@ pub enum Command {
         #[arg(long)]
         out: Option<PathBuf>,
     },
+    /// Export a run's samples for spreadsheets (CSV: a table with a header of observable paths
+    /// and SI units) or MATLAB and Octave (MAT level 5: a matrix per dataset, `time`, and the
+    /// structs `units` and `columns`). Writes DIR/<file>.csv or .mat (DIR/<file>-<case>.* for a
+    /// case of a comparison study).
+    Export {
+        /// Run file written by `jointplay run SCENE`, or a comparison study's file with --case.
+        file: PathBuf,
+        /// csv or mat.
+        #[arg(long, value_enum)]
+        format: ExportFormat,
+        /// The case of a comparison study's file to export.
+        #[arg(long)]
+        case: Option<String>,
+        /// Only this dataset (repeat for several), e.g. bodies/slider/acceleration; default all
+        /// with a row per sample.
+        #[arg(long)]
+        dataset: Vec<String>,
+        /// Output directory (created if missing).
+        #[arg(long, default_value = "out")]
+        out: PathBuf,
+    },
     /// Overlay one recorded quantity from several run files in one figure (PNG and SVG).
     Compare {
         /// Run files written by `jointplay run`.
@@ -192,4 +213,11 @@ pub enum Command {
         #[arg(long)]
         title: Option<String>,
     },
+}
+
+/// The formats `jointplay export` writes.
+#[derive(Clone, Copy, clap::ValueEnum)]
+pub enum ExportFormat {
+    Csv,
+    Mat,
 }

@@ -158,3 +158,28 @@ pub fn merge_cmd(files: &[PathBuf], out: &Path, partial: bool, plots: bool) -> R
     }
     Ok(())
 }
+
+/// `jointplay export`: a run's samples as CSV or MAT.
+pub fn export(
+    file: &Path,
+    format: crate::cli::ExportFormat,
+    case: Option<&str>,
+    datasets: &[String],
+    out: &Path,
+) -> Result<()> {
+    use jointplay_analysis::storage::export::{self, Format};
+    if file.extension().is_some_and(|e| e == "toml") {
+        anyhow::bail!(
+            "{}: a TOML file; `jointplay export` reads the HDF5 file a run wrote (`jointplay run {}` writes DIR/<name>.h5)",
+            file.display(),
+            file.display()
+        );
+    }
+    let format = match format {
+        crate::cli::ExportFormat::Csv => Format::Csv,
+        crate::cli::ExportFormat::Mat => Format::Mat,
+    };
+    let path = export::export(file, case, datasets, format, out)?;
+    println!("wrote        {}", path.display());
+    Ok(())
+}

@@ -138,6 +138,13 @@ fn main() {
             figures,
         } => files::plot_cmd(&file, &format, out.as_deref(), figures.as_deref()),
         Command::Report { file, out } => files::report_cmd(&file, out.as_deref()),
+        Command::Export {
+            file,
+            format,
+            case,
+            dataset,
+            out,
+        } => files::export(&file, format, case.as_deref(), &dataset, &out),
         Command::Precision {
             file,
             out,

@@ -560,6 +560,34 @@ published = [{ case = "c-0_5mm", quantity = "offset_max_x", value = 1e-4, source
     for f in ["pin-motion.png", "pin-forces.svg", "pin-orbits.png"] {
         assert!(dir.path().join(f).exists(), "{f}");
     }
+    // `jointplay export` takes one case of the study's file, and lists them when none is given.
+    let export = |extra: &[&str]| {
+        bin()
+            .arg("export")
+            .arg(dir.path().join("pin.h5"))
+            .args(["--format", "csv", "--out"])
+            .arg(dir.path())
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let (_, err) = text(&export(&[]));
+    assert!(
+        err.contains("choose a case with --case (ideal, c-0_5mm)"),
+        "{err}"
+    );
+    let out = export(&["--case", "c-0_5mm", "--dataset", "bodies/slider/position"]);
+    assert!(out.status.success(), "{:?}", text(&out));
+    let csv = std::fs::read_to_string(dir.path().join("pin-c-0_5mm.csv")).unwrap();
+    let mut lines = csv.lines();
+    assert_eq!(
+        lines.next().unwrap(),
+        "time [s],bodies.slider.position.x [m],bodies.slider.position.y [m],bodies.slider.position.z [m]"
+    );
+    let xs: Vec<f64> = lines
+        .map(|l| l.split(',').nth(1).unwrap().parse().unwrap())
+        .collect();
+    assert_eq!(xs, play.iter().map(|p| p[0]).collect::<Vec<_>>());
 }
 
 #[test]

@@ -35,6 +35,7 @@ pub mod chaos;
 pub(crate) mod chunk;
 pub mod continuation_file;
 pub mod durable;
+pub mod export;
 pub mod h5;
 pub mod hybrid;
 pub mod inputs;
