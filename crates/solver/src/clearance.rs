@@ -547,18 +547,21 @@ impl Clearance {
             r.moment_h -= (c.ph - kh.r).cross(&f);
         }
         if let Some(film) = &self.film {
+            // The pressure's resultant passes through the journal centre; the bearing takes the
+            // opposite force on the same line, so the pair has no moment (the viscous shear that
+            // would balance a moment between the two centres is not modelled).
             let f = self.film_force(film, kh, kj);
-            let (rh, rj) = (kh.r + kh.rot * self.sh, kj.r + kj.rot * self.sj);
+            let rj = kj.r + kj.rot * self.sj;
             r.force_j += f;
             r.moment_j += (rj - kj.r).cross(&f);
             r.force_h -= f;
-            r.moment_h -= (rh - kh.r).cross(&f);
+            r.moment_h -= (rj - kh.r).cross(&f);
         }
         r
     }
 
     /// The film force on the journal (N, global), applied at the journal centre (the bearing
-    /// takes the opposite force at its centre): from the journal centre's eccentricity and its
+    /// takes the opposite force on the same line): from the journal centre's eccentricity and its
     /// rate in the plane normal to the housing axis, and the two bodies' spins about that axis.
     pub fn film_force(&self, film: &Film, kh: &Kin, kj: &Kin) -> Vector3<f64> {
         let a = kh.rot * self.axis_h;

@@ -35,7 +35,8 @@
 //! across the pressure zone. Sommerfeld's substitution `cos psi = (eps + cos theta) / (1 + eps
 //! cos theta)` makes them polynomials in `psi` (with `b = sqrt(1 - eps^2)`):
 //! `I_ss = [psi/2 - sin 2psi / 4] / b^3`, `I_sc = [sin^2 psi / 2 + eps cos psi] / b^4`,
-//! `I_cc = [psi (1/2 + eps^2) + sin 2psi / 4 - 2 eps sin psi] / b^5`. For a steadily loaded
+//! `I_cc = [psi (1/2 + eps^2) + sin 2psi / 4 - 2 eps sin psi] / b^5`. The force acts at the
+//! journal centre, and the bearing takes the opposite force on the same line. For a steadily loaded
 //! journal (`eps' = gamma' = 0`, bearing at rest) they give the classical load components
 //! `mu U L^3 / c^2 eps^2 / (1 - eps^2)^2` along the line of centres and
 //! `mu U L^3 / c^2 pi eps / (4 (1 - eps^2)^(3/2))` across it (`U = omega R`) and the attitude
@@ -183,11 +184,14 @@ impl Film {
     }
 }
 
-/// Sommerfeld's angle psi of the film angle `theta` (continuous in theta, psi(k pi) = k pi).
+/// Sommerfeld's angle psi of the film angle `theta`, `cos psi = (eps + cos theta) / (1 + eps cos
+/// theta)`, continued through every turn: `psi = theta - 2 atan(beta sin theta / (1 + beta cos
+/// theta))` with `beta = eps / (1 + b)`. The denominator stays above `1 - beta > 0`, so there is
+/// no branch to choose and psi(k pi) = k pi exactly (a form through `atan2` and a count of
+/// turns jumps by 2 pi one rounding away from an odd multiple of pi).
 fn sommerfeld(eps: f64, b: f64, theta: f64) -> f64 {
-    let turns = ((theta + std::f64::consts::PI) / std::f64::consts::TAU).floor();
-    let th = theta - turns * std::f64::consts::TAU;
-    (b * th.sin()).atan2(eps + th.cos()) + turns * std::f64::consts::TAU
+    let beta = eps / (1.0 + b);
+    theta - 2.0 * (beta * theta.sin() / (1.0 + beta * theta.cos())).atan()
 }
 
 /// `[I_cc, I_sc, I_ss]`: the integrals of `cos^2`, `sin cos`, `sin^2` over
@@ -357,6 +361,31 @@ mod tests {
             f.linearised(&e, &Vector3::zeros(), &Vector3::z(), 100.0).0
         };
         assert!(0.0 < stiff(0.3) && stiff(0.3) < stiff(0.6) && stiff(0.6) < stiff(0.9));
+    }
+
+    /// The zone's ends at and next to odd multiples of pi (steady running with a squeeze of
+    /// either sign at rounding level, or a reversed spin): the integrals are continuous there.
+    #[test]
+    fn the_zone_integrals_are_continuous_at_the_half_turns() {
+        for eps in [0.0, 0.5, 0.9] {
+            for theta0 in [0.0, PI, -PI] {
+                let at = zone_integrals(eps, theta0);
+                for near in [
+                    theta0 - 4e-16,
+                    theta0 + 4e-16,
+                    theta0.next_down(),
+                    theta0.next_up(),
+                ] {
+                    let got = zone_integrals(eps, near);
+                    for k in 0..3 {
+                        assert!(
+                            (got[k] - at[k]).abs() <= 1e-12 * (1.0 + at[k].abs()),
+                            "eps {eps}, theta0 {near:e}: {got:?} against {at:?}"
+                        );
+                    }
+                }
+            }
+        }
     }
 
     /// Above the limit the force is the limit's, continuous across it.

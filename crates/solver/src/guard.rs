@@ -243,7 +243,7 @@ impl Model {
                         let source = if self.settings.max_penetration.is_some() {
                             "solver.max_penetration"
                         } else {
-                            "one tenth of the journal radius; set solver.max_penetration to change it"
+                            "one tenth of the journal radius, or of a slider's half-height; set solver.max_penetration to change it"
                         };
                         return Some(format!(
                             "clearance joint '{}', contact '{name}': penetration {d:.4e} m exceeds \

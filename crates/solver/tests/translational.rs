@@ -444,3 +444,23 @@ fn a_tumbling_box_keeps_its_energy_through_its_impacts() {
         touched.len()
     );
 }
+
+#[test]
+fn a_box_may_start_against_its_floor_and_a_wall_at_once() {
+    // Its offset is bounded across and beside the axis separately: [0, c, c] is a corner of the
+    // channel's free space, |e| = 1.41 c.
+    let text = edit(
+        &boxed(),
+        "radial_clearance = 1e-3",
+        "radial_clearance = 1e-3\ninitial_eccentricity = [0.0, 1e-3, 1e-3]",
+    );
+    let (_, s) = compile(&text).unwrap();
+    assert!((s.y[1] - 1e-3).abs() < 1e-12 && (s.y[2] - 1e-3).abs() < 1e-12);
+    let beyond = edit(
+        &boxed(),
+        "radial_clearance = 1e-3",
+        "radial_clearance = 1e-3\ninitial_eccentricity = [0.0, 0.0, 1.1e-3]",
+    );
+    let err = compile(&beyond).unwrap_err().to_string();
+    assert!(err.contains("exceeds the radial clearance"), "{err}");
+}

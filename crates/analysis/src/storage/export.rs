@@ -15,7 +15,7 @@
 //!   (`bodies_crank_position`, n x 3), `time` (n x 1), and two structs with a field per
 //!   variable: `units` (the SI unit) and `columns` (the observable path of each column, one row
 //!   of a char matrix per column). `load` reads it in MATLAB and Octave, `scipy.io.loadmat` in
-//!   Python. Level 5 holds arrays below 2 GB each; a larger run is an error that says so.
+//!   Python. Level 5 holds variables below 2 GB each; a larger one is an error that says so.
 //!
 //! Column names come from the scene the run file holds (its `scene` attribute), compiled again
 //! to declare its recording; a column the scene does not declare (a file of another version of
@@ -221,14 +221,25 @@ fn declared_columns(r: &Reader, prefix: &str) -> Vec<(String, Vec<String>)> {
 /// Writes `samples` as `target` in `format`, whole or not at all.
 pub fn write(samples: &Samples, format: Format, target: &Path) -> Result<()> {
     let bytes = match format {
-        Format::Csv => csv(samples).into_bytes(),
+        Format::Csv => csv(samples).map_err(|m| invalid(target, m))?.into_bytes(),
         Format::Mat => mat(samples).map_err(|m| invalid(target, m))?,
     };
     crate::storage::durable::write_new(target, &bytes)
 }
 
+/// Whether every dataset has one row of its width per sample (what [`read`] gives).
+fn consistent(samples: &Samples) -> bool {
+    samples
+        .datasets
+        .iter()
+        .all(|c| c.values.len() == samples.time.len() * c.names.len())
+}
+
 /// The CSV text of `samples`.
-pub fn csv(samples: &Samples) -> String {
+pub fn csv(samples: &Samples) -> Result<String, String> {
+    if !consistent(samples) {
+        return Err("a dataset's values do not fill its rows".into());
+    }
     let quote = |s: String| {
         if s.contains([',', '"']) {
             format!("\"{}\"", s.replace('"', "\"\""))
@@ -255,7 +266,7 @@ pub fn csv(samples: &Samples) -> String {
         }
         out.push('\n');
     }
-    out
+    Ok(out)
 }
 
 /// `v` in the shortest decimal form that reads back to the same double: plain between 1e-4 and
@@ -304,8 +315,9 @@ fn matrix(class: u8, dims: [usize; 2], name: &str, body: &[u8]) -> Result<Vec<u8
     element(&mut m, MI_INT8, name.as_bytes());
     m.extend_from_slice(body);
     let mut out = Vec::new();
-    let len = u32::try_from(m.len()).map_err(|_| {
-        format!("'{name}' needs {} bytes; MAT level 5 holds less than 4 GB per variable: export fewer datasets (--dataset) or use the HDF5 file", m.len())
+    // MATLAB reads a variable's byte count as a signed 32-bit number: below 2 GB.
+    let len = i32::try_from(m.len()).map_err(|_| {
+        format!("'{name}' needs {} bytes; MAT level 5 holds less than 2 GB per variable: export fewer datasets (--dataset) or use the HDF5 file", m.len())
     })?;
     out.extend_from_slice(&MI_MATRIX.to_le_bytes());
     out.extend_from_slice(&len.to_le_bytes());
@@ -345,7 +357,10 @@ fn chars(name: &str, rows: &[String]) -> Result<Vec<u8>, String> {
 fn structure(name: &str, fields: &[(String, Vec<u8>)]) -> Result<Vec<u8>, String> {
     let width = fields.iter().map(|(n, _)| n.len() + 1).max().unwrap_or(1);
     let mut body = Vec::new();
-    element(&mut body, MI_INT32, &(width as i32).to_le_bytes());
+    // The field-name length in the small data element form MATLAB writes: the byte count in
+    // the tag's upper half and the 4 bytes of data in its second word.
+    body.extend_from_slice(&((4u32 << 16) | MI_INT32).to_le_bytes());
+    body.extend_from_slice(&(width as i32).to_le_bytes());
     let mut names = Vec::new();
     for (n, _) in fields {
         let mut b = n.as_bytes().to_vec();
@@ -380,6 +395,9 @@ pub fn variable(dataset: &str) -> String {
 
 /// The MAT (level 5) bytes of `samples`.
 pub fn mat(samples: &Samples) -> Result<Vec<u8>, String> {
+    if !consistent(samples) {
+        return Err("a dataset's values do not fill its rows".into());
+    }
     let mut out = Vec::new();
     let mut header = format!(
         "MATLAB 5.0 MAT-file, written by jointplay {}",
@@ -395,12 +413,13 @@ pub fn mat(samples: &Samples) -> Result<Vec<u8>, String> {
     out.extend(doubles("time", n, 1, &samples.time)?);
     let mut units = vec![("time".to_string(), chars("", &["s".to_string()])?)];
     let mut columns = vec![("time".to_string(), chars("", &["time".to_string()])?)];
-    let mut seen = std::collections::HashSet::from(["time".to_string()]);
+    let mut seen: std::collections::HashSet<String> =
+        ["time", "units", "columns"].map(String::from).into();
     for c in &samples.datasets {
         let name = variable(&c.dataset);
         if !seen.insert(name.clone()) {
             return Err(format!(
-                "datasets '{}' and another both become the variable '{name}'",
+                "dataset '{}' would become the variable '{name}', which another variable has",
                 c.dataset
             ));
         }
@@ -455,7 +474,7 @@ mod tests {
 
     #[test]
     fn the_csv_names_every_column_with_its_unit_and_keeps_every_digit() {
-        let text = csv(&samples());
+        let text = csv(&samples()).unwrap();
         let lines: Vec<&str> = text.lines().collect();
         assert_eq!(
             lines[0],

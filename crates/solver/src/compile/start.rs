@@ -217,13 +217,21 @@ fn eccentricity(
             ));
         }
     }
-    if e.norm() > c {
+    // A box slider may sit against its floor and a wall at once: its offset is bounded in
+    // each direction across the axis, not in length.
+    let reach = match element.geometry {
+        crate::clearance::Geometry::Translational {
+            half_width: Some(_),
+            ..
+        } => e.dot(&fr.ua).abs().max(e.dot(&fr.wa).abs()),
+        _ => e.norm(),
+    };
+    if reach > c {
         return Err(cx.err(
             field,
             format!(
-                "|e| = {:.4e} m exceeds the radial clearance {c:.4e} m: the journal would start \
-                 inside the wall",
-                e.norm()
+                "|e| = {reach:.4e} m exceeds the radial clearance {c:.4e} m: the journal would \
+                 start inside the wall"
             ),
         ));
     }
