@@ -289,23 +289,21 @@ impl Block {
         if c.model.is_some() {
             return Err(cx.err(format!("{f}.model"), "only revolute joints have a model"));
         }
-        for (v, n) in [
-            (c.journal_radius, "journal_radius"),
-            (c.bushing_radius, "bushing_radius"),
-            (c.bushing_length, "bushing_length"),
-            (c.face_radius, "face_radius"),
-            (c.axial_clearance, "axial_clearance"),
-            (c.slider_length, "slider_length"),
-            (c.slider_height, "slider_height"),
-            (c.slider_width, "slider_width"),
-        ] {
-            if v.is_some() {
-                return Err(cx.err(
-                    format!("{f}.{n}"),
-                    "not a field of a spherical clearance (give ball_radius and radial_clearance)",
-                ));
-            }
-        }
+        refuse(
+            &[
+                (c.journal_radius, "journal_radius"),
+                (c.bushing_radius, "bushing_radius"),
+                (c.bushing_length, "bushing_length"),
+                (c.face_radius, "face_radius"),
+                (c.axial_clearance, "axial_clearance"),
+                (c.slider_length, "slider_length"),
+                (c.slider_height, "slider_height"),
+                (c.slider_width, "slider_width"),
+            ],
+            f,
+            "not a field of a spherical clearance (give ball_radius and radial_clearance)",
+            cx,
+        )?;
         Ok(Block::Spherical {
             ball_radius: c.ball_radius,
             radial_clearance: c.radial_clearance,
@@ -321,18 +319,16 @@ impl Block {
                 "a revolute clearance has a journal_radius",
             ));
         }
-        for (v, n) in [
-            (c.slider_length, "slider_length"),
-            (c.slider_height, "slider_height"),
-            (c.slider_width, "slider_width"),
-        ] {
-            if v.is_some() {
-                return Err(cx.err(
-                    format!("{f}.{n}"),
-                    "not a field of a revolute clearance (a prismatic joint's slider has it)",
-                ));
-            }
-        }
+        refuse(
+            &[
+                (c.slider_length, "slider_length"),
+                (c.slider_height, "slider_height"),
+                (c.slider_width, "slider_width"),
+            ],
+            f,
+            "not a field of a revolute clearance (a prismatic joint's slider has it)",
+            cx,
+        )?;
         // Any two of journal radius, bushing radius and radial clearance, each positive.
         let given = |v: Option<f64>, n: &str| {
             v.map(|x| positive(Some(x), format!("{f}.{n}"), "", cx))
@@ -382,15 +378,16 @@ impl Block {
         }
         match c.model.unwrap_or_default() {
             RevoluteModel::Planar => {
-                for (v, n) in [
-                    (c.bushing_length, "bushing_length"),
-                    (c.face_radius, "face_radius"),
-                    (c.axial_clearance, "axial_clearance"),
-                ] {
-                    if v.is_some() {
-                        return Err(cx.err(format!("{f}.{n}"), "not a field of a planar clearance"));
-                    }
-                }
+                refuse(
+                    &[
+                        (c.bushing_length, "bushing_length"),
+                        (c.face_radius, "face_radius"),
+                        (c.axial_clearance, "axial_clearance"),
+                    ],
+                    f,
+                    "not a field of a planar clearance",
+                    cx,
+                )?;
                 Ok(Block::Planar {
                     journal: rj,
                     bushing: rb,
@@ -410,21 +407,19 @@ impl Block {
 impl Block {
     /// Slider in guide: its length and height and the clearance per side; planar only.
     fn translational(c: &ClearanceSpec, f: &str, cx: &Ctx) -> Result<Block> {
-        for (v, n) in [
-            (c.ball_radius, "ball_radius"),
-            (c.journal_radius, "journal_radius"),
-            (c.bushing_radius, "bushing_radius"),
-            (c.bushing_length, "bushing_length"),
-            (c.face_radius, "face_radius"),
-            (c.axial_clearance, "axial_clearance"),
-        ] {
-            if v.is_some() {
-                return Err(cx.err(
-                    format!("{f}.{n}"),
-                    "not a field of a prismatic clearance (give slider_length, slider_height and radial_clearance)",
-                ));
-            }
-        }
+        refuse(
+            &[
+                (c.ball_radius, "ball_radius"),
+                (c.journal_radius, "journal_radius"),
+                (c.bushing_radius, "bushing_radius"),
+                (c.bushing_length, "bushing_length"),
+                (c.face_radius, "face_radius"),
+                (c.axial_clearance, "axial_clearance"),
+            ],
+            f,
+            "not a field of a prismatic clearance (give slider_length, slider_height and radial_clearance)",
+            cx,
+        )?;
         let width = match c.model {
             None | Some(RevoluteModel::Planar) => {
                 if c.slider_width.is_some() {
@@ -510,4 +505,13 @@ fn spatial(
         face_radius,
         journal_length,
     })
+}
+
+/// An error naming the first of `fields` (value, key) that is given: a key of another geometry,
+/// refused with `why`.
+fn refuse(fields: &[(Option<f64>, &str)], f: &str, why: &str, cx: &Ctx) -> Result<()> {
+    match fields.iter().find(|(v, _)| v.is_some()) {
+        Some((_, n)) => Err(cx.err(format!("{f}.{n}"), why)),
+        None => Ok(()),
+    }
 }
