@@ -550,25 +550,63 @@ impl Clearance {
             // The pressure's resultant passes through the journal centre; the bearing takes the
             // opposite force on the same line, so the pair has no moment (the viscous shear that
             // would balance a moment between the two centres is not modelled).
-            let f = self.film_force(film, kh, kj);
-            let rj = kj.r + kj.rot * self.sj;
+            let s = self.film_state(kh, kj);
+            let f = s.force(film);
             r.force_j += f;
-            r.moment_j += (rj - kj.r).cross(&f);
+            r.moment_j += (s.rj - kj.r).cross(&f);
             r.force_h -= f;
-            r.moment_h -= (rj - kh.r).cross(&f);
+            r.moment_h -= (s.rj - kh.r).cross(&f);
         }
         r
     }
 
-    /// The film force on the journal (N, global), applied at the journal centre (the bearing
-    /// takes the opposite force on the same line): from the journal centre's eccentricity and its
-    /// rate in the plane normal to the housing axis, and the two bodies' spins about that axis.
-    pub fn film_force(&self, film: &Film, kh: &Kin, kj: &Kin) -> Vector3<f64> {
+    /// What a film acts on: the journal centre's eccentricity and its rate in the plane normal
+    /// to the housing axis, and the two bodies' spins about that axis.
+    pub fn film_state(&self, kh: &Kin, kj: &Kin) -> FilmState {
         let a = kh.rot * self.axis_h;
         let (rh, rj) = (kh.r + kh.rot * self.sh, kj.r + kj.rot * self.sj);
-        let e = perp(&(rj - rh), &a);
-        let e_dot = perp(&(vel(kj, &rj) - vel(kh, &rh)), &a);
-        film.force(&e, &e_dot, &a, (kj.w + kh.w).dot(&a))
+        FilmState {
+            e: perp(&(rj - rh), &a),
+            e_dot: perp(&(vel(kj, &rj) - vel(kh, &rh)), &a),
+            spin: (kj.w + kh.w).dot(&a),
+            a,
+            rj,
+            rh,
+        }
+    }
+
+    /// The film force on the journal (N, global), applied at the journal centre (the bearing
+    /// takes the opposite force on the same line).
+    pub fn film_force(&self, film: &Film, kh: &Kin, kj: &Kin) -> Vector3<f64> {
+        self.film_state(kh, kj).force(film)
+    }
+}
+
+/// A lubricated joint's film kinematics ([`Clearance::film_state`]), global axes.
+#[derive(Debug, Clone, Copy)]
+pub struct FilmState {
+    /// Journal and housing centres (m).
+    pub rj: Vector3<f64>,
+    pub rh: Vector3<f64>,
+    /// The unit housing axis.
+    pub a: Vector3<f64>,
+    /// Eccentricity of the journal centre normal to `a` (m) and its rate (m/s).
+    pub e: Vector3<f64>,
+    pub e_dot: Vector3<f64>,
+    /// The journal's and the housing's spins about `a`, summed (rad/s).
+    pub spin: f64,
+}
+
+impl FilmState {
+    /// The force of `film` on the journal in this state (N, global).
+    pub fn force(&self, film: &Film) -> Vector3<f64> {
+        film.force(&self.e, &self.e_dot, &self.a, self.spin)
+    }
+
+    /// The film's stiffness and damping along the eccentricity, with its direction
+    /// ([`Film::linearised`]).
+    pub fn linearised(&self, film: &Film) -> (f64, f64, Vector3<f64>) {
+        film.linearised(&self.e, &self.e_dot, &self.a, self.spin)
     }
 }
 

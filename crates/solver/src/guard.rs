@@ -520,16 +520,9 @@ impl Model {
             }
             // An oil film is a spring and damper along the eccentricity at every state.
             if let (false, Some(film)) = (guard.warned[ci], &cl.film) {
-                let (kh, kj) = (*self.kin_of(cl.housing, ws), *self.kin_of(cl.journal, ws));
-                let a = kh.rot * cl.axis_h;
-                let (rh, rj) = (kh.r + kh.rot * cl.sh, kj.r + kj.rot * cl.sj);
-                let e = perp(rj - rh, &a);
-                let e_dot = perp(
-                    (kj.v + kj.w.cross(&(rj - kj.r))) - (kh.v + kh.w.cross(&(rh - kh.r))),
-                    &a,
-                );
-                let (k, c, n) = film.linearised(&e, &e_dot, &a, (kj.w + kh.w).dot(&a));
-                let (inv0, blocks) = self.free_inverse_mass(cl, &n, (&rj, &rh), ws);
+                let s = cl.film_state(self.kin_of(cl.housing, ws), self.kin_of(cl.journal, ws));
+                let (k, c, n) = s.linearised(film);
+                let (inv0, blocks) = self.free_inverse_mass(cl, &n, (&s.rj, &s.rh), ws);
                 let found = self.unstable_mode(
                     (&method, h),
                     (k.max(0.0), c.max(0.0)),
@@ -550,11 +543,6 @@ impl Model {
             }
         }
     }
-}
-
-#[inline]
-fn perp(v: Vector3<f64>, a: &Vector3<f64>) -> Vector3<f64> {
-    v - a * v.dot(a)
 }
 
 /// The step-size guard's warning for the unstable mode `(lambda, m, stable)` of `what` (a

@@ -402,10 +402,9 @@ impl Block {
             }),
         }
     }
-}
 
-impl Block {
-    /// Slider in guide: its length and height and the clearance per side; planar only.
+    /// Slider in guide: its length and height and the clearance per side, and for the spatial
+    /// model (a box in a channel) its width.
     fn translational(c: &ClearanceSpec, f: &str, cx: &Ctx) -> Result<Block> {
         refuse(
             &[

@@ -68,14 +68,10 @@ impl Model {
             if c.film.is_some() {
                 pattern.push(FILM | ci as u32);
                 let idx = |b: usize| if b == GROUND { nb } else { b };
-                let (kh, kj) = (&ws.kin[idx(c.housing)], &ws.kin[idx(c.journal)]);
-                let a = kh.rot * c.axis_h;
-                let sides = [
-                    (c.journal, kj.r + kj.rot * c.sj, 1.0),
-                    (c.housing, kh.r + kh.rot * c.sh, -1.0),
-                ];
-                let u = crate::kin::any_normal(&a);
-                for d in [u, a.cross(&u)] {
+                let s = c.film_state(&ws.kin[idx(c.housing)], &ws.kin[idx(c.journal)]);
+                let sides = [(c.journal, s.rj, 1.0), (c.housing, s.rh, -1.0)];
+                let u = crate::kin::any_normal(&s.a);
+                for d in [u, s.a.cross(&u)] {
                     position_gradient(y, ws, &sides, &d, dirs);
                     velocity_direction(ws, &sides, &d, dirs);
                 }
