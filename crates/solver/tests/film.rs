@@ -7,8 +7,9 @@
 
 mod common;
 
+use common::edit;
+
 use std::f64::consts::PI;
-use std::path::Path;
 
 use jointplay_solver::model::{Model, State};
 
@@ -18,16 +19,7 @@ const R: f64 = 0.02;
 const L: f64 = 0.01;
 
 fn scene() -> String {
-    std::fs::read_to_string(
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../data/scenes/journal-bearing.toml"),
-    )
-    .unwrap()
-}
-
-/// `text` with `from` replaced by `to` (which must be there).
-fn edit(text: &str, from: &str, to: &str) -> String {
-    assert!(text.contains(from), "the scene no longer has {from:?}");
-    text.replacen(from, to, 1)
+    common::scene_text("journal-bearing.toml")
 }
 
 fn compile(text: &str) -> jointplay_solver::error::Result<(Model, State)> {

@@ -7,6 +7,8 @@
 
 mod common;
 
+use common::edit;
+
 use std::path::Path;
 
 use jointplay_solver::dynamics::Workspace;
@@ -17,15 +19,7 @@ const K: f64 = 1e9;
 const C: f64 = 1e-3;
 
 fn scene() -> String {
-    std::fs::read_to_string(
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../../data/scenes/slider-in-guide.toml"),
-    )
-    .unwrap()
-}
-
-fn edit(text: &str, from: &str, to: &str) -> String {
-    assert!(text.contains(from), "the scene no longer has {from:?}");
-    text.replacen(from, to, 1)
+    common::scene_text("slider-in-guide.toml")
 }
 
 fn compile(text: &str) -> jointplay_solver::error::Result<(Model, State)> {
@@ -94,28 +88,7 @@ fn a_spinning_slider_keeps_its_energy_and_meets_both_faces_crossed() {
     // No gravity, no damping, no friction: the slider slides at 0.1 m/s and spins at 2 rad/s
     // between the faces, rattling on its corners. The slider stays in the plane (the joint's
     // three rows), so its energy is m v^2 / 2 + I_zz w^2 / 2 while no corner touches.
-    let text = edit(
-        &scene(),
-        "gravity = [0.0, -9.81, 0.0]",
-        "gravity = [0.0, 0.0, 0.0]",
-    );
-    let text = edit(
-        &text,
-        "normal = { law = \"carvalho_martins\", stiffness = 1e9, restitution = 0.5 }",
-        "normal = { law = \"hertz\", stiffness = 1e9 }",
-    );
-    let text = edit(
-        &text,
-        "axes = { x = [1.0, 0.0, 0.0], y = [0.0, 1.0, 0.0] }\n\n[[joints]]",
-        "axes = { x = [1.0, 0.0, 0.0], y = [0.0, 1.0, 0.0] }\nvelocity = [0.1, 0.0, 0.0]\nangular_velocity = [0.0, 0.0, 2.0]\n\n[[joints]]",
-    );
-    let text = edit(&text, "rtol = 1e-9", "rtol = 1e-11");
-    // A closed start would hold the slider as the ideal prismatic joint, which allows no spin.
-    let text = edit(
-        &text,
-        "radial_clearance = 1e-3",
-        "radial_clearance = 1e-3\nstart = \"free\"",
-    );
+    let text = conservative(&scene(), "[0.0, 0.0, 2.0]");
     let samples: Vec<f64> = (0..=20_000).map(|k| k as f64 * 1e-5).collect();
     let (m, states) = run(&text, 0.2, &samples);
     let np = m.n_pos();
@@ -341,6 +314,31 @@ fn the_slider_crank_meets_siconos_until_its_energy_drifts() {
     assert!(last_energy < 7.4955 && last_energy > 6.9, "{last_energy}");
 }
 
+/// `text` made conservative and set moving: no gravity, Hertz's law without damping (no
+/// friction in the scene), sliding at 0.1 m/s and spinning at `angular_velocity` (rad/s), a free
+/// start (a closed one would hold the slider as the ideal prismatic joint, which allows no spin)
+/// and rtol 1e-11.
+fn conservative(text: &str, angular_velocity: &str) -> String {
+    let text = edit(
+        text,
+        "gravity = [0.0, -9.81, 0.0]",
+        "gravity = [0.0, 0.0, 0.0]",
+    );
+    let text = edit(
+        &text,
+        "normal = { law = \"carvalho_martins\", stiffness = 1e9, restitution = 0.5 }",
+        "normal = { law = \"hertz\", stiffness = 1e9 }\nstart = \"free\"",
+    );
+    let text = edit(
+        &text,
+        "axes = { x = [1.0, 0.0, 0.0], y = [0.0, 1.0, 0.0] }\n\n[[joints]]",
+        &format!(
+            "axes = {{ x = [1.0, 0.0, 0.0], y = [0.0, 1.0, 0.0] }}\nvelocity = [0.1, 0.0, 0.0]\nangular_velocity = {angular_velocity}\n\n[[joints]]"
+        ),
+    );
+    edit(&text, "rtol = 1e-9", "rtol = 1e-11")
+}
+
 /// The slider as a 20 mm wide box in a channel (`model = "spatial"`, sixteen contacts).
 fn boxed() -> String {
     edit(
@@ -394,22 +392,7 @@ fn a_tumbling_box_keeps_its_energy_through_its_impacts() {
     // No gravity, Hertz without damping, no friction: the box slides and tumbles about all
     // three axes against the four faces. The energy (kinetic plus the contacts' elastic) is
     // conserved through the impacts; at rtol 1e-11 it holds to 1e-7 of itself.
-    let text = edit(
-        &boxed(),
-        "gravity = [0.0, -9.81, 0.0]",
-        "gravity = [0.0, 0.0, 0.0]",
-    );
-    let text = edit(
-        &text,
-        "normal = { law = \"carvalho_martins\", stiffness = 1e9, restitution = 0.5 }",
-        "normal = { law = \"hertz\", stiffness = 1e9 }\nstart = \"free\"",
-    );
-    let text = edit(
-        &text,
-        "axes = { x = [1.0, 0.0, 0.0], y = [0.0, 1.0, 0.0] }\n\n[[joints]]",
-        "axes = { x = [1.0, 0.0, 0.0], y = [0.0, 1.0, 0.0] }\nvelocity = [0.1, 0.0, 0.0]\nangular_velocity = [0.3, 0.5, 2.0]\n\n[[joints]]",
-    );
-    let text = edit(&text, "rtol = 1e-9", "rtol = 1e-11");
+    let text = conservative(&boxed(), "[0.3, 0.5, 2.0]");
     let samples: Vec<f64> = (0..=2000).map(|k| k as f64 * 1e-4).collect();
     let (m, mut s) = compile(&text).unwrap();
     let method = m.settings.method;

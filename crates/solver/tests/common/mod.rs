@@ -7,6 +7,24 @@ use jointplay_solver::model::{Model, State};
 use jointplay_solver::ode::{Flow, Method, integrate};
 use jointplay_solver::scene::{SceneFile, SceneSpec};
 
+/// The text of the bundled scene `data/scenes/<name>`.
+#[allow(dead_code)] // not every test file edits scenes
+pub fn scene_text(name: &str) -> String {
+    std::fs::read_to_string(
+        Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../../data/scenes")
+            .join(name),
+    )
+    .unwrap()
+}
+
+/// `text` with `from` replaced by `to` (which must be there).
+#[allow(dead_code)] // not every test file edits scenes
+pub fn edit(text: &str, from: &str, to: &str) -> String {
+    assert!(text.contains(from), "the scene no longer has {from:?}");
+    text.replacen(from, to, 1)
+}
+
 /// The scene `text` (as if read from the file `name`) compiled and assembled.
 #[allow(dead_code)] // not every test file compiles scenes from text
 pub fn compile(name: &str, text: &str) -> jointplay_solver::error::Result<(Model, State)> {
