@@ -195,6 +195,32 @@ pub enum Command {
         #[arg(long, default_value = "out")]
         out: PathBuf,
     },
+    /// Animate a run: one self-contained HTML page (DIR/<file>.html, DIR/<file>-<case>.html for a
+    /// case of a comparison study) that shows the mechanism in 3D with play, pause, a time
+    /// slider, speeds and a turning camera, and beside it each clearance joint's orbit in its
+    /// magnified clearance, coloured by the contact force; with --glb also a glTF 2.0 file
+    /// (.glb) with the motion as node animation, for Blender and any glTF viewer.
+    Animate {
+        /// Run file written by `jointplay run SCENE`, or a comparison study's file with --case.
+        file: PathBuf,
+        /// The case of a comparison study's file to animate.
+        #[arg(long)]
+        case: Option<String>,
+        /// Output directory (created if missing).
+        #[arg(long, default_value = "out")]
+        out: PathBuf,
+        /// Evenly spaced frames kept from the run's samples (besides every sample where a
+        /// contact opens or closes and each contact's force peak).
+        #[arg(long, default_value_t = 4000)]
+        frames: usize,
+        /// Simulated seconds per second of playback when the page opens (default: a round
+        /// number near a tenth of the run's duration).
+        #[arg(long)]
+        speed: Option<f64>,
+        /// Also write DIR/<file>.glb: the mechanism and its motion as glTF 2.0.
+        #[arg(long)]
+        glb: bool,
+    },
     /// Overlay one recorded quantity from several run files in one figure (PNG and SVG).
     Compare {
         /// Run files written by `jointplay run`.

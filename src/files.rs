@@ -183,3 +183,50 @@ pub fn export(
     println!("wrote        {}", path.display());
     Ok(())
 }
+
+/// `jointplay animate`: the page (and with `glb` the glTF file) of a run or of a study's case.
+pub fn animate(
+    file: &Path,
+    case: Option<&str>,
+    out: &Path,
+    frames: usize,
+    speed: Option<f64>,
+    glb: bool,
+) -> Result<()> {
+    use jointplay_analysis::figures::animate::{Options, write_page};
+    if file.extension().is_some_and(|e| e == "toml") {
+        anyhow::bail!(
+            "{}: a TOML file; `jointplay animate` reads the HDF5 file a run wrote (`jointplay run {}` writes DIR/<name>.h5)",
+            file.display(),
+            file.display()
+        );
+    }
+    if frames < 2 {
+        anyhow::bail!("--frames: at least 2, got {frames}");
+    }
+    if let Some(s) = speed.filter(|s| !(s.is_finite() && *s > 0.0)) {
+        anyhow::bail!("--speed: a positive number of simulated seconds per second, got {s}");
+    }
+    let options = Options { frames, speed };
+    let (page, motion) = write_page(file, case, out, &options)?;
+    let size = std::fs::metadata(&page).map(|m| m.len()).unwrap_or(0);
+    println!(
+        "wrote        {} ({} frames of {} samples, {} of them for contacts; {:.1} MB)",
+        page.display(),
+        motion.time.len(),
+        motion.samples,
+        motion.impact_frames,
+        size as f64 / 1e6
+    );
+    if !motion.missing.is_empty() {
+        println!(
+            "not drawn    {} (not recorded: add them to [output] bodies)",
+            motion.missing.join(", ")
+        );
+    }
+    if glb {
+        let path = jointplay_analysis::figures::gltf::write(&motion, file, case, out)?;
+        println!("wrote        {}", path.display());
+    }
+    Ok(())
+}

@@ -145,6 +145,14 @@ fn main() {
             dataset,
             out,
         } => files::export(&file, format, case.as_deref(), &dataset, &out),
+        Command::Animate {
+            file,
+            case,
+            out,
+            frames,
+            speed,
+            glb,
+        } => files::animate(&file, case.as_deref(), &out, frames, speed, glb),
         Command::Precision {
             file,
             out,

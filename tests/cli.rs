@@ -2340,3 +2340,213 @@ fn a_lubricated_bearing_records_its_film_and_a_fixed_step_too_long_for_the_film_
         .unwrap();
     assert_eq!(unit.as_str(), "N");
 }
+
+/// A pendulum drawn with the scene's own shapes: a sphere, a cylinder, and meshes from an STL
+/// and an OBJ file beside the scene.
+fn pendulum_with_shapes(dir: &Path) -> PathBuf {
+    std::fs::write(
+        dir.join("tetra.stl"),
+        "solid t\n\
+         facet normal 0 0 -1\n outer loop\n vertex 0 0 0\n vertex 0 10 0\n vertex 10 0 0\n endloop\nendfacet\n\
+         facet normal 0 -1 0\n outer loop\n vertex 0 0 0\n vertex 10 0 0\n vertex 0 0 10\n endloop\nendfacet\n\
+         facet normal -1 0 0\n outer loop\n vertex 0 0 0\n vertex 0 0 10\n vertex 0 10 0\n endloop\nendfacet\n\
+         facet normal 1 1 1\n outer loop\n vertex 10 0 0\n vertex 0 10 0\n vertex 0 0 10\n endloop\nendfacet\n\
+         endsolid t\n",
+    )
+    .unwrap();
+    std::fs::write(
+        dir.join("quad.obj"),
+        "v 0 0 0\nv 0.02 0 0\nv 0.02 0.02 0\nv 0 0.02 0\nf 1 2 3 4\n",
+    )
+    .unwrap();
+    let scene = PENDULUM
+        .replace("end_time = 10.0", "end_time = 0.5")
+        .replace(
+            "axes = { z = [0.0, 0.0, 1.0] }\n\n[[joints]]",
+            "axes = { z = [0.0, 0.0, 1.0] }\n\
+             visual = [\n\
+               { shape = \"sphere\", radius = 0.05, color = \"#cc3311\" },\n\
+               { shape = \"cylinder\", radius = 0.005, length = 1.0, at = [0.0, 0.5, 0.0], axis = [0.0, 1.0, 0.0] },\n\
+               { shape = \"mesh\", file = \"tetra.stl\", scale = 0.001, at = [0.0, 1.0, 0.0] },\n\
+               { shape = \"box\", size = [0.02, 0.02, 0.02], orientation = { axis = [0.0, 0.0, 1.0], angle = \"45 deg\" } },\n\
+               { shape = \"mesh\", file = \"quad.obj\" },\n\
+             ]\n\n[[joints]]",
+        );
+    assert!(
+        scene.contains("tetra.stl"),
+        "test setup: the scene's bob not found"
+    );
+    write_scene(dir, "pendulum-shapes.toml", &scene)
+}
+
+#[test]
+fn animate_writes_a_self_contained_page_and_a_glb_of_a_run_with_its_shapes() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = pendulum_with_shapes(dir.path());
+    let out = bin().arg("check").arg(&scene).output().unwrap();
+    assert!(out.status.success(), "{:?}", text(&out));
+    let out = bin()
+        .args(["run", "-q", "--no-plots", "--out"])
+        .arg(dir.path())
+        .arg(&scene)
+        .output()
+        .unwrap();
+    assert!(out.status.success(), "{:?}", text(&out));
+    let h5 = dir.path().join("pendulum.h5");
+    let out = bin()
+        .arg("animate")
+        .arg(&h5)
+        .arg("--out")
+        .arg(dir.path())
+        .args(["--glb", "--frames", "100"])
+        .output()
+        .unwrap();
+    let (stdout, stderr) = text(&out);
+    assert!(out.status.success(), "{stdout}{stderr}");
+    // 0.5 s at 1 ms: 501 samples, of which 101 evenly spaced frames (no clearance joint).
+    assert!(stdout.contains("(101 frames of 501 samples"), "{stdout}");
+    let html = std::fs::read_to_string(dir.path().join("pendulum.html")).unwrap();
+    assert!(html.contains("id=\"jointplay-data\"") && html.contains("window.jointplay"));
+    // Self-contained: nothing is fetched from anywhere.
+    assert!(!html.contains("http:") && !html.contains("https:") && !html.contains("src="));
+    let glb = std::fs::read(dir.path().join("pendulum.glb")).unwrap();
+    assert_eq!(&glb[..4], b"glTF");
+    assert_eq!(
+        u32::from_le_bytes(glb[8..12].try_into().unwrap()) as usize,
+        glb.len()
+    );
+    let json_len = u32::from_le_bytes(glb[12..16].try_into().unwrap()) as usize;
+    let doc = String::from_utf8(glb[20..20 + json_len].to_vec()).unwrap();
+    assert!(
+        doc.contains("\"name\":\"bob\"") && doc.contains("\"animations\""),
+        "{doc}"
+    );
+    // Five shapes: five primitives in the bob's mesh.
+    assert_eq!(doc.matches("\"POSITION\"").count(), 5 + 1, "{doc}");
+}
+
+#[test]
+fn bad_shapes_and_bad_animate_input_get_errors_that_name_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene = pendulum_with_shapes(dir.path());
+    let text_of = |s: &str| {
+        std::fs::read_to_string(&scene)
+            .unwrap()
+            .replace("radius = 0.05,", s)
+    };
+    for (edit, field, says) in [
+        (
+            "radius = -0.05,",
+            "bodies[0].visual[0].radius",
+            "must be positive",
+        ),
+        (
+            "radius = 0.05, color = \"red\",",
+            "bodies[0].visual[0].color",
+            "#rrggbb",
+        ),
+    ] {
+        let p = write_scene(
+            dir.path(),
+            "bad.toml",
+            &text_of(edit)
+                .replace("color = \"#cc3311\"", "")
+                .replace(", }", " }"),
+        );
+        let out = bin().arg("check").arg(&p).output().unwrap();
+        let (_, err) = text(&out);
+        assert!(
+            !out.status.success() && err.contains(field) && err.contains(says),
+            "{edit}: {err}"
+        );
+    }
+    let p = write_scene(
+        dir.path(),
+        "bad.toml",
+        &std::fs::read_to_string(&scene)
+            .unwrap()
+            .replace("quad.obj", "quad.ply"),
+    );
+    let (_, err) = text(&bin().arg("check").arg(&p).output().unwrap());
+    assert!(
+        err.contains("bodies[0].visual[4].file") && err.contains("neither an OBJ"),
+        "{err}"
+    );
+
+    // A mesh missing when the run is animated: named, with the body.
+    let run = |scene: &Path| {
+        let o = bin()
+            .args(["run", "-q", "--no-plots", "--out"])
+            .arg(dir.path())
+            .arg(scene)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{:?}", text(&o));
+    };
+    run(&scene);
+    std::fs::remove_file(dir.path().join("tetra.stl")).unwrap();
+    let animate = |args: &[&str]| bin().arg("animate").args(args).output().unwrap();
+    let h5 = dir.path().join("pendulum.h5");
+    let h5s = h5.to_str().unwrap();
+    let out = dir.path().to_str().unwrap();
+    let (_, err) = text(&animate(&[h5s, "--out", out]));
+    assert!(
+        err.contains("tetra.stl") && err.contains("body 'bob'"),
+        "{err}"
+    );
+
+    // The wrong file kinds and options.
+    let (_, err) = text(&animate(&[scene.to_str().unwrap()]));
+    assert!(
+        err.contains("a TOML file") && err.contains("jointplay run"),
+        "{err}"
+    );
+    let (_, err) = text(&animate(&[h5s, "--frames", "1"]));
+    assert!(err.contains("--frames"), "{err}");
+    let (_, err) = text(&animate(&[h5s, "--speed=-1"]));
+    assert!(err.contains("--speed"), "{err}");
+    let (_, err) = text(&animate(&[h5s, "--case", "x"]));
+    assert!(err.contains("no cases"), "{err}");
+    assert!(!dir.path().join("pendulum.html").exists());
+}
+
+#[test]
+fn animate_keeps_every_impact_and_takes_a_case_of_a_study() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = run_study(
+        dir.path(),
+        "study.toml",
+        "slider-crank-clearance.toml",
+        "[study]\nname = \"s\"\nscene = \"SCENE\"\n[[cases]]\nlabel = \"a\"\n\
+         [[cases]]\nlabel = \"b\"\nset = { \"joints.piston_pin.clearance.journal_radius\" = 0.0098 }\n",
+    );
+    assert!(out.status.success(), "{:?}", text(&out));
+    let h5 = dir.path().join("s.h5");
+    let animate = |args: &[&str]| {
+        bin()
+            .arg("animate")
+            .arg(&h5)
+            .arg("--out")
+            .arg(dir.path())
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let (_, err) = text(&animate(&[]));
+    assert!(err.contains("--case") && err.contains("a, b"), "{err}");
+    let (_, err) = text(&animate(&["--case", "c"]));
+    assert!(err.contains("no case 'c'"), "{err}");
+    // 50 evenly spaced frames of a run full of impacts: the contacts' changes and peaks are kept
+    // besides them.
+    let o = animate(&["--case", "b", "--frames", "50"]);
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stdout}{stderr}");
+    let kept: usize = stdout
+        .split(" samples, ")
+        .nth(1)
+        .and_then(|s| s.split_whitespace().next())
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("{stdout}"));
+    assert!(kept > 20, "{stdout}");
+    assert!(dir.path().join("s-b.html").exists());
+}

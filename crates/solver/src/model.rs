@@ -49,6 +49,43 @@ pub struct Body {
     pub inv_inertia: Matrix3<f64>,
     /// Centre of mass in the body frame (m): converts declared points to COM-relative vectors.
     pub com: Vector3<f64>,
+    /// The shapes the scene draws the body with (`[[bodies.visual]]`); none: it is drawn from
+    /// its joint points. No part of the dynamics.
+    pub visuals: Vec<Visual>,
+}
+
+/// A shape that draws a body, placed relative to its centre of mass in body axes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Visual {
+    pub shape: Shape,
+    /// The shape's centre (its origin, for a mesh), COM-relative body axes (m).
+    pub centre: Vector3<f64>,
+    /// The shape's axes in body axes (a cylinder's axis is the shape's z).
+    pub rotation: nalgebra::UnitQuaternion<f64>,
+    /// sRGB colour; `None`: the body's colour in the drawing.
+    pub color: Option<[u8; 3]>,
+}
+
+/// The kinds of [`Visual`] shape (m).
+#[derive(Debug, Clone, PartialEq)]
+pub enum Shape {
+    /// Edge lengths along the shape's axes.
+    Box {
+        size: Vector3<f64>,
+    },
+    Cylinder {
+        radius: f64,
+        length: f64,
+    },
+    Sphere {
+        radius: f64,
+    },
+    /// An OBJ or STL file (the path as the scene wrote it, resolved against the scene's folder),
+    /// its coordinates times `scale` in m.
+    Mesh {
+        file: PathBuf,
+        scale: f64,
+    },
 }
 
 /// A constraint primitive; body indices may be [`GROUND`], whose local vectors are global.

@@ -160,6 +160,62 @@ pub struct BodySpec {
     /// Named directions in the body frame (need not be unit length).
     #[serde(default, deserialize_with = "fixed::map")]
     pub axes: BTreeMap<String, [f64; 3]>,
+    /// Shapes that draw the body in `jointplay animate` and its glTF file, in place of the
+    /// bars between its joint points; they take no part in the dynamics.
+    #[serde(default)]
+    pub visual: Vec<VisualSpec>,
+}
+
+/// A shape that draws a body (`[[bodies.visual]]`), placed in the body frame (m).
+#[derive(Debug, Clone, Deserialize, Serialize)]
+#[serde(tag = "shape", rename_all = "snake_case", deny_unknown_fields)]
+pub enum VisualSpec {
+    /// A box of edge lengths `size` along its axes, centred at `at`.
+    Box {
+        #[serde(deserialize_with = "fixed::array")]
+        size: [f64; 3],
+        #[serde(default, deserialize_with = "fixed::array")]
+        at: [f64; 3],
+        /// The box's axes in the body frame (default: the body's).
+        #[serde(default)]
+        orientation: OrientationSpec,
+        #[serde(default)]
+        color: Option<String>,
+    },
+    /// A cylinder of `radius` and `length` along `axis`, centred at `at`.
+    Cylinder {
+        radius: f64,
+        length: f64,
+        #[serde(default, deserialize_with = "fixed::array")]
+        at: [f64; 3],
+        /// Default: the body frame's z.
+        #[serde(default, deserialize_with = "fixed::option")]
+        axis: Option<[f64; 3]>,
+        #[serde(default)]
+        color: Option<String>,
+    },
+    /// A sphere of `radius` centred at `at`.
+    Sphere {
+        radius: f64,
+        #[serde(default, deserialize_with = "fixed::array")]
+        at: [f64; 3],
+        #[serde(default)]
+        color: Option<String>,
+    },
+    /// A triangle mesh read from an OBJ or STL file (relative to the scene's folder), its
+    /// coordinates times `scale` (1 when they are in m; 0.001 for mm), placed by `orientation`
+    /// and then `at`.
+    Mesh {
+        file: String,
+        #[serde(default)]
+        scale: Option<f64>,
+        #[serde(default, deserialize_with = "fixed::array")]
+        at: [f64; 3],
+        #[serde(default)]
+        orientation: OrientationSpec,
+        #[serde(default)]
+        color: Option<String>,
+    },
 }
 
 /// Inertia tensor components (kg m^2); products of inertia default to zero.

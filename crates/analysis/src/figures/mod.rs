@@ -21,6 +21,9 @@
 
 pub mod analysis;
 mod analysis_data;
+pub mod animate;
+pub mod gltf;
+pub mod mechanism;
 pub mod plot;
 pub mod precision;
 pub mod run;

@@ -70,45 +70,99 @@ fn invalid(path: &Path, message: String) -> crate::Error {
 pub fn read(file: &Path, case: Option<&str>, only: &[String]) -> Result<Samples> {
     let r = Reader::open(file)?;
     let all = r.datasets()?;
+    let prefix = run_prefix(file, &all, case)?;
+    samples(&r, &all, &prefix, only, true)
+}
+
+/// The group of `file` that holds a run: "" for a run file, `cases/<case>/` for a case of a
+/// comparison study; anything else is an error saying which file or option fits.
+fn run_prefix(file: &Path, all: &[String], case: Option<&str>) -> Result<String> {
     let cases: Vec<&str> = all
         .iter()
         .filter_map(|d| d.strip_prefix("cases/")?.strip_suffix("/time"))
         .collect();
-    let prefix = match (case, all.iter().any(|d| d == "time"), cases.is_empty()) {
-        (None, true, _) => String::new(),
-        (Some(c), _, false) => {
-            if !cases.contains(&c) {
+    Ok(
+        match (case, all.iter().any(|d| d == "time"), cases.is_empty()) {
+            (None, true, _) => String::new(),
+            (Some(c), _, false) => {
+                if !cases.contains(&c) {
+                    return Err(invalid(
+                        file,
+                        format!("no case '{c}'; the study's cases: {}", cases.join(", ")),
+                    ));
+                }
+                format!("cases/{c}/")
+            }
+            (None, _, false) => {
                 return Err(invalid(
                     file,
-                    format!("no case '{c}'; the study's cases: {}", cases.join(", ")),
+                    format!(
+                        "a comparison study's file: choose a case with --case ({})",
+                        cases.join(", ")
+                    ),
                 ));
             }
-            format!("cases/{c}/")
-        }
-        (None, _, false) => {
-            return Err(invalid(
-                file,
-                format!(
-                    "a comparison study's file: choose a case with --case ({})",
-                    cases.join(", ")
-                ),
-            ));
-        }
-        (Some(_), true, true) => {
-            return Err(invalid(
-                file,
-                "a run's file has no cases: leave out --case".into(),
-            ));
-        }
-        (_, false, true) => {
-            return Err(invalid(
-                file,
-                "not a run's file (it has no samples, no /time): an analysis study's table is \
+            (Some(_), true, true) => {
+                return Err(invalid(
+                    file,
+                    "a run's file has no cases: leave out --case".into(),
+                ));
+            }
+            (_, false, true) => {
+                return Err(invalid(
+                    file,
+                    "not a run's file (it has no samples, no /time): an analysis study's table is \
                  `jointplay report FILE`, its figures `jointplay plot FILE`"
-                    .into(),
-            ));
-        }
-    };
+                        .into(),
+                ));
+            }
+        },
+    )
+}
+
+/// A run of a file, read for drawing: its compiled scene and the samples of the datasets
+/// `wanted` that it holds (a dataset it lacks is left out, not an error).
+pub struct Run {
+    pub model: jointplay_solver::model::Model,
+    pub samples: Samples,
+}
+
+/// The run in `file` (or its case `case`) with its scene compiled again, and those of the
+/// datasets `wanted(model)` names that it holds. A file whose scene this program cannot compile
+/// is an error that says so.
+pub fn read_run(
+    file: &Path,
+    case: Option<&str>,
+    wanted: impl FnOnce(&jointplay_solver::model::Model) -> Vec<String>,
+) -> Result<Run> {
+    let r = Reader::open(file)?;
+    let all = r.datasets()?;
+    let prefix = run_prefix(file, &all, case)?;
+    let model = scene_model(&r, &prefix).map_err(|m| invalid(file, m))?;
+    let only: Vec<String> = wanted(&model)
+        .into_iter()
+        .filter(|d| all.iter().any(|a| *a == format!("{prefix}{d}")))
+        .collect();
+    if only.is_empty() {
+        return Err(invalid(
+            file,
+            "the run records none of the datasets needed".into(),
+        ));
+    }
+    let samples = samples(&r, &all, &prefix, &only, false)?;
+    Ok(Run { model, samples })
+}
+
+/// The samples of the run under `prefix`: every dataset with a row per sample, or those of
+/// `only`; with `strict`, one of `only` the run does not hold is an error.
+fn samples(
+    r: &Reader,
+    all: &[String],
+    prefix: &str,
+    only: &[String],
+    strict: bool,
+) -> Result<Samples> {
+    let file = r.path();
     let numbers = |path: &str| -> Result<(Vec<usize>, Vec<f64>)> {
         match r.dataset(path)? {
             Some(Data::Numbers { shape, values }) => Ok((shape, values)),
@@ -118,10 +172,10 @@ pub fn read(file: &Path, case: Option<&str>, only: &[String]) -> Result<Samples>
     let (_, time) = numbers(&format!("{prefix}time"))?;
     let n = time.len();
     let units: std::collections::HashMap<String, String> = r.units()?.into_iter().collect();
-    let names = declared_columns(&r, &prefix);
+    let names = declared_columns(r, prefix);
     let mut datasets = Vec::new();
-    for full in &all {
-        let Some(d) = full.strip_prefix(prefix.as_str()) else {
+    for full in all {
+        let Some(d) = full.strip_prefix(prefix) else {
             continue;
         };
         if d == "time" || d.starts_with("final_") || d.starts_with("cases/") {
@@ -154,13 +208,13 @@ pub fn read(file: &Path, case: Option<&str>, only: &[String]) -> Result<Samples>
     }
     if let Some(missing) = only
         .iter()
-        .find(|o| !datasets.iter().any(|c| &c.dataset == *o))
+        .find(|o| strict && !datasets.iter().any(|c| &c.dataset == *o))
     {
         return Err(invalid(
             file,
             format!(
                 "no dataset '{missing}' with a row per sample in this run (datasets: {})",
-                datasets_of(&all, &prefix)
+                datasets_of(all, prefix)
             ),
         ));
     }
@@ -179,29 +233,7 @@ fn datasets_of(all: &[String], prefix: &str) -> String {
 /// The observable path of every column of every dataset the run's scene declares (empty when
 /// the file holds no scene, or one this program cannot compile).
 fn declared_columns(r: &Reader, prefix: &str) -> Vec<(String, Vec<String>)> {
-    let group = prefix.strip_suffix('/');
-    let Ok(Some(attrs)) = r.attributes(group) else {
-        return Vec::new();
-    };
-    let text = |name: &str| {
-        attrs.iter().find_map(|(n, v)| match v {
-            Attr::Text(t) if n == name => Some(t.clone()),
-            _ => None,
-        })
-    };
-    let (Some(scene), Some(file)) = (text("scene"), text("scene_file")) else {
-        return Vec::new();
-    };
-    let path = PathBuf::from(file);
-    let Ok(spec) = jointplay_solver::scene::SceneSpec::parse(&scene, &path) else {
-        return Vec::new();
-    };
-    let scene = jointplay_solver::scene::SceneFile {
-        path,
-        spec,
-        text: scene,
-    };
-    let Ok((model, _)) = jointplay_solver::model::Model::compile(&scene) else {
+    let Ok(model) = scene_model(r, prefix) else {
         return Vec::new();
     };
     let Ok(rec) = crate::storage::run::Recording::of(&model) else {
@@ -216,6 +248,43 @@ fn declared_columns(r: &Reader, prefix: &str) -> Vec<(String, Vec<String>)> {
             )
         })
         .collect()
+}
+
+/// The scene of the run under `prefix` (its `scene` and `scene_file` attributes), compiled
+/// again; why not, when it cannot be.
+fn scene_model(
+    r: &Reader,
+    prefix: &str,
+) -> std::result::Result<jointplay_solver::model::Model, String> {
+    let group = prefix.strip_suffix('/');
+    let attrs = match r.attributes(group) {
+        Ok(Some(a)) => a,
+        Ok(None) => return Err("the run's group has no attributes".into()),
+        Err(e) => return Err(e.to_string()),
+    };
+    let text = |name: &str| {
+        attrs.iter().find_map(|(n, v)| match v {
+            Attr::Text(t) if n == name => Some(t.clone()),
+            _ => None,
+        })
+    };
+    let (Some(scene), Some(file)) = (text("scene"), text("scene_file")) else {
+        return Err(
+            "the run holds no scene (no `scene` attribute): not a file `jointplay run` wrote"
+                .into(),
+        );
+    };
+    let path = PathBuf::from(file);
+    let spec = jointplay_solver::scene::SceneSpec::parse(&scene, &path)
+        .map_err(|e| format!("its scene does not parse with this version of the program: {e}"))?;
+    let scene = jointplay_solver::scene::SceneFile {
+        path,
+        spec,
+        text: scene,
+    };
+    let (model, _) = jointplay_solver::model::Model::compile(&scene)
+        .map_err(|e| format!("its scene does not compile with this version of the program: {e}"))?;
+    Ok(model)
 }
 
 /// Writes `samples` as `target` in `format`, whole or not at all.

@@ -8,8 +8,8 @@ use nalgebra::{Matrix3, SymmetricEigen, UnitQuaternion, Vector3};
 
 use super::ctx::{Ctx, list, v3};
 use crate::error::Result;
-use crate::model::{Body, GROUND};
-use crate::scene::{BodySpec, InertiaSpec, OrientationSpec, SceneSpec, VecRef};
+use crate::model::{Body, GROUND, Shape, Visual};
+use crate::scene::{BodySpec, InertiaSpec, OrientationSpec, SceneSpec, VecRef, VisualSpec};
 
 /// What the bodies pass produces.
 pub(crate) struct Bodies<'s> {
@@ -121,6 +121,12 @@ fn body<'s>(b: &'s BodySpec, f: &str, cx: &Ctx) -> Result<(Body, Frames<'s>)> {
     }
     let com = v3(b.com);
     let pos = v3(b.position) + rot * com;
+    let visuals = b
+        .visual
+        .iter()
+        .enumerate()
+        .map(|(k, v)| visual(v, &com, &format!("{f}.visual[{k}]"), cx))
+        .collect::<Result<Vec<_>>>()?;
     let body = Body {
         name: b.name.clone(),
         mass: b.mass,
@@ -129,6 +135,7 @@ fn body<'s>(b: &'s BodySpec, f: &str, cx: &Ctx) -> Result<(Body, Frames<'s>)> {
             .try_inverse()
             .ok_or_else(|| cx.err(format!("{f}.inertia"), "inertia tensor is singular"))?,
         com,
+        visuals,
     };
     let frame = Frames {
         points: &b.points,
@@ -139,6 +146,118 @@ fn body<'s>(b: &'s BodySpec, f: &str, cx: &Ctx) -> Result<(Body, Frames<'s>)> {
         label: format!("body '{}'", b.name),
     };
     Ok((body, frame))
+}
+
+/// One visual shape of a body whose centre of mass is at `com` (body frame); `f` its field path.
+fn visual(v: &VisualSpec, com: &Vector3<f64>, f: &str, cx: &Ctx) -> Result<Visual> {
+    let positive = |x: f64, name: &str| {
+        if x > 0.0 {
+            Ok(x)
+        } else {
+            Err(cx.err(
+                format!("{f}.{name}"),
+                format!("must be positive, got {x} m"),
+            ))
+        }
+    };
+    let color = |c: &Option<String>| -> Result<Option<[u8; 3]>> {
+        let Some(c) = c else { return Ok(None) };
+        let hex = c.strip_prefix('#').filter(|h| h.len() == 6 && h.is_ascii());
+        let parse = |h: &str| -> Option<[u8; 3]> {
+            let byte = |i: usize| u8::from_str_radix(&h[i..i + 2], 16).ok();
+            Some([byte(0)?, byte(2)?, byte(4)?])
+        };
+        hex.and_then(parse).map(Some).ok_or_else(|| {
+            cx.err(
+                format!("{f}.color"),
+                format!("'{c}' is not a colour of the form \"#rrggbb\""),
+            )
+        })
+    };
+    let (shape, at, rotation, c) = match v {
+        VisualSpec::Box {
+            size,
+            at,
+            orientation: o,
+            color: c,
+        } => {
+            for (k, s) in size.iter().enumerate() {
+                positive(*s, &format!("size[{k}]"))?;
+            }
+            let rot = orientation(o, &format!("{f}.orientation"), cx)?;
+            (Shape::Box { size: v3(*size) }, at, rot, c)
+        }
+        VisualSpec::Cylinder {
+            radius,
+            length,
+            at,
+            axis,
+            color: c,
+        } => {
+            let rot = match axis {
+                None => UnitQuaternion::identity(),
+                Some(a) if v3(*a).norm() < 1e-12 => {
+                    return Err(cx.err(format!("{f}.axis"), "zero-length axis"));
+                }
+                Some(a) => {
+                    UnitQuaternion::rotation_between(&Vector3::z(), &v3(*a)).unwrap_or_else(|| {
+                        // Opposite to z: a half turn about x.
+                        UnitQuaternion::from_axis_angle(&Vector3::x_axis(), std::f64::consts::PI)
+                    })
+                }
+            };
+            let shape = Shape::Cylinder {
+                radius: positive(*radius, "radius")?,
+                length: positive(*length, "length")?,
+            };
+            (shape, at, rot, c)
+        }
+        VisualSpec::Sphere {
+            radius,
+            at,
+            color: c,
+        } => {
+            let shape = Shape::Sphere {
+                radius: positive(*radius, "radius")?,
+            };
+            (shape, at, UnitQuaternion::identity(), c)
+        }
+        VisualSpec::Mesh {
+            file,
+            scale,
+            at,
+            orientation: o,
+            color: c,
+        } => {
+            let lower = file.to_ascii_lowercase();
+            if !(lower.ends_with(".obj") || lower.ends_with(".stl")) {
+                return Err(cx.err(
+                    format!("{f}.file"),
+                    format!("'{file}' is neither an OBJ (.obj) nor an STL (.stl) file"),
+                ));
+            }
+            let scale = match scale {
+                None => 1.0,
+                Some(s) if *s > 0.0 => *s,
+                Some(s) => {
+                    return Err(cx.err(format!("{f}.scale"), format!("must be positive, got {s}")));
+                }
+            };
+            let dir = cx.file().parent().unwrap_or(std::path::Path::new(""));
+            let rot = orientation(o, &format!("{f}.orientation"), cx)?;
+            let shape = Shape::Mesh {
+                file: dir.join(file),
+                scale,
+            };
+            (shape, at, rot, c)
+        }
+    };
+    Ok(Visual {
+        shape,
+        centre: v3(*at) - com,
+        rotation,
+        color: color(c)?,
+    })
 }
 
 /// The rotation an orientation block declares (identity when empty).

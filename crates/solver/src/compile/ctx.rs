@@ -22,6 +22,11 @@ impl<'a> Ctx<'a> {
         }
     }
 
+    /// The file being compiled.
+    pub(crate) fn file(&self) -> &Path {
+        self.file
+    }
+
     /// Records a warning about `field`.
     pub(crate) fn warn(&self, field: impl std::fmt::Display, message: impl std::fmt::Display) {
         self.warnings
