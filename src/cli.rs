@@ -196,7 +196,8 @@ pub enum Command {
         out: PathBuf,
     },
     /// Animate a run: one self-contained HTML page (DIR/<file>.html, DIR/<file>-<case>.html for a
-    /// case of a comparison study) that shows the mechanism in 3D with play, pause, a time
+    /// case of a comparison study; a sweep value or a periodic orbit of an analysis study is run
+    /// again from the state its file keeps) that shows the mechanism in 3D with play, pause, a time
     /// slider, speeds and a turning camera, and beside it each clearance joint's orbit in its
     /// magnified clearance, coloured by the contact force; with --glb also a glTF 2.0 file
     /// (.glb) with the motion as node animation, for Blender and any glTF viewer.
@@ -204,8 +205,19 @@ pub enum Command {
         /// Run file written by `jointplay run SCENE`, or a comparison study's file with --case.
         file: PathBuf,
         /// The case of a comparison study's file to animate.
-        #[arg(long)]
+        #[arg(long, conflicts_with_all = ["value", "orbit"])]
         case: Option<String>,
+        /// An analysis study's sweep value to animate: the motion is run again for --periods
+        /// drive periods from the state that value's run ended in (DIR/<file>-value-<V>.html).
+        #[arg(long, conflicts_with = "orbit")]
+        value: Option<f64>,
+        /// Drive periods shown of a sweep value.
+        #[arg(long, default_value_t = 1.0, requires = "value")]
+        periods: f64,
+        /// A periodic orbit of an analysis study's continuation, BRANCH:POINT (e.g. 0:3): one
+        /// period of it, run again from its strobe point (DIR/<file>-orbit-<B>-<P>.html).
+        #[arg(long, value_name = "BRANCH:POINT")]
+        orbit: Option<String>,
         /// Output directory (created if missing).
         #[arg(long, default_value = "out")]
         out: PathBuf,

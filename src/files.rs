@@ -184,16 +184,25 @@ pub fn export(
     Ok(())
 }
 
-/// `jointplay animate`: the page (and with `glb` the glTF file) of a run or of a study's case.
+/// Which motion of a file `jointplay animate` draws, as its options give it.
+pub struct Picked<'a> {
+    pub case: Option<&'a str>,
+    pub value: Option<f64>,
+    pub periods: f64,
+    pub orbit: Option<&'a str>,
+}
+
+/// `jointplay animate`: the page (and with `glb` the glTF file) of a run, a study's case, a
+/// sweep value or a periodic orbit.
 pub fn animate(
     file: &Path,
-    case: Option<&str>,
+    picked: Picked,
     out: &Path,
     frames: usize,
     speed: Option<f64>,
     glb: bool,
 ) -> Result<()> {
-    use jointplay_analysis::figures::animate::{Options, write_page};
+    use jointplay_analysis::figures::animate::{Options, Pick, write_page};
     if file.extension().is_some_and(|e| e == "toml") {
         anyhow::bail!(
             "{}: a TOML file; `jointplay animate` reads the HDF5 file a run wrote (`jointplay run {}` writes DIR/<name>.h5)",
@@ -207,8 +216,29 @@ pub fn animate(
     if let Some(s) = speed.filter(|s| !(s.is_finite() && *s > 0.0)) {
         anyhow::bail!("--speed: a positive number of simulated seconds per second, got {s}");
     }
+    let pick = match (picked.value, picked.orbit) {
+        (Some(value), _) => {
+            if !(picked.periods.is_finite() && picked.periods > 0.0) {
+                anyhow::bail!("--periods: a positive number, got {}", picked.periods);
+            }
+            Pick::Value {
+                value,
+                periods: picked.periods,
+            }
+        }
+        (None, Some(o)) => {
+            let parsed = o
+                .split_once(':')
+                .and_then(|(b, p)| Some((b.trim().parse().ok()?, p.trim().parse().ok()?)));
+            let Some((branch, point)) = parsed else {
+                anyhow::bail!("--orbit: BRANCH:POINT, two indices (e.g. 0:3), got '{o}'");
+            };
+            Pick::Orbit { branch, point }
+        }
+        (None, None) => Pick::Run { case: picked.case },
+    };
     let options = Options { frames, speed };
-    let (page, motion) = write_page(file, case, out, &options)?;
+    let (page, motion) = write_page(file, pick, out, &options)?;
     let size = std::fs::metadata(&page).map(|m| m.len()).unwrap_or(0);
     println!(
         "wrote        {} ({} frames of {} samples, {} of them for contacts; {:.1} MB)",
@@ -225,7 +255,7 @@ pub fn animate(
         );
     }
     if glb {
-        let path = jointplay_analysis::figures::gltf::write(&motion, file, case, out)?;
+        let path = jointplay_analysis::figures::gltf::write(&motion, file, pick, out)?;
         println!("wrote        {}", path.display());
     }
     Ok(())

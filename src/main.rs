@@ -148,11 +148,26 @@ fn main() {
         Command::Animate {
             file,
             case,
+            value,
+            periods,
+            orbit,
             out,
             frames,
             speed,
             glb,
-        } => files::animate(&file, case.as_deref(), &out, frames, speed, glb),
+        } => files::animate(
+            &file,
+            files::Picked {
+                case: case.as_deref(),
+                value,
+                periods,
+                orbit: orbit.as_deref(),
+            },
+            &out,
+            frames,
+            speed,
+            glb,
+        ),
         Command::Precision {
             file,
             out,

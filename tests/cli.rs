@@ -2550,3 +2550,93 @@ fn animate_keeps_every_impact_and_takes_a_case_of_a_study() {
     assert!(kept > 20, "{stdout}");
     assert!(dir.path().join("s-b.html").exists());
 }
+
+#[test]
+fn animate_runs_a_sweep_value_and_a_periodic_orbit_again_from_the_analysis_file() {
+    let dir = tempfile::tempdir().unwrap();
+    let tutorial = PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("book/src/tutorial");
+    std::fs::copy(
+        tutorial.join("four-bar.toml"),
+        dir.path().join("four-bar.toml"),
+    )
+    .unwrap();
+    let sweep = write_scene(
+        dir.path(),
+        "sweep.toml",
+        &std::fs::read_to_string(tutorial.join("four-bar-sweep.toml"))
+            .unwrap()
+            .replace("periods = 40\ntransient = 20", "periods = 4\ntransient = 2")
+            .replace("count = 10", "count = 2"),
+    );
+    let run = |f: &Path| {
+        let o = bin()
+            .args(["run", "-q", "--no-plots", "--out"])
+            .arg(dir.path())
+            .arg(f)
+            .output()
+            .unwrap();
+        assert!(o.status.success(), "{:?}", text(&o));
+    };
+    run(&sweep);
+    // The scene the study read is gone: the file's own copy of the flow is used.
+    std::fs::remove_file(dir.path().join("four-bar.toml")).unwrap();
+    let h5 = dir.path().join("four-bar-sweep.h5");
+    let animate = |file: &Path, args: &[&str]| {
+        bin()
+            .arg("animate")
+            .arg(file)
+            .arg("--out")
+            .arg(dir.path())
+            .args(args)
+            .output()
+            .unwrap()
+    };
+    let (_, err) = text(&animate(&h5, &[]));
+    assert!(
+        err.contains("--value V") && err.contains("--orbit"),
+        "{err}"
+    );
+    let (_, err) = text(&animate(&h5, &["--value", "1e-4"]));
+    assert!(
+        err.contains("no done sweep value 0.0001") && err.contains("values: 0.00005, 0.0005"),
+        "{err}"
+    );
+    let (_, err) = text(&animate(&h5, &["--orbit", "0:0"]));
+    assert!(
+        err.contains("no periodic orbits") && err.contains("--value"),
+        "{err}"
+    );
+    let o = animate(&h5, &["--value", "5e-4", "--periods", "0.5", "--glb"]);
+    let (stdout, stderr) = text(&o);
+    assert!(o.status.success(), "{stdout}{stderr}");
+    // Half a crank turn at no coarser than the scene's interval: at least 2000 intervals.
+    assert!(stdout.contains("(2001 frames of 2001 samples"), "{stdout}");
+    assert!(dir.path().join("four-bar-sweep-value-0.0005.html").exists());
+    assert!(dir.path().join("four-bar-sweep-value-0.0005.glb").exists());
+
+    let periodic = write_scene(
+        dir.path(),
+        "periodic.toml",
+        &std::fs::read_to_string(tutorial.join("four-bar-periodic.toml"))
+            .unwrap()
+            .replace(
+                "four-bar.toml",
+                &tutorial.join("four-bar.toml").display().to_string(),
+            ),
+    );
+    run(&periodic);
+    let h5 = dir.path().join("four-bar-periodic.h5");
+    let (_, err) = text(&animate(&h5, &["--orbit", "3:0"]));
+    assert!(
+        err.contains("no branch 3") && err.contains("branch 0: 2 points"),
+        "{err}"
+    );
+    let (_, err) = text(&animate(&h5, &["--orbit", "zero"]));
+    assert!(err.contains("BRANCH:POINT"), "{err}");
+    let o = animate(&h5, &["--orbit", "0:1"]);
+    assert!(o.status.success(), "{:?}", text(&o));
+    assert!(dir.path().join("four-bar-periodic-orbit-0-1.html").exists());
+    // An analysis file has no cases.
+    let (_, err) = text(&animate(&h5, &["--case", "a"]));
+    assert!(err.contains("not a run's file"), "{err}");
+}

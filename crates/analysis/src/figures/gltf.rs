@@ -20,7 +20,7 @@ use json::validation::{Checked::Valid, USize64};
 use nalgebra::{UnitQuaternion, Vector3};
 
 use crate::Result;
-use crate::figures::animate::{Motion, stem};
+use crate::figures::animate::{Motion, Pick, stem};
 use crate::figures::mechanism::{Solid, Triangles};
 
 /// The little-endian bytes of the floats `values`.
@@ -352,10 +352,10 @@ pub fn glb(motion: &Motion) -> Result<Vec<u8>> {
     Ok(out)
 }
 
-/// Writes `motion` (read from `file`, its case `case`) as `out/<file>.glb`, whole or not at all.
-pub fn write(motion: &Motion, file: &Path, case: Option<&str>, out: &Path) -> Result<PathBuf> {
+/// Writes `motion` (what `pick` chose in `file`) as `out/<name>.glb`, whole or not at all.
+pub fn write(motion: &Motion, file: &Path, pick: Pick, out: &Path) -> Result<PathBuf> {
     let bytes = glb(motion)?;
-    let target = out.join(format!("{}.glb", stem(file, case)));
+    let target = out.join(format!("{}.glb", stem(file, pick)));
     crate::storage::durable::create_dir(out)?;
     crate::storage::durable::write_new(&target, &bytes)?;
     Ok(target)

@@ -112,7 +112,9 @@ fn run_prefix(file: &Path, all: &[String], case: Option<&str>) -> Result<String>
                 return Err(invalid(
                     file,
                     "not a run's file (it has no samples, no /time): an analysis study's table is \
-                 `jointplay report FILE`, its figures `jointplay plot FILE`"
+                 `jointplay report FILE`, its figures `jointplay plot FILE`, the motion of one \
+                 of its sweep values `jointplay animate FILE --value V`, of a periodic orbit \
+                 `jointplay animate FILE --orbit BRANCH:POINT`"
                         .into(),
                 ));
             }

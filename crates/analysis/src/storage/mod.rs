@@ -40,6 +40,7 @@ pub mod h5;
 pub mod hybrid;
 pub mod inputs;
 pub mod journal;
+pub mod kept_states;
 pub mod lock;
 pub mod precision_file;
 pub mod read;

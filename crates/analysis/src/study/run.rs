@@ -799,6 +799,22 @@ pub fn resume(
     record(model, (state, true), assembly, progress, &Stop::new(), None)
 }
 
+/// Runs `model` again from `state` (a state a file keeps: a sweep value's end, a periodic
+/// orbit's strobe point) to its end time with the state's contact-onset history, recording from
+/// the state itself on (its first sample at `state.t`), as a motion shown again rather than a
+/// run continued. The state is not assembled again.
+pub fn rerun(model: &Model, state: HybridState) -> Result<RunResult> {
+    let assembly = resumable(model, &state)?;
+    record(
+        model,
+        (state, false),
+        assembly,
+        &mut |_| {},
+        &Stop::new(),
+        None,
+    )
+}
+
 /// Checks that a run can continue from `state` and reports its constraint residuals.
 fn resumable(model: &Model, state: &HybridState) -> Result<AssemblyReport> {
     let mut sys = Mechanism::new(model);

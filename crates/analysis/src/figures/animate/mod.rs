@@ -28,7 +28,10 @@ use serde_json::{Value, json};
 
 use crate::Result;
 use crate::figures::mechanism::{self, Drawing, Triangles};
-use crate::storage::export::{Run, read_run};
+use crate::flow::Target;
+use crate::storage::export::{Column, Run, Samples, read_run};
+use crate::storage::kept_states::Kept;
+use crate::study::analysis::load::Loaded;
 
 const PAGE: &str = include_str!("page.html");
 const VIEWER: &str = include_str!("viewer.js");
@@ -165,10 +168,133 @@ pub fn frames(time: &[f64], count: usize, contact: &[Vec<bool>], force: &[Vec<f6
     keep
 }
 
+/// Which motion of a file to animate.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Pick<'a> {
+    /// A run's file, or the case of a comparison study's file.
+    Run { case: Option<&'a str> },
+    /// An analysis study's sweep value: `periods` drive periods from the end of its run.
+    Value { value: f64, periods: f64 },
+    /// A periodic orbit of an analysis study's continuation: one period of it.
+    Orbit { branch: usize, point: usize },
+}
+
 impl Motion {
+    /// The motion `pick` chooses in `file`: read from a run's file, or run again from the state
+    /// an analysis file keeps.
+    pub fn pick(file: &Path, pick: Pick, options: &Options) -> Result<Motion> {
+        match pick {
+            Pick::Run { case } => Motion::read(file, case, options),
+            Pick::Value { value, periods } => {
+                let kept = crate::storage::kept_states::sweep_value(file, value)?;
+                Motion::again(file, kept, Some(periods), options)
+            }
+            Pick::Orbit { branch, point } => {
+                let kept = crate::storage::kept_states::orbit(file, branch, point)?;
+                Motion::again(file, kept, None, options)
+            }
+        }
+    }
+
     /// The motion of the run in `file` (or of its case `case`, for a comparison study's file).
     pub fn read(file: &Path, case: Option<&str>, options: &Options) -> Result<Motion> {
         let Run { model, samples } = read_run(file, case, wanted)?;
+        let stem = file
+            .file_stem()
+            .map_or_else(|| "run".into(), |s| s.to_string_lossy().into_owned());
+        let title = match case {
+            Some(c) => format!("{} (case {c} of {stem})", model.name),
+            None => model.name.clone(),
+        };
+        Motion::build(file, &model, &samples, title, options)
+    }
+
+    /// The motion run again from a state an analysis file keeps: `periods` drive periods from a
+    /// sweep value's end, or one period of a periodic orbit (`periods` None), every body and
+    /// clearance joint recorded from the state on at the scene's output interval or finer (at
+    /// least 2000 samples).
+    fn again(file: &Path, kept: Kept, periods: Option<f64>, options: &Options) -> Result<Motion> {
+        let loaded =
+            Loaded::parse_kept(&kept.study, &kept.study_file, &kept.flow_text).map_err(|e| {
+                crate::Error::Context {
+                    what: format!("{}: its study", file.display()),
+                    inner: Box::new(e),
+                }
+            })?;
+        let target = match kept.period {
+            Some(_) => loaded.continuation_target(kept.value)?,
+            None => loaded.target(Some(kept.value))?,
+        };
+        let Target::Scene {
+            mut model, period, ..
+        } = target
+        else {
+            return Err(crate::Error::Io {
+                file: file.to_path_buf(),
+                message: "the study's flow is a built-in system, which has no mechanism to draw"
+                    .into(),
+            });
+        };
+        let span = match (kept.period, periods) {
+            (Some(p), _) => p,
+            (None, Some(k)) if k > 0.0 && k.is_finite() => k * period,
+            (None, k) => {
+                return Err(crate::Error::Io {
+                    file: file.to_path_buf(),
+                    message: format!("--periods: a positive number of drive periods, got {k:?}"),
+                });
+            }
+        };
+        // The samples from the state on, at least 2000, the span a whole number of them.
+        model.settings.start_time = kept.state.t;
+        model.settings.end_time = kept.state.t + span;
+        let count = (span / model.outputs.interval).ceil().max(2000.0);
+        model.outputs.interval = span / count;
+        model.outputs.bodies = (0..model.bodies.len()).collect();
+        model.outputs.joints = (0..model.joints.len()).collect();
+        model.outputs.drives.clear();
+        model.outputs.accelerations = false;
+        model.outputs.diagnostics = false;
+        model.outputs.energy = false;
+        let run = crate::study::run::rerun(&model, kept.state.for_new_run())?;
+        if let Some(s) = &run.stopped {
+            return Err(crate::Error::Io {
+                file: file.to_path_buf(),
+                message: format!("the {} could not be run again: {s}", kept.label),
+            });
+        }
+        let samples = Samples {
+            time: run.recording.time.clone(),
+            datasets: run
+                .recording
+                .channels
+                .iter()
+                .map(|c| Column {
+                    dataset: c.dataset.clone(),
+                    unit: c.unit.clone(),
+                    names: c.columns.iter().map(|o| o.path.clone()).collect(),
+                    values: c.values.clone(),
+                })
+                .collect(),
+        };
+        let title = format!(
+            "{} ({} = {:.6e}, {})",
+            loaded.spec.study.name,
+            path_of(&loaded, kept.period.is_some()),
+            kept.value,
+            kept.label
+        );
+        Motion::build(file, &model, &samples, title, options)
+    }
+
+    /// The motion of `samples`, recorded from `model`.
+    fn build(
+        file: &Path,
+        model: &Model,
+        samples: &Samples,
+        title: String,
+        options: &Options,
+    ) -> Result<Motion> {
         let n = samples.time.len();
         if n < 2 {
             return Err(crate::Error::Io {
@@ -253,7 +379,7 @@ impl Motion {
                 range
             })
             .collect();
-        let drawing = mechanism::drawing(&model, &first, &drawn, &travel)?;
+        let drawing = mechanism::drawing(model, &first, &drawn, &travel)?;
 
         let mut full = Vec::new();
         for cl in &model.clearances {
@@ -298,13 +424,6 @@ impl Motion {
             .gravity
             .filter(|g| g.norm() > 0.0)
             .map_or(Vector3::y(), |g| -g.normalize());
-        let stem = file
-            .file_stem()
-            .map_or_else(|| "run".into(), |s| s.to_string_lossy().into_owned());
-        let title = match case {
-            Some(c) => format!("{} (case {c} of {stem})", model.name),
-            None => model.name.clone(),
-        };
         Ok(Motion {
             title,
             drawing,
@@ -548,30 +667,42 @@ fn escape_html(s: &str) -> String {
         .replace('>', "&gt;")
 }
 
-/// Writes the page of the run in `file` (or its case) as `out/<file>.html` (or
-/// `out/<file>-<case>.html`), whole or not at all, and returns its path and the motion drawn.
+/// The swept (or continued) parameter's path, for a title.
+fn path_of(loaded: &Loaded, continuation: bool) -> String {
+    match (&loaded.spec.continuation, &loaded.spec.sweep) {
+        (Some(c), _) if continuation => c.parameter.clone(),
+        (_, Some(s)) => s.parameter.clone(),
+        _ => "parameter".into(),
+    }
+}
+
+/// Writes the page of the motion `pick` chooses in `file` as `out/<name>.html` ([`stem`]),
+/// whole or not at all, and returns its path and the motion drawn.
 pub fn write_page(
     file: &Path,
-    case: Option<&str>,
+    pick: Pick,
     out: &Path,
     options: &Options,
 ) -> Result<(PathBuf, Motion)> {
-    let motion = Motion::read(file, case, options)?;
+    let motion = Motion::pick(file, pick, options)?;
     let html = motion.page(options);
-    let target = out.join(format!("{}.html", stem(file, case)));
+    let target = out.join(format!("{}.html", stem(file, pick)));
     crate::storage::durable::create_dir(out)?;
     crate::storage::durable::write_new(&target, html.as_bytes())?;
     Ok((target, motion))
 }
 
-/// The name of a run's outputs: the file's stem, with the case for a comparison study's case.
-pub fn stem(file: &Path, case: Option<&str>) -> String {
+/// The name of the outputs of a motion of `file`: the file's stem, with the case for a
+/// comparison study's case, `-value-<v>` for a sweep value, `-orbit-<b>-<p>` for an orbit.
+pub fn stem(file: &Path, pick: Pick) -> String {
     let stem = file
         .file_stem()
         .map_or_else(|| "run".into(), |s| s.to_string_lossy().into_owned());
-    match case {
-        Some(c) => format!("{stem}-{c}"),
-        None => stem,
+    match pick {
+        Pick::Run { case: Some(c) } => format!("{stem}-{c}"),
+        Pick::Run { case: None } => stem,
+        Pick::Value { value, .. } => format!("{stem}-value-{value}"),
+        Pick::Orbit { branch, point } => format!("{stem}-orbit-{branch}-{point}"),
     }
 }
 

@@ -57,13 +57,37 @@ impl Loaded {
 
     /// Parses study text; scene paths are relative to `path`'s directory.
     pub fn parse(text: &str, path: &Path) -> Result<Loaded> {
+        Loaded::parse_from(text, path, None)
+    }
+
+    /// Parses the study text an analysis file keeps, with the flow it keeps (its `flow_text`:
+    /// the scene after the study's edits, or the system table) in place of the scene file,
+    /// which need not be where the study once found it.
+    pub fn parse_kept(text: &str, path: &Path, flow_text: &str) -> Result<Loaded> {
+        Loaded::parse_from(text, path, Some(flow_text))
+    }
+
+    fn parse_from(text: &str, path: &Path, flow_text: Option<&str>) -> Result<Loaded> {
         let spec = AnalysisStudy::parse_spec(text, path)?;
         check_name(path, "study.name", &spec.study.name)?;
         check_analysis(&spec.analysis, path)?;
         let names = observable_names(&spec, path)?;
         let planes = section_planes(&spec, path, &names)?;
         check_indicators(&spec, path, &names, &planes)?;
-        let base = base_of(&spec, path)?;
+        let base = match flow_text {
+            None => base_of(&spec, path)?,
+            Some(flow) => {
+                let tree: Table =
+                    toml::from_str(flow).map_err(|e| invalid(path, "flow_text", e.to_string()))?;
+                match &spec.study.scene {
+                    Some(scene) => Base::Scene {
+                        path: path.parent().unwrap_or(Path::new(".")).join(scene),
+                        tree,
+                    },
+                    None => Base::System(tree),
+                }
+            }
+        };
         let jobs = sweep_jobs(&spec, path)?;
         let loaded = Loaded {
             path: path.to_path_buf(),
