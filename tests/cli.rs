@@ -2385,6 +2385,11 @@ fn animate_writes_a_self_contained_page_and_a_glb_of_a_run_with_its_shapes() {
     let scene = pendulum_with_shapes(dir.path());
     let out = bin().arg("check").arg(&scene).output().unwrap();
     assert!(out.status.success(), "{:?}", text(&out));
+    assert!(
+        text(&out).0.contains("drawn with 5 shapes"),
+        "{:?}",
+        text(&out)
+    );
     let out = bin()
         .args(["run", "-q", "--no-plots", "--out"])
         .arg(dir.path())

@@ -412,6 +412,7 @@ impl Scene {
             x.set_item("name", &b.name)?;
             x.set_item("mass", b.mass)?;
             x.set_item("inertia_diagonal", b.inertia_diagonal.to_vec())?;
+            x.set_item("shapes", b.shapes)?;
             bodies.append(x)?;
         }
         d.set_item("bodies", bodies)?;

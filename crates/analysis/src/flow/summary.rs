@@ -21,6 +21,8 @@ pub struct BodySummary {
     pub name: String,
     pub mass: f64,
     pub inertia_diagonal: [f64; 3],
+    /// The shapes the scene draws it with (`visual`); 0: drawn from its joint points.
+    pub shapes: usize,
 }
 
 /// One joint: its kind, the bodies it connects (`ground` for the ground) and its constraint rows
@@ -130,6 +132,7 @@ impl Summary {
                         name: b.name.clone(),
                         mass: b.mass,
                         inertia_diagonal: [d.x, d.y, d.z],
+                        shapes: b.visuals.len(),
                     }
                 })
                 .collect(),
@@ -195,8 +198,13 @@ impl Summary {
         out.push(format!("bodies       {}", self.bodies.len()));
         for b in &self.bodies {
             let [x, y, z] = b.inertia_diagonal;
+            let shapes = match b.shapes {
+                0 => String::new(),
+                1 => ", drawn with 1 shape".into(),
+                n => format!(", drawn with {n} shapes"),
+            };
             out.push(format!(
-                "  {:<14} mass {:>9.4} kg   inertia diag [{x:.4e}, {y:.4e}, {z:.4e}] kg m^2",
+                "  {:<14} mass {:>9.4} kg   inertia diag [{x:.4e}, {y:.4e}, {z:.4e}] kg m^2{shapes}",
                 b.name, b.mass
             ));
         }
