@@ -1,5 +1,6 @@
 //! Lubricated journal bearings: the hydrodynamic force of the oil film between a journal and its
-//! bearing, from the eccentricity, its rate and the two bodies' spins.
+//! bearing, from the eccentricity, its rate and the two bodies' spins, in the short-bearing
+//! (Ocvirk) and the long-bearing (Sommerfeld) solutions of Reynolds' equation.
 //!
 //! # The short bearing (Ocvirk)
 //!
@@ -50,6 +51,43 @@
 //! `F . e' = -mu R L^3 / c^3 int (e'_n cos theta + e'_t sin theta)^2 / (1 + eps cos theta)^3 <= 0`
 //! over the pressure zone.
 //!
+//! # The long bearing (Sommerfeld)
+//!
+//! For a long bearing (`L/D` above about 4) the axial flow is the one dropped: Reynolds'
+//! equation in the same frame, `(1/R^2) d/dtheta (h^3 dp/dtheta) = -6 mu c (eps w sin theta -
+//! 2 eps' cos theta)`, integrates in `theta`. A periodic pressure fixes the constant of the
+//! first integration, and the pressure referred to the ambient at the thickest film (`p = 0` at
+//! `theta = 0`, Sommerfeld's reference; Pinkus and Sternlicht, *Theory of Hydrodynamic
+//! Lubrication*, 1961, ch. 3 and 14) is
+//!
+//! ```text
+//! p = 6 mu R^2 / c^2 [ eps w sin theta (2 + eps cos theta) / ((2 + eps^2) D^2)
+//!                      + eps' (1 - cos theta)(2 + eps + eps cos theta) / ((1 + eps)^2 D^2) ]
+//! ```
+//!
+//! with `D = 1 + eps cos theta` (the squeeze term is `(eps'/eps) (1/D^2 - 1/(1 + eps)^2)`
+//! written without the cancellation at small `eps`). As for the short bearing the film
+//! cavitates where `p < 0`, and where that is is found from the pressure's sign: besides the
+//! reference it vanishes at exactly one angle more ([`long_integrals`]), so the film is an arc
+//! from the reference to that angle, on the side the wedge drives oil into; pure squeeze fills
+//! the whole film (approach) or none of it (separation). The force on the journal is
+//! `6 mu R^3 L / c^2 (J_n n + J_t t)` with the arc's integrals in closed form. A steadily loaded
+//! journal carries the classical half-Sommerfeld load, `12 mu omega R^3 L eps^2 / (c^2 (2 +
+//! eps^2)(1 - eps^2))` along the line of centres and `6 pi mu omega R^3 L eps / (c^2 (2 +
+//! eps^2) sqrt(1 - eps^2))` across it, attitude `tan phi = pi sqrt(1 - eps^2) / (2 eps)`; a
+//! journal squeezed without spin meets the full film's `12 pi mu R^3 L eps' / (c^2 (1 -
+//! eps^2)^(3/2))` (Hamrock, Schmid, Jacobson, ch. 10 and 17); without spin the film only
+//! dissipates, as the tests check.
+//!
+//! The reference makes the long film depend on where the thickest point is, which is not
+//! defined at the concentric position: there the force of a journal moving at `e'` is the full
+//! squeeze film's `-12 pi mu R^3 L / c^3 e'` (the unit eccentricity taken along `e'`), while a
+//! journal passing close by the centre on a line feels no film on its way in and the full one
+//! on its way out. The short film, whose pressure needs no reference, is continuous there.
+//! Multibody papers that use the long bearing (Flores et al. 2006, 2009) integrate its
+//! pressure over the fixed arc `0 < theta < pi` instead, wedge and squeeze alike; that arc is
+//! the one found here only for `eps' = 0`.
+//!
 //! # Towards the wall
 //!
 //! The film force grows without bound as `eps -> 1`: a real film breaks down into asperity
@@ -74,12 +112,16 @@ pub enum FilmModel {
     /// pressure's sign.
     #[default]
     Short,
+    /// Sommerfeld's infinitely long bearing, the pressure referred to the ambient at the
+    /// thickest film and cut where it is negative (half-Sommerfeld).
+    Long,
 }
 
 impl FilmModel {
     pub fn name(self) -> &'static str {
         match self {
             FilmModel::Short => "short",
+            FilmModel::Long => "long",
         }
     }
 }
@@ -130,12 +172,21 @@ impl Film {
         let eps = (d / c).min(self.eccentricity_limit);
         let wedge = eps * spin - 2.0 * e_dot.dot(&t) / c;
         let squeeze = 2.0 * e_dot.dot(&n) / c;
-        let [i_cc, i_sc, i_ss] = match self.model {
-            FilmModel::Short => zone_integrals(eps, squeeze.atan2(wedge)),
+        let (fn_, ft) = match self.model {
+            FilmModel::Short => {
+                let [i_cc, i_sc, i_ss] = zone_integrals(eps, squeeze.atan2(wedge));
+                let k = self.viscosity * self.radius * self.length.powi(3) / (2.0 * c * c);
+                (
+                    k * (wedge * i_sc - squeeze * i_cc),
+                    k * (wedge * i_ss - squeeze * i_sc),
+                )
+            }
+            FilmModel::Long => {
+                let [jn, jt] = long_integrals(eps, wedge, 0.5 * squeeze);
+                let k = 6.0 * self.viscosity * self.radius.powi(3) * self.length / (c * c);
+                (k * jn, k * jt)
+            }
         };
-        let k = self.viscosity * self.radius * self.length.powi(3) / (2.0 * c * c);
-        let fn_ = k * (wedge * i_sc - squeeze * i_cc);
-        let ft = k * (wedge * i_ss - squeeze * i_sc);
         n * fn_ + t * ft
     }
 
@@ -209,6 +260,99 @@ pub fn zone_integrals(eps: f64, theta0: f64) -> [f64; 3] {
         (sc(p1) - sc(p0)) / b4,
         (ss(p1) - ss(p0)) / b3,
     ]
+}
+
+/// `[J_n, J_t]`: the long bearing's pressure shape `P` (module docs) times `cos theta` and
+/// `sin theta`, integrated over the zone where it is positive, for the eccentricity ratio `eps`,
+/// the wedge `W = eps w` and the squeeze rate `S = eps'`.
+///
+/// `P D^2` (with `D = 1 + eps cos theta`) is `Q = A sin theta (2 + eps cos theta) + B (1 - cos
+/// theta)(2 + eps + eps cos theta)`, `A = W / (2 + eps^2)`, `B = S / (1 + eps)^2`. In the half
+/// angle `phi = theta / 2`, `Q = 2 sin phi (1 + eps cos^2 phi) sin phi (A f(phi) + 2 B)` with
+/// `f = cot phi (2 - eps + 2 eps cos^2 phi) / (1 + eps cos^2 phi)`, which falls strictly from
+/// `+inf` to `-inf` on `(0, pi)` (its derivative is `-g / sin^2 phi - 2 eps^2 cos^2 phi / (1 +
+/// eps cos^2 phi)^2` with `g > 0`). So `Q` vanishes at `theta = 0` (the reference) and at one
+/// `theta* = 2 phi*` more, and the zone is `(0, theta*)` for `A > 0`, `(theta*, 2 pi)` for
+/// `A < 0`, the whole film for `A = 0 < B` and none for `A = 0 >= B`. In `u = cot phi`, `f(u) =
+/// u (2 - eps + (2 + eps) u^2) / (1 + (1 + eps) u^2)`, whose ratio to `u` lies between 1 and 2,
+/// so the root of `f(u) = -2B/A` is bracketed by `[y/2, y]` and found by Newton's method kept
+/// inside its bracket.
+///
+/// The integrals have closed antiderivatives, in the continued Sommerfeld angle `psi` (`dpsi /
+/// dtheta = b / D`, `b = sqrt(1 - eps^2)`) and rational functions that stay finite as `eps -> 0`:
+///
+/// ```text
+/// int sin cos (2 + eps cos) / D^2          = -cos^2 / D
+/// int sin^2 (2 + eps cos) / D^2            = psi / b - sin cos / D
+/// int cos (1 - cos)(2 + eps + eps cos) / D^2 = -(1 + eps)/(1 - eps) psi / b + 2/(1 - eps) sin / D - sin cos / D
+/// int sin (1 - cos)(2 + eps + eps cos) / D^2 = (1 - cos)^2 / D
+/// ```
+///
+/// (each checked by differentiation, and in the tests against the pressure integrated by
+/// brute force).
+pub fn long_integrals(eps: f64, wedge: f64, squeeze_rate: f64) -> [f64; 2] {
+    use std::f64::consts::TAU;
+    let a = wedge / (2.0 + eps * eps);
+    let bq = squeeze_rate / ((1.0 + eps) * (1.0 + eps));
+    let (from, to) = if a == 0.0 {
+        if bq > 0.0 {
+            (0.0, TAU)
+        } else {
+            return [0.0, 0.0];
+        }
+    } else {
+        let y = -2.0 * bq / a;
+        let f = |u: f64| u * (2.0 - eps + (2.0 + eps) * u * u) / (1.0 + (1.0 + eps) * u * u);
+        let (mut lo, mut hi) = if y >= 0.0 { (0.5 * y, y) } else { (y, 0.5 * y) };
+        let mut u = 0.5 * (lo + hi);
+        for _ in 0..100 {
+            let r = f(u) - y;
+            if r == 0.0 {
+                break;
+            }
+            if r > 0.0 {
+                hi = u;
+            } else {
+                lo = u;
+            }
+            // f' from the quotient rule; Newton's step, or bisection when it leaves the bracket.
+            let (num, den) = (
+                u * (2.0 - eps + (2.0 + eps) * u * u),
+                1.0 + (1.0 + eps) * u * u,
+            );
+            let dnum = 2.0 - eps + 3.0 * (2.0 + eps) * u * u;
+            let dden = 2.0 * (1.0 + eps) * u;
+            let slope = (dnum * den - num * dden) / (den * den);
+            let next = u - r / slope;
+            let next = if next > lo && next < hi && slope > 0.0 {
+                next
+            } else {
+                0.5 * (lo + hi)
+            };
+            if (next - u).abs() <= 1e-15 * u.abs().max(f64::MIN_POSITIVE) {
+                u = next;
+                break;
+            }
+            u = next;
+        }
+        let theta = 2.0 * 1.0f64.atan2(u);
+        if a > 0.0 { (0.0, theta) } else { (theta, TAU) }
+    };
+    let b = (1.0 - eps * eps).sqrt();
+    let at = |th: f64| {
+        let (s, c) = th.sin_cos();
+        let d = 1.0 + eps * c;
+        let psi_b = sommerfeld(eps, b, th) / b;
+        [
+            -c * c / d,
+            psi_b - s * c / d,
+            -(1.0 + eps) / (1.0 - eps) * psi_b + 2.0 / (1.0 - eps) * s / d - s * c / d,
+            (1.0 - c) * (1.0 - c) / d,
+        ]
+    };
+    let (p, q) = (at(from), at(to));
+    let d = |k: usize| q[k] - p[k];
+    [a * d(0) + bq * d(2), a * d(1) + bq * d(3)]
 }
 
 #[cfg(test)]
@@ -385,6 +529,118 @@ mod tests {
                     }
                 }
             }
+        }
+    }
+
+    fn long_film() -> Film {
+        Film {
+            model: FilmModel::Long,
+            ..film()
+        }
+    }
+
+    /// The long bearing's pressure (module docs) integrated by brute force, as
+    /// [`by_quadrature`] does the short one's (the same rule, grid and tolerance argument).
+    fn long_by_quadrature(f: &Film, e: Vector3<f64>, ed: Vector3<f64>, spin: f64) -> Vector3<f64> {
+        let a = Vector3::z();
+        let c = f.clearance;
+        let d = e.norm();
+        let n = e / d;
+        let t = a.cross(&n);
+        let eps = d / c;
+        let w = spin - 2.0 * ed.dot(&t) / d;
+        let eps_dot = ed.dot(&n) / c;
+        let m = 20_000;
+        let h = 2.0 * PI / m as f64;
+        let mut s = Vector3::zeros();
+        for i in 0..=m {
+            let th = i as f64 * h;
+            let dd = 1.0 + eps * th.cos();
+            let shape = eps * w * th.sin() * (2.0 + eps * th.cos()) / ((2.0 + eps * eps) * dd * dd)
+                + eps_dot / eps * (1.0 / (dd * dd) - 1.0 / ((1.0 + eps) * (1.0 + eps)));
+            let p = (6.0 * f.viscosity * f.radius * f.radius / (c * c) * shape).max(0.0);
+            let wgt = if i == 0 || i == m {
+                1.0
+            } else if i % 2 == 1 {
+                4.0
+            } else {
+                2.0
+            };
+            s += (n * th.cos() + t * th.sin()) * (wgt * p);
+        }
+        s * (f.radius * f.length * h / 3.0)
+    }
+
+    #[test]
+    fn the_long_bearings_closed_form_is_its_pressure_integrated() {
+        let f = long_film();
+        let cases = [
+            ([0.6e-4, 0.2e-4, 0.0], [0.0, 0.0, 0.0], 100.0),
+            ([0.3e-4, -0.5e-4, 0.0], [1e-3, -2e-3, 0.0], 50.0),
+            ([-0.7e-4, 0.1e-4, 0.0], [3e-3, 1e-3, 0.0], 20.0),
+            ([0.2e-4, 0.2e-4, 0.0], [-4e-3, 4e-3, 0.0], 80.0),
+            ([0.5e-4, 0.0, 0.0], [0.0, 1e-3, 0.0], -60.0),
+            ([0.1e-4, 0.85e-4, 0.0], [-0.05, 0.01, 0.0], 1.0),
+            // squeezing in with no spin (the whole film), squeezing out (none but the wedge).
+            ([0.4e-4, 0.3e-4, 0.0], [4e-3, 3e-3, 0.0], 0.0),
+            ([0.4e-4, 0.3e-4, 0.0], [-4e-3, -2e-3, 0.0], 0.0),
+            ([0.02e-4, 0.0, 0.0], [1e-4, 3e-3, 0.0], 10.0),
+        ];
+        for (e, ed, spin) in cases {
+            let (e, ed) = (Vector3::from(e), Vector3::from(ed));
+            let got = f.force(&e, &ed, &Vector3::z(), spin);
+            let want = long_by_quadrature(&f, e, ed, spin);
+            assert!(
+                (got - want).norm() <= 1e-6 * want.norm().max(1e-9),
+                "e {e:?} e' {ed:?} spin {spin}: {got:?} against {want:?}"
+            );
+        }
+    }
+
+    /// The half-Sommerfeld long bearing's steady load and attitude (Hamrock, Schmid, Jacobson,
+    /// *Fundamentals of Fluid Film Lubrication*, 2nd ed., ch. 10: `W_r = 12 mu omega R^3 L eps^2 /
+    /// (c^2 (2 + eps^2)(1 - eps^2))`, `W_t = 6 pi mu omega R^3 L eps / (c^2 (2 + eps^2)
+    /// sqrt(1 - eps^2))`, `tan phi = pi sqrt(1 - eps^2) / (2 eps)`), to rounding; and the full
+    /// film's pure-squeeze load `12 pi mu R^3 L eps' / (c^2 (1 - eps^2)^(3/2))`, along the line
+    /// of centres, against the approach.
+    #[test]
+    fn a_long_bearing_carries_sommerfelds_load_and_squeeze() {
+        let f = long_film();
+        let (omega, c) = (100.0, f.clearance);
+        let k = f.viscosity * f.radius.powi(3) * f.length / (c * c);
+        for eps in [0.01, 0.1, 0.5, 0.8, 0.95] {
+            let e = Vector3::new(eps * c, 0.0, 0.0);
+            let force = f.force(&e, &Vector3::zeros(), &Vector3::z(), omega);
+            let wr = k * omega * 12.0 * eps * eps / ((2.0 + eps * eps) * (1.0 - eps * eps));
+            let wt = k * omega * 6.0 * PI * eps / ((2.0 + eps * eps) * (1.0 - eps * eps).sqrt());
+            assert!((force.x + wr).abs() <= 1e-12 * wr, "{eps}: {force:?} {wr}");
+            assert!((force.y - wt).abs() <= 1e-12 * wt, "{eps}: {force:?} {wt}");
+            let phi = (force.y / -force.x).atan();
+            let want = (PI * (1.0 - eps * eps).sqrt() / (2.0 * eps)).atan();
+            assert!((phi - want).abs() < 1e-12, "{eps}: {phi} against {want}");
+            let rate = 2e-3;
+            let sq = f.force(&e, &Vector3::new(rate, 0.0, 0.0), &Vector3::z(), 0.0);
+            let w = 12.0 * PI * k * rate / c / (1.0 - eps * eps).powf(1.5);
+            assert!(
+                (sq.x + w).abs() <= 1e-12 * w && sq.y.abs() <= 1e-12 * w,
+                "{eps}: {sq:?} {w}"
+            );
+        }
+    }
+
+    /// Without spin the long film only dissipates too, over the same spread as the short one's.
+    #[test]
+    fn without_spin_the_long_film_only_dissipates() {
+        let f = long_film();
+        let c = f.clearance;
+        for i in 0..400 {
+            let x = i as f64;
+            let eps = 0.97 * ((x * 0.37).sin() * 0.5 + 0.5);
+            let ang = x * 1.3;
+            let e = Vector3::new(ang.cos(), ang.sin(), 0.0) * (eps * c);
+            let ed = Vector3::new((x * 0.71).cos(), (x * 0.53).sin(), 0.0) * 1e-2;
+            let p = f.force(&e, &ed, &Vector3::z(), 0.0).dot(&ed);
+            assert!(p <= 1e-15, "case {i}: power {p}");
         }
     }
 

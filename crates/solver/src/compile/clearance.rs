@@ -122,6 +122,16 @@ fn film(l: &LubricationSpec, geometry: &Geometry, f: &str, cx: &Ctx) -> Result<F
                 );
             }
         }
+        FilmModel::Long => {
+            if ratio < 2.0 {
+                cx.warn(
+                    format!("{f}.length"),
+                    format!(
+                        "L/D = {ratio:.2}: the long-bearing film is accurate for L/D above about 4 and overestimates the load below (it leaves out the side leakage)"
+                    ),
+                );
+            }
+        }
     }
     Ok(Film {
         model: l.model,
