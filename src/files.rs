@@ -168,13 +168,7 @@ pub fn export(
     out: &Path,
 ) -> Result<()> {
     use jointplay_analysis::storage::export::{self, Format};
-    if file.extension().is_some_and(|e| e == "toml") {
-        anyhow::bail!(
-            "{}: a TOML file; `jointplay export` reads the HDF5 file a run wrote (`jointplay run {}` writes DIR/<name>.h5)",
-            file.display(),
-            file.display()
-        );
-    }
+    not_toml(file, "export")?;
     let format = match format {
         crate::cli::ExportFormat::Csv => Format::Csv,
         crate::cli::ExportFormat::Mat => Format::Mat,
@@ -203,13 +197,7 @@ pub fn animate(
     glb: bool,
 ) -> Result<()> {
     use jointplay_analysis::figures::animate::{Options, Pick, write_page};
-    if file.extension().is_some_and(|e| e == "toml") {
-        anyhow::bail!(
-            "{}: a TOML file; `jointplay animate` reads the HDF5 file a run wrote (`jointplay run {}` writes DIR/<name>.h5)",
-            file.display(),
-            file.display()
-        );
-    }
+    not_toml(file, "animate")?;
     if frames < 2 {
         anyhow::bail!("--frames: at least 2, got {frames}");
     }
@@ -257,6 +245,18 @@ pub fn animate(
     if glb {
         let path = jointplay_analysis::figures::gltf::write(&motion, file, pick, out)?;
         println!("wrote        {}", path.display());
+    }
+    Ok(())
+}
+
+/// Refuses a TOML file given to `command`, which reads the HDF5 file a run wrote.
+fn not_toml(file: &Path, command: &str) -> Result<()> {
+    if file.extension().is_some_and(|e| e == "toml") {
+        anyhow::bail!(
+            "{}: a TOML file; `jointplay {command}` reads the HDF5 file a run wrote (`jointplay run {}` writes DIR/<name>.h5)",
+            file.display(),
+            file.display()
+        );
     }
     Ok(())
 }

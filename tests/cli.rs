@@ -2341,6 +2341,12 @@ fn a_lubricated_bearing_records_its_film_and_a_fixed_step_too_long_for_the_film_
     assert_eq!(unit.as_str(), "N");
 }
 
+/// Runs `input` (a scene or a study) into `dir` without figures; fails the test if it fails.
+fn run_ok(dir: &Path, input: &Path) {
+    let o = run_quietly(input, dir);
+    assert!(o.status.success(), "{:?}", text(&o));
+}
+
 /// A pendulum drawn with the scene's own shapes: a sphere, a cylinder, and meshes from an STL
 /// and an OBJ file beside the scene.
 fn pendulum_with_shapes(dir: &Path) -> PathBuf {
@@ -2390,13 +2396,7 @@ fn animate_writes_a_self_contained_page_and_a_glb_of_a_run_with_its_shapes() {
         "{:?}",
         text(&out)
     );
-    let out = bin()
-        .args(["run", "-q", "--no-plots", "--out"])
-        .arg(dir.path())
-        .arg(&scene)
-        .output()
-        .unwrap();
-    assert!(out.status.success(), "{:?}", text(&out));
+    run_ok(dir.path(), &scene);
     let h5 = dir.path().join("pendulum.h5");
     let out = bin()
         .arg("animate")
@@ -2479,16 +2479,7 @@ fn bad_shapes_and_bad_animate_input_get_errors_that_name_them() {
     );
 
     // A mesh missing when the run is animated: named, with the body.
-    let run = |scene: &Path| {
-        let o = bin()
-            .args(["run", "-q", "--no-plots", "--out"])
-            .arg(dir.path())
-            .arg(scene)
-            .output()
-            .unwrap();
-        assert!(o.status.success(), "{:?}", text(&o));
-    };
-    run(&scene);
+    run_ok(dir.path(), &scene);
     std::fs::remove_file(dir.path().join("tetra.stl")).unwrap();
     let animate = |args: &[&str]| bin().arg("animate").args(args).output().unwrap();
     let h5 = dir.path().join("pendulum.h5");
@@ -2573,16 +2564,7 @@ fn animate_runs_a_sweep_value_and_a_periodic_orbit_again_from_the_analysis_file(
             .replace("periods = 40\ntransient = 20", "periods = 4\ntransient = 2")
             .replace("count = 10", "count = 2"),
     );
-    let run = |f: &Path| {
-        let o = bin()
-            .args(["run", "-q", "--no-plots", "--out"])
-            .arg(dir.path())
-            .arg(f)
-            .output()
-            .unwrap();
-        assert!(o.status.success(), "{:?}", text(&o));
-    };
-    run(&sweep);
+    run_ok(dir.path(), &sweep);
     // The scene the study read is gone: the file's own copy of the flow is used.
     std::fs::remove_file(dir.path().join("four-bar.toml")).unwrap();
     let h5 = dir.path().join("four-bar-sweep.h5");
@@ -2629,7 +2611,7 @@ fn animate_runs_a_sweep_value_and_a_periodic_orbit_again_from_the_analysis_file(
                 &tutorial.join("four-bar.toml").display().to_string(),
             ),
     );
-    run(&periodic);
+    run_ok(dir.path(), &periodic);
     let h5 = dir.path().join("four-bar-periodic.h5");
     let (_, err) = text(&animate(&h5, &["--orbit", "3:0"]));
     assert!(
