@@ -1,6 +1,7 @@
 //! Lubricated journal bearings: the hydrodynamic force of the oil film between a journal and its
 //! bearing, from the eccentricity, its rate and the two bodies' spins, in the short-bearing
-//! (Ocvirk) and the long-bearing (Sommerfeld) solutions of Reynolds' equation.
+//! (Ocvirk) and the long-bearing (Sommerfeld) solutions of Reynolds' equation and Butenschoen's
+//! fit of the finite bearing.
 //!
 //! # The short bearing (Ocvirk)
 //!
@@ -88,6 +89,34 @@
 //! pressure over the fixed arc `0 < theta < pi` instead, wedge and squeeze alike; that arc is
 //! the one found here only for `eps' = 0`.
 //!
+//! # A finite bearing (Butenschoen)
+//!
+//! Between the two (`L/D` from 1/8 to 1, where most clearance joints are) no closed form
+//! exists. `model = "finite"` is Butenschoen's fit of his numerical solutions of the finite
+//! bearing (H. J. Butenschoen, *Das hydrodynamische, zylindrische Gleitlager endlicher Breite
+//! unter instationaerer Belastung*, Diss. Karlsruhe 1976; the coefficients as MBDyn's
+//! hydrodynamic plain bearing module gives them): a rotation film of Sommerfeld number
+//!
+//! ```text
+//! So_D = x^2 eps / (2 (1 - eps^2)^2) sqrt(pi^2 (1 - eps^2) + 16 eps^2) a1 (eps - 1) / (a2 + eps)
+//! ```
+//!
+//! (Ocvirk's short bearing times a correction, `x = L/D`) whose force `So_D B d eta |w| /
+//! psi^2` (`psi = 2c/D`) stands at `beta = atan2(pi sqrt(1 - eps^2), 2 eps) (a3 + a4 eps + ... +
+//! a7 eps^4)` from the line of centres, and a squeeze film `So_V B d eta eps' / psi^2` against
+//! the approach, with
+//!
+//! ```text
+//! So_V = 4 x^2 (1 - e^2)^(-5/2) [(pi/2 - acos(e)/2)(1 + 2 e^2) + 3/2 e sqrt(1 - e^2)] a8 (1 - e) / (-a9 - e)
+//! ```
+//!
+//! at the eccentricity ratio signed by the approach (`e = eps` closing, `-eps` opening), the
+//! `a_i` polynomials in `x` ([`butenschoen`]). It reproduces Butenschoen's tables within 6 % in
+//! load and 8 % in angle (the tests). Unlike the two closed forms, it adds a rotation film and a
+//! squeeze film solved apart: it dissipates in pure squeeze and in pure whirl, but a journal that
+//! whirls while it moves towards the centre can be pushed on by the rotation part's radial force
+//! (positive power without spin), as any superposition of separately cavitated films can.
+//!
 //! # Towards the wall
 //!
 //! The film force grows without bound as `eps -> 1`: a real film breaks down into asperity
@@ -115,6 +144,8 @@ pub enum FilmModel {
     /// Sommerfeld's infinitely long bearing, the pressure referred to the ambient at the
     /// thickest film and cut where it is negative (half-Sommerfeld).
     Long,
+    /// Butenschoen's fit of his finite-length solutions (`1/8 <= L/D <= 1`).
+    Finite,
 }
 
 impl FilmModel {
@@ -122,6 +153,7 @@ impl FilmModel {
         match self {
             FilmModel::Short => "short",
             FilmModel::Long => "long",
+            FilmModel::Finite => "finite-length (Butenschoen)",
         }
     }
 }
@@ -184,6 +216,15 @@ impl Film {
             FilmModel::Long => {
                 let [jn, jt] = long_integrals(eps, wedge, 0.5 * squeeze);
                 let k = 6.0 * self.viscosity * self.radius.powi(3) * self.length / (c * c);
+                (k * jn, k * jt)
+            }
+            FilmModel::Finite => {
+                let x = self.length / (2.0 * self.radius);
+                let [jn, jt] = butenschoen(eps, wedge, 0.5 * squeeze, x);
+                // B d eta / psi^2, psi = 2c / D the relative clearance (D the bearing's
+                // diameter, d the journal's).
+                let psi = c / (self.radius + c);
+                let k = self.length * 2.0 * self.radius * self.viscosity / (psi * psi);
                 (k * jn, k * jt)
             }
         };
@@ -353,6 +394,42 @@ pub fn long_integrals(eps: f64, wedge: f64, squeeze_rate: f64) -> [f64; 2] {
     let (p, q) = (at(from), at(to));
     let d = |k: usize| q[k] - p[k];
     [a * d(0) + bq * d(2), a * d(1) + bq * d(3)]
+}
+
+/// `[F_n, F_t]` of Butenschoen's finite-length film (module docs) in units of `B d eta /
+/// psi^2`, for the eccentricity ratio `eps`, the wedge `W = eps w`, the squeeze rate `eps'` and
+/// the width ratio `x = L / D`: the rotation part `So_D |w|` at the angle `beta` from the line
+/// of centres (towards the wedge's sense), and the squeeze part `So_V eps'` against the
+/// approach, with `So_V` evaluated at the eccentricity ratio signed by the approach.
+pub fn butenschoen(eps: f64, wedge: f64, squeeze_rate: f64, x: f64) -> [f64; 2] {
+    use std::f64::consts::PI;
+    let poly = |c: [f64; 5]| c[0] + x * (c[1] + x * (c[2] + x * (c[3] + x * c[4])));
+    let a1 = poly([1.1642, -1.9456, 7.1161, -10.1073, 5.0141]);
+    let a2 = poly([-1.000026, -0.023634, -0.4215, -0.038817, -0.090551]);
+    let a3 = 1.152624 - 0.104565 * x;
+    let a4 = -2.5905 + 0.798745 * x;
+    let a5 = 8.73393 - 2.3291 * x;
+    let a6 = -13.3414 + 3.424337 * x;
+    let a7 = 6.6294 - 1.591732 * x;
+    let a8 = poly([0.70038, 3.2415, -12.2486, 18.895, -9.3561]);
+    let a9 = poly([-0.999935, 0.0157434, -0.74224, 0.42278, -0.368928]);
+    let b2 = 1.0 - eps * eps;
+    // So_D / eps, so that the force is So_D |w| = (So_D / eps) |W| with no division by eps.
+    let so_d =
+        x * x / (2.0 * b2 * b2) * (PI * PI * b2 + 16.0 * eps * eps).sqrt() * a1 * (eps - 1.0)
+            / (a2 + eps);
+    let beta =
+        (PI * b2.sqrt()).atan2(2.0 * eps) * (a3 + eps * (a4 + eps * (a5 + eps * (a6 + eps * a7))));
+    let fd = so_d * wedge.abs();
+    let es = if squeeze_rate < 0.0 { -eps } else { eps };
+    let bs = 1.0 - es * es;
+    let so_v = 4.0 * x * x / bs.powf(2.5)
+        * ((0.5 * PI - 0.5 * es.acos()) * (1.0 + 2.0 * es * es) + 1.5 * es * bs.sqrt())
+        * a8
+        * (1.0 - es)
+        / (-a9 - es);
+    let fv = so_v * squeeze_rate;
+    [-fd * beta.cos() - fv, fd * beta.sin() * wedge.signum()]
 }
 
 #[cfg(test)]
@@ -631,6 +708,189 @@ mod tests {
                 "{eps}: {sq:?} {w}"
             );
         }
+    }
+
+    /// Butenschoen's tables of his finite-length solutions (H. J. Butenschoen, *Das
+    /// hydrodynamische, zylindrische Gleitlager endlicher Breite unter instationaerer
+    /// Belastung*, Diss. Karlsruhe 1976), as the mboct-mbdyn-pkg package's tests give them, for
+    /// B/d = 1, 1/2, 1/2.5, 1/3, 1/4, 1/5, 1/6 and 1/8: the rotation's Sommerfeld number
+    /// `So = F psi^2 / (B D eta |w|)` and its angle from the line of centres (degrees) at seven
+    /// eccentricity ratios, and the squeeze's `So = F psi^2 / (B D eta |eps'|)` at six signed
+    /// ones (negative: the film opening). Entries that break their row's trend are left out
+    /// (squeeze at 0.1, 0.8, 0.99).
+    const WIDTHS: [f64; 8] = [1.0, 0.5, 0.4, 1.0 / 3.0, 0.25, 0.2, 1.0 / 6.0, 0.125];
+    const ROTATION: [(f64, [f64; 8], [f64; 8]); 7] = [
+        (
+            0.1,
+            [
+                0.1196, 0.0368, 0.0243, 0.0171, 0.0098, 0.0063, 0.0044, 0.0025,
+            ],
+            [
+                79.410, 81.767, 82.119, 82.299, 82.481, 82.561, 82.608, 82.653,
+            ],
+        ),
+        (
+            0.3,
+            [
+                0.4091, 0.1304, 0.0867, 0.0615, 0.0354, 0.0229, 0.0160, 0.0091,
+            ],
+            [
+                68.264, 68.493, 68.423, 68.368, 68.204, 68.261, 68.238, 68.211,
+            ],
+        ),
+        (
+            0.5,
+            [
+                0.8903, 0.3124, 0.2117, 0.1522, 0.0888, 0.0579, 0.0406, 0.0231,
+            ],
+            [
+                56.705, 54.993, 54.603, 54.348, 54.069, 53.922, 53.863, 53.784,
+            ],
+        ),
+        (
+            0.7,
+            [
+                2.0432, 0.8595, 0.6075, 0.4492, 0.2708, 0.1797, 0.1274, 0.0732,
+            ],
+            [
+                43.859, 40.803, 40.156, 39.756, 39.326, 39.108, 38.983, 38.865,
+            ],
+        ),
+        (
+            0.9,
+            [
+                8.4352, 5.0881, 4.0187, 3.2201, 2.1595, 1.5261, 1.1263, 0.6776,
+            ],
+            [
+                26.482, 23.566, 22.849, 22.368, 21.790, 21.476, 21.289, 21.089,
+            ],
+        ),
+        (
+            0.95,
+            [
+                18.7895, 13.3083, 11.2225, 9.4993, 6.9248, 5.1833, 3.9831, 2.5202,
+            ],
+            [
+                19.450, 17.265, 16.648, 16.207, 15.632, 15.291, 15.075, 14.832,
+            ],
+        ),
+        (
+            0.99,
+            [
+                107.7868, 93.7881, 87.2906, 81.1597, 70.0359, 60.3874, 52.1425, 39.2568,
+            ],
+            [9.416, 8.587, 8.301, 8.066, 7.703, 7.440, 7.242, 6.975],
+        ),
+    ];
+    const SQUEEZE: [(f64, [f64; 8]); 6] = [
+        (
+            -0.9,
+            [
+                0.5518, 0.1466, 0.0948, 0.0663, 0.0376, 0.0241, 0.0168, 0.0095,
+            ],
+        ),
+        (
+            -0.5,
+            [0.971, 0.2664, 0.173, 0.1211, 0.0688, 0.0442, 0.0308, 0.0174],
+        ),
+        (
+            0.0,
+            [
+                2.4076, 0.7224, 0.4754, 0.3355, 0.1919, 0.1238, 0.0863, 0.0488,
+            ],
+        ),
+        (
+            0.5,
+            [
+                9.7319, 3.675, 2.5206, 1.8236, 1.0715, 0.7005, 0.4923, 0.2803,
+            ],
+        ),
+        (
+            0.9,
+            [160.25, 104.75, 84.39, 68.484, 46.559, 33.102, 24.5, 14.77],
+        ),
+        (
+            0.95,
+            [
+                490.18, 371.98, 320.59, 275.76, 205.15, 155.23, 119.99, 76.315,
+            ],
+        ),
+    ];
+
+    /// The finite-length film against Butenschoen's tables: his fit reproduces them to its own
+    /// accuracy, measured here at the worst of these 104 entries as 6.2 % in the rotation's
+    /// Sommerfeld number, 7.8 % in its angle and 6.0 % in the squeeze's (at eps 0.9 to 0.99;
+    /// mostly within 3 %). The bounds sit just above that accuracy, so the test holds the
+    /// formulas and every coefficient: a wrong one moves a whole column by more.
+    #[test]
+    fn the_finite_bearing_is_butenschoens_to_the_fits_accuracy() {
+        let mut f = film();
+        f.model = FilmModel::Finite;
+        f.eccentricity_limit = 0.999;
+        let c = f.clearance;
+        let (bearing_d, psi) = (2.0 * (f.radius + c), c / (f.radius + c));
+        let (mut worst_so, mut worst_beta, mut worst_v) = (0.0f64, 0.0f64, 0.0f64);
+        for (k, x) in WIDTHS.iter().enumerate() {
+            f.length = x * 2.0 * f.radius;
+            let scale = psi * psi / (f.length * bearing_d * f.viscosity);
+            for (eps, so, beta) in ROTATION {
+                let omega = 100.0;
+                let e = Vector3::new(eps * c, 0.0, 0.0);
+                let force = f.force(&e, &Vector3::zeros(), &Vector3::z(), omega);
+                let got = force.norm() * scale / omega;
+                let angle = force.y.atan2(-force.x).to_degrees();
+                worst_so = worst_so.max((got / so[k] - 1.0).abs());
+                worst_beta = worst_beta.max((angle / beta[k] - 1.0).abs());
+            }
+            for (eps, so) in SQUEEZE {
+                // Approach (eps' > 0) for a positive signed ratio, opening for a negative one.
+                let rate = 1e-3 * if eps < 0.0 { -1.0 } else { 1.0 };
+                let e = Vector3::new(eps.abs() * c, 0.0, 0.0);
+                let force = f.force(&e, &Vector3::new(rate, 0.0, 0.0), &Vector3::z(), 0.0);
+                assert!(force.x * rate < 0.0 && force.y.abs() <= 1e-12 * force.x.abs());
+                let got = force.norm() * scale / (rate.abs() / c);
+                worst_v = worst_v.max((got / so[k] - 1.0).abs());
+            }
+        }
+        eprintln!(
+            "worst relative error: So {worst_so:.4}, angle {worst_beta:.4}, squeeze So {worst_v:.4}"
+        );
+        assert!(worst_so < 0.07, "rotation So off by {worst_so}");
+        assert!(worst_beta < 0.085, "rotation angle off by {worst_beta}");
+        assert!(worst_v < 0.065, "squeeze So off by {worst_v}");
+    }
+
+    /// Butenschoen's fit adds a rotation film and a squeeze film solved apart, so it dissipates
+    /// in pure squeeze and in pure whirl without spin, but not in every mixed motion (module
+    /// docs): a journal whirling while it moves towards the centre is pushed on by the
+    /// rotation part's radial force, which the weak film opening behind it does not outweigh.
+    #[test]
+    fn the_finite_film_dissipates_in_pure_squeeze_and_pure_whirl() {
+        let f = Film {
+            model: FilmModel::Finite,
+            ..film()
+        };
+        let c = f.clearance;
+        let mut mixed_gains = 0;
+        for i in 0..400 {
+            let x = i as f64;
+            let eps = 0.97 * ((x * 0.37).sin() * 0.5 + 0.5);
+            let ang = x * 1.3;
+            let n = Vector3::new(ang.cos(), ang.sin(), 0.0);
+            let t = Vector3::z().cross(&n);
+            let e = n * (eps * c);
+            let speed = 1e-2 * (1.0 + (x * 0.71).cos());
+            for ed in [n * speed, -n * speed, t * speed, -t * speed] {
+                let p = f.force(&e, &ed, &Vector3::z(), 0.0).dot(&ed);
+                assert!(p <= 1e-15, "case {i}, e' {ed:?}: power {p}");
+            }
+            let ed = (t - n * 0.5) * speed;
+            if f.force(&e, &ed, &Vector3::z(), 0.0).dot(&ed) > 0.0 {
+                mixed_gains += 1;
+            }
+        }
+        // The mixed motion does gain energy at some states: what the docs say of the fit.
+        assert!(mixed_gains > 0);
     }
 
     /// Above the limit the force is the limit's, continuous across it.

@@ -122,6 +122,16 @@ fn film(l: &LubricationSpec, geometry: &Geometry, f: &str, cx: &Ctx) -> Result<F
                 );
             }
         }
+        FilmModel::Finite => {
+            if !(0.125..=1.0).contains(&ratio) {
+                cx.warn(
+                    format!("{f}.length"),
+                    format!(
+                        "L/D = {ratio:.2}: Butenschoen's finite-length fit is made for L/D from 1/8 to 1; outside, its polynomials extrapolate"
+                    ),
+                );
+            }
+        }
         FilmModel::Long => {
             if ratio < 2.0 {
                 cx.warn(
