@@ -301,11 +301,14 @@ fn bad_lubrication_tables_are_refused_naming_the_field() {
     let err = compile(&edit(
         &scene(),
         line,
-        "lubrication = { model = \"long\", viscosity = 0.04 }",
+        "lubrication = { model = \"reynolds\", viscosity = 0.04 }",
     ))
     .unwrap_err()
     .to_string();
-    assert!(err.contains("short"), "{err}");
+    assert!(
+        err.contains("short") && err.contains("long") && err.contains("finite"),
+        "{err}"
+    );
     let err = compile(&edit(
         &scene(),
         line,
