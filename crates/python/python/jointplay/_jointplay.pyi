@@ -53,7 +53,7 @@ class Scene:
     def check(self) -> dict[str, Any]:
         """What ``jointplay check`` prints, as a dict: ``dof``, ``rank``, ``joint_rank``,
         ``redundant_joint_rows``, ``redundant_drives``, ``coordinates``, ``bodies`` (mass in kg,
-        inertia in kg m^2), ``joints``, ``drives`` (period in s), ``assembly`` (residuals in m or
+        inertia in kg m^2, the number of ``shapes`` it is drawn with), ``joints``, ``drives`` (period in s), ``assembly`` (residuals in m or
         rad, m/s or rad/s), ``closed_start`` (the clearance joints the start closed as ideal
         joints with their eccentricities in m, whether that moved the start, and how far the
         start assembled without closing them was, in m or rad and m/s or rad/s; None without
