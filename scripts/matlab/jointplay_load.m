@@ -24,6 +24,10 @@ function run = jointplay_load(file, case_label)
   if isempty(exe)
     exe = 'jointplay';
   end
+  % The names go into a shell command: refuse those a shell would read.
+  if any(ismember([file case_label], '"$`'))
+    error('jointplay_load:name', 'jointplay_load: a file name or case with " $ or ` is not passed to the shell');
+  end
   out = tempname();
   mkdir(out);
   cmd = sprintf('"%s" export "%s" --format mat --out "%s"', exe, file, out);
@@ -39,7 +43,12 @@ function run = jointplay_load(file, case_label)
   if ~isempty(case_label)
     stem = [stem '-' case_label];
   end
-  run = load(fullfile(out, [stem '.mat']));
+  try
+    run = load(fullfile(out, [stem '.mat']));
+  catch err
+    remove_folder(out);
+    rethrow(err);
+  end
   remove_folder(out);
 end
 

@@ -403,14 +403,18 @@ pub fn long_integrals(eps: f64, wedge: f64, squeeze_rate: f64) -> [f64; 2] {
 /// approach, with `So_V` evaluated at the eccentricity ratio signed by the approach.
 pub fn butenschoen(eps: f64, wedge: f64, squeeze_rate: f64, x: f64) -> [f64; 2] {
     use std::f64::consts::PI;
-    let poly = |c: [f64; 5]| c[0] + x * (c[1] + x * (c[2] + x * (c[3] + x * c[4])));
+    // The coefficients are fitted on 1/8 <= L/D <= 1: outside they are held at the nearest
+    // end (their polynomials turn the squeeze film's sign above L/D = 1.22), the Sommerfeld
+    // numbers' own x^2 keeping the true width.
+    let xc = x.clamp(0.125, 1.0);
+    let poly = |c: [f64; 5]| c[0] + xc * (c[1] + xc * (c[2] + xc * (c[3] + xc * c[4])));
     let a1 = poly([1.1642, -1.9456, 7.1161, -10.1073, 5.0141]);
     let a2 = poly([-1.000026, -0.023634, -0.4215, -0.038817, -0.090551]);
-    let a3 = 1.152624 - 0.104565 * x;
-    let a4 = -2.5905 + 0.798745 * x;
-    let a5 = 8.73393 - 2.3291 * x;
-    let a6 = -13.3414 + 3.424337 * x;
-    let a7 = 6.6294 - 1.591732 * x;
+    let a3 = 1.152624 - 0.104565 * xc;
+    let a4 = -2.5905 + 0.798745 * xc;
+    let a5 = 8.73393 - 2.3291 * xc;
+    let a6 = -13.3414 + 3.424337 * xc;
+    let a7 = 6.6294 - 1.591732 * xc;
     let a8 = poly([0.70038, 3.2415, -12.2486, 18.895, -9.3561]);
     let a9 = poly([-0.999935, 0.0157434, -0.74224, 0.42278, -0.368928]);
     let b2 = 1.0 - eps * eps;
@@ -418,8 +422,11 @@ pub fn butenschoen(eps: f64, wedge: f64, squeeze_rate: f64, x: f64) -> [f64; 2] 
     let so_d =
         x * x / (2.0 * b2 * b2) * (PI * PI * b2 + 16.0 * eps * eps).sqrt() * a1 * (eps - 1.0)
             / (a2 + eps);
-    let beta =
-        (PI * b2.sqrt()).atan2(2.0 * eps) * (a3 + eps * (a4 + eps * (a5 + eps * (a6 + eps * a7))));
+    // Below eps = 0.1, under the tables' range, the angle's fit passes a right angle; held
+    // there, the rotation film never pushes the journal outwards.
+    let beta = ((PI * b2.sqrt()).atan2(2.0 * eps)
+        * (a3 + eps * (a4 + eps * (a5 + eps * (a6 + eps * a7)))))
+        .clamp(0.0, 0.5 * PI);
     let fd = so_d * wedge.abs();
     let es = if squeeze_rate < 0.0 { -eps } else { eps };
     let bs = 1.0 - es * es;

@@ -122,8 +122,8 @@ impl Builder {
         m
     }
 
-    /// A mesh of `solids`, one primitive each.
-    fn mesh(&mut self, name: &str, solids: &[Solid]) -> json::Index<json::Mesh> {
+    /// A mesh of `solids`, one primitive each; `None` when none has a triangle.
+    fn mesh(&mut self, name: &str, solids: &[Solid]) -> Option<json::Index<json::Mesh>> {
         let mut primitives = Vec::new();
         for s in solids {
             let t = Triangles::of(&s.part);
@@ -176,13 +176,16 @@ impl Builder {
                 targets: None,
             });
         }
-        self.root.push(json::Mesh {
+        if primitives.is_empty() {
+            return None;
+        }
+        Some(self.root.push(json::Mesh {
             extensions: Default::default(),
             extras: Default::default(),
             name: Some(name.to_string()),
             primitives,
             weights: None,
-        })
+        }))
     }
 }
 
@@ -210,12 +213,22 @@ pub fn glb(motion: &Motion) -> Result<Vec<u8>> {
     if !motion.drawing.ground.is_empty() {
         let mesh = b.mesh("ground", &motion.drawing.ground);
         children.push(b.root.push(json::Node {
-            mesh: Some(mesh),
+            mesh,
             ..node("ground")
         }));
     }
+    // glTF's key times must increase strictly: frames closer than a 32-bit float resolves at
+    // their time from the start (impact frames, late in a long run) are left out.
     let t0 = motion.time[0];
-    let times: Vec<f32> = motion.time.iter().map(|t| (t - t0) as f32).collect();
+    let mut kept = Vec::with_capacity(motion.time.len());
+    let mut times: Vec<f32> = Vec::with_capacity(motion.time.len());
+    for (i, t) in motion.time.iter().enumerate() {
+        let key = (t - t0) as f32;
+        if times.last().is_none_or(|&last| key > last) {
+            times.push(key);
+            kept.push(i);
+        }
+    }
     let n = times.len();
     let (first, last) = (times[0], times[n - 1]);
     let input = b.accessor(
@@ -232,7 +245,7 @@ pub fn glb(motion: &Motion) -> Result<Vec<u8>> {
         let (x0, q0) = motion.poses[0][k];
         let q0 = q0.quaternion();
         let index = b.root.push(json::Node {
-            mesh: Some(mesh),
+            mesh,
             translation: Some([x0.x as f32, x0.y as f32, x0.z as f32]),
             rotation: Some(json::scene::UnitQuaternion([
                 q0.i as f32,
@@ -244,8 +257,8 @@ pub fn glb(motion: &Motion) -> Result<Vec<u8>> {
         });
         children.push(index);
         let translation = b.accessor(
-            bytes(motion.poses.iter().flat_map(|f| {
-                let x = f[k].0;
+            bytes(kept.iter().flat_map(|&i| {
+                let x = motion.poses[i][k].0;
                 [x.x as f32, x.y as f32, x.z as f32]
             })),
             n,
@@ -257,8 +270,8 @@ pub fn glb(motion: &Motion) -> Result<Vec<u8>> {
         // takes the short way round.
         let mut previous = q0.coords;
         let rotation = b.accessor(
-            bytes(motion.poses.iter().flat_map(|f| {
-                let mut q = f[k].1.quaternion().coords;
+            bytes(kept.iter().flat_map(|&i| {
+                let mut q = motion.poses[i][k].1.quaternion().coords;
                 if q.dot(&previous) < 0.0 {
                     q = -q;
                 }

@@ -526,15 +526,19 @@ pub fn read_mesh(file: &Path) -> std::result::Result<Triangles, String> {
             .collect();
         (vertices, triangles)
     };
-    if triangles.is_empty() {
-        return Err("no triangles".into());
-    }
     if let Some(p) = vertices.iter().find(|p| !p.iter().all(|x| x.is_finite())) {
         return Err(format!("a vertex is not finite: {p:?}"));
     }
     let n = vertices.len() as u32;
     if triangles.iter().flatten().any(|&i| i >= n) {
         return Err("a face refers to a vertex the file does not have".into());
+    }
+    let area = |t: &[u32; 3]| {
+        let [a, b, c] = t.map(|i| vertices[i as usize]);
+        (b - a).cross(&(c - a)).norm()
+    };
+    if !triangles.iter().any(|t| area(t) > 0.0) {
+        return Err("no triangle with an area".into());
     }
     Ok(Triangles {
         vertices,

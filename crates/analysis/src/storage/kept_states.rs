@@ -81,7 +81,7 @@ pub fn sweep_value(path: &Path, value: f64) -> Result<Kept> {
         .map(|(v, _)| format!("{v}"))
         .collect();
     let Some(j) = (0..values.len())
-        .filter(|&j| done[j] == 1 && (values[j] - value).abs() <= 1e-9 * span)
+        .filter(|&j| done.get(j) == Some(&1) && (values[j] - value).abs() <= 1e-9 * span)
         .min_by(|&a, &b| {
             (values[a] - value)
                 .abs()
@@ -147,15 +147,27 @@ pub fn orbit(path: &Path, branch: usize, point: usize) -> Result<Kept> {
         ));
     }
     let states = read_rows(&g, "state").map_err(&e)?;
-    let onset = if g.link_exists("onset") {
-        read_rows(&g, "onset").map_err(&e)?[point].clone()
+    let onsets = if g.link_exists("onset") {
+        read_rows(&g, "onset").map_err(&e)?
     } else {
         Vec::new()
     };
+    let (Some(y), onset) = (states.get(point), onsets.get(point).cloned()) else {
+        return Err(invalid(
+            path,
+            format!("branch {branch}: its state has no row {point} (a damaged file)"),
+        ));
+    };
     let t: f64 = read_attr(&g, "strobe_time").map_err(&e)?;
     let period: f64 = read_attr(&g, "period").map_err(&e)?;
-    let mut state = HybridState::new(t, states[point].clone());
-    state.onset = onset;
+    if !(t.is_finite() && period.is_finite() && period > 0.0) {
+        return Err(invalid(
+            path,
+            format!("branch {branch}: strobe_time {t} s, period {period} s (a damaged file)"),
+        ));
+    }
+    let mut state = HybridState::new(t, y.clone());
+    state.onset = onset.unwrap_or_default();
     Ok(Kept {
         study,
         study_file,

@@ -127,7 +127,7 @@ fn film(l: &LubricationSpec, geometry: &Geometry, f: &str, cx: &Ctx) -> Result<F
                 cx.warn(
                     format!("{f}.length"),
                     format!(
-                        "L/D = {ratio:.2}: Butenschoen's finite-length fit is made for L/D from 1/8 to 1; outside, its polynomials extrapolate"
+                        "L/D = {ratio:.2}: Butenschoen's finite-length fit is made for L/D from 1/8 to 1; outside, its coefficients are held at the nearest end of that range, an extrapolation no table checks"
                     ),
                 );
             }

@@ -88,7 +88,8 @@ pub struct Motion {
     pub missing: Vec<String>,
     /// Global unit vector drawn up: against gravity, else y.
     pub up: Vector3<f64>,
-    /// The drive period (s) when the run has one.
+    /// The span of an inset's trail (s): the drive period when the run has one, a periodic
+    /// orbit's period (k drive periods) for an orbit.
     pub period: Option<f64>,
 }
 
@@ -284,7 +285,12 @@ impl Motion {
             kept.value,
             kept.label
         );
-        Motion::build(file, &model, &samples, title, options)
+        let mut motion = Motion::build(file, &model, &samples, title, options)?;
+        // An orbit's trail is the whole orbit, k drive periods.
+        if kept.period.is_some() {
+            motion.period = kept.period;
+        }
+        Ok(motion)
     }
 
     /// The motion of `samples`, recorded from `model`.
@@ -325,6 +331,23 @@ impl Motion {
                           nothing to draw"
                     .into(),
             });
+        }
+        // A recorder writes no value that is not finite; a file edited by hand might.
+        for (k, (p, q)) in tracks.iter().enumerate() {
+            let bad = (0..n).find(|&i| {
+                let q = &q[4 * i..4 * i + 4];
+                !(p[3 * i..3 * i + 3].iter().chain(q).all(|x| x.is_finite())
+                    && q.iter().map(|x| x * x).sum::<f64>() > 0.0)
+            });
+            if let Some(i) = bad {
+                return Err(crate::Error::Io {
+                    file: file.to_path_buf(),
+                    message: format!(
+                        "body '{}' at t = {} s: its position or Euler parameters are not finite, or all zero",
+                        model.bodies[drawn[k]].name, samples.time[i]
+                    ),
+                });
+            }
         }
         let pose = |i: usize| -> Vec<(Vector3<f64>, UnitQuaternion<f64>)> {
             tracks
@@ -390,6 +413,9 @@ impl Motion {
             ) else {
                 continue;
             };
+            if e.names.len() != 2 {
+                continue;
+            }
             let (k, kc) = (f.names.len(), c.names.len());
             let force: Vec<f64> = (0..n)
                 .map(|i| f.values[i * k..(i + 1) * k].iter().sum())
@@ -438,7 +464,8 @@ impl Motion {
         })
     }
 
-    /// The box (global, m) round the drawing over the run (every 200th frame and the last).
+    /// The box (global, m) round the drawing over the run (some 200 frames spread over it, and
+    /// the last).
     fn extent(&self) -> (Vector3<f64>, Vector3<f64>) {
         let (mut lo, mut hi) = (
             Vector3::repeat(f64::INFINITY),
@@ -604,8 +631,9 @@ impl Motion {
         let trail = self.period.unwrap_or(duration / 10.0).min(duration);
         let drawn_from = "Bodies the scene gives no shapes are drawn as bars between their joint \
                           points. Each inset shows a clearance magnified (its outline the radial \
-                          clearance), the trail of the last drive period coloured by the normal \
-                          force.";
+                          clearance), the trail of the last drive period (of the whole orbit for \
+                          a periodic orbit, of a tenth of the run without a drive) coloured by \
+                          the normal force.";
         let missing = if self.missing.is_empty() {
             String::new()
         } else {

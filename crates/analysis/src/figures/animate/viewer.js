@@ -84,6 +84,13 @@
     return lo;
   }
 
+  // The frame nearest t (the last one at the end): what the insets show, without interpolation.
+  function frameNear(t) {
+    const k = frameAt(t);
+    if (k + 1 < nFrames && time[k + 1] - t < t - time[k]) return k + 1;
+    return k;
+  }
+
   // Body b's position and rotation at time t: positions interpolated linearly, Euler
   // parameters normalised linearly (the frames are close enough for the difference from a
   // spherical interpolation to be far below a pixel).
@@ -315,7 +322,7 @@
     c.font = '11px sans-serif';
     c.fillText(spec.axes[0], cx + half + 2, cy - 3);
     c.fillText(spec.axes[1], cx + 3, cy - half - 3);
-    const kNow = frameAt(current);
+    const kNow = frameNear(current);
     const from = frameAt(current - D.trail);
     // The screen point of frame f: u to the right, w up (for a slider, w right and u up).
     const at = (f) => {
