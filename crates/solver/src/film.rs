@@ -343,11 +343,14 @@ pub fn long_integrals(eps: f64, wedge: f64, squeeze_rate: f64) -> [f64; 2] {
         }
     } else {
         let y = -2.0 * bq / a;
-        let f = |u: f64| u * (2.0 - eps + (2.0 + eps) * u * u) / (1.0 + (1.0 + eps) * u * u);
         let (mut lo, mut hi) = if y >= 0.0 { (0.5 * y, y) } else { (y, 0.5 * y) };
         let mut u = 0.5 * (lo + hi);
         for _ in 0..100 {
-            let r = f(u) - y;
+            let (num, den) = (
+                u * (2.0 - eps + (2.0 + eps) * u * u),
+                1.0 + (1.0 + eps) * u * u,
+            );
+            let r = num / den - y;
             if r == 0.0 {
                 break;
             }
@@ -357,10 +360,6 @@ pub fn long_integrals(eps: f64, wedge: f64, squeeze_rate: f64) -> [f64; 2] {
                 lo = u;
             }
             // f' from the quotient rule; Newton's step, or bisection when it leaves the bracket.
-            let (num, den) = (
-                u * (2.0 - eps + (2.0 + eps) * u * u),
-                1.0 + (1.0 + eps) * u * u,
-            );
             let dnum = 2.0 - eps + 3.0 * (2.0 + eps) * u * u;
             let dden = 2.0 * (1.0 + eps) * u;
             let slope = (dnum * den - num * dden) / (den * den);

@@ -277,14 +277,9 @@ fn outline(points: &[Vector3<f64>]) -> Vec<Vector3<f64>> {
     sorted.into_iter().map(|(_, p)| p).collect()
 }
 
-/// Two unit vectors normal to the unit `n` and to each other.
+/// Two unit vectors normal to the unit `n` and to each other, `(u, n x u)`.
 pub(crate) fn normals(n: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
-    let t = if n.x.abs() < 0.9 {
-        Vector3::x()
-    } else {
-        Vector3::y()
-    };
-    let u = n.cross(&t).normalize();
+    let u = jointplay_solver::kin::any_normal(n);
     (u, n.cross(&u))
 }
 

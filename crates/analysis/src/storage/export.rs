@@ -71,7 +71,10 @@ pub fn read(file: &Path, case: Option<&str>, only: &[String]) -> Result<Samples>
     let r = Reader::open(file)?;
     let all = r.datasets()?;
     let prefix = run_prefix(file, &all, case)?;
-    samples(&r, &all, &prefix, only, true)
+    let names = scene_model(&r, &prefix)
+        .map(|m| declared(&m))
+        .unwrap_or_default();
+    samples(&r, &all, &prefix, only, true, &names)
 }
 
 /// The group of `file` that holds a run: "" for a run file, `cases/<case>/` for a case of a
@@ -151,18 +154,20 @@ pub fn read_run(
             "the run records none of the datasets needed".into(),
         ));
     }
-    let samples = samples(&r, &all, &prefix, &only, false)?;
+    let samples = samples(&r, &all, &prefix, &only, false, &declared(&model))?;
     Ok(Run { model, samples })
 }
 
 /// The samples of the run under `prefix`: every dataset with a row per sample, or those of
-/// `only`; with `strict`, one of `only` the run does not hold is an error.
+/// `only`; with `strict`, one of `only` the run does not hold is an error. `names` are the
+/// column names its scene declares ([`declared`]).
 fn samples(
     r: &Reader,
     all: &[String],
     prefix: &str,
     only: &[String],
     strict: bool,
+    names: &[(String, Vec<String>)],
 ) -> Result<Samples> {
     let file = r.path();
     let numbers = |path: &str| -> Result<(Vec<usize>, Vec<f64>)> {
@@ -174,7 +179,6 @@ fn samples(
     let (_, time) = numbers(&format!("{prefix}time"))?;
     let n = time.len();
     let units: std::collections::HashMap<String, String> = r.units()?.into_iter().collect();
-    let names = declared_columns(r, prefix);
     let mut datasets = Vec::new();
     for full in all {
         let Some(d) = full.strip_prefix(prefix) else {
@@ -232,13 +236,10 @@ fn datasets_of(all: &[String], prefix: &str) -> String {
         .join(", ")
 }
 
-/// The observable path of every column of every dataset the run's scene declares (empty when
-/// the file holds no scene, or one this program cannot compile).
-fn declared_columns(r: &Reader, prefix: &str) -> Vec<(String, Vec<String>)> {
-    let Ok(model) = scene_model(r, prefix) else {
-        return Vec::new();
-    };
-    let Ok(rec) = crate::storage::run::Recording::of(&model) else {
+/// The observable path of every column of every dataset `model` records (empty when its
+/// recording cannot be declared).
+fn declared(model: &jointplay_solver::model::Model) -> Vec<(String, Vec<String>)> {
+    let Ok(rec) = crate::storage::run::Recording::of(model) else {
         return Vec::new();
     };
     rec.channels
@@ -513,18 +514,22 @@ pub fn export(
     out: &Path,
 ) -> Result<PathBuf> {
     let samples = read(file, case, only)?;
-    let stem = file
-        .file_stem()
-        .map(|s| s.to_string_lossy().into_owned())
-        .unwrap_or_else(|| "run".into());
-    let stem = match case {
-        Some(c) => format!("{stem}-{c}"),
-        None => stem,
-    };
     crate::storage::durable::create_dir(out)?;
-    let target = out.join(format!("{stem}.{}", format.extension()));
+    let target = out.join(format!("{}.{}", stem(file, case), format.extension()));
     write(&samples, format, &target)?;
     Ok(target)
+}
+
+/// The name of what is written of the run in `file` (or of its case `case`): the file's stem,
+/// `<stem>-<case>` for a case.
+pub fn stem(file: &Path, case: Option<&str>) -> String {
+    let stem = file
+        .file_stem()
+        .map_or_else(|| "run".into(), |s| s.to_string_lossy().into_owned());
+    match case {
+        Some(c) => format!("{stem}-{c}"),
+        None => stem,
+    }
 }
 
 #[cfg(test)]

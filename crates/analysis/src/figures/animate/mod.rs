@@ -93,20 +93,13 @@ pub struct Motion {
     pub period: Option<f64>,
 }
 
-/// The radial clearance of a clearance geometry (m) and its name.
-fn clearance_of(g: &Geometry) -> (f64, &'static str) {
-    match *g {
-        Geometry::Spherical { clearance, .. } => (clearance, "spherical"),
-        Geometry::Planar {
-            journal_radius,
-            bearing_radius,
-        } => (bearing_radius - journal_radius, "planar"),
-        Geometry::Revolute {
-            journal_radius,
-            bushing_radius,
-            ..
-        } => (bushing_radius - journal_radius, "revolute"),
-        Geometry::Translational { clearance, .. } => (clearance, "translational"),
+/// The name of a clearance geometry, for an inset's title.
+fn geometry_name(g: &Geometry) -> &'static str {
+    match g {
+        Geometry::Spherical { .. } => "spherical",
+        Geometry::Planar { .. } => "planar",
+        Geometry::Revolute { .. } => "revolute",
+        Geometry::Translational { .. } => "translational",
     }
 }
 
@@ -200,11 +193,12 @@ impl Motion {
     /// The motion of the run in `file` (or of its case `case`, for a comparison study's file).
     pub fn read(file: &Path, case: Option<&str>, options: &Options) -> Result<Motion> {
         let Run { model, samples } = read_run(file, case, wanted)?;
-        let stem = file
-            .file_stem()
-            .map_or_else(|| "run".into(), |s| s.to_string_lossy().into_owned());
         let title = match case {
-            Some(c) => format!("{} (case {c} of {stem})", model.name),
+            Some(c) => format!(
+                "{} (case {c} of {})",
+                model.name,
+                crate::storage::export::stem(file, None)
+            ),
             None => model.name.clone(),
         };
         Motion::build(file, &model, &samples, title, options)
@@ -433,17 +427,14 @@ impl Motion {
         let impact_frames = keep.len().saturating_sub(even);
         let orbits = full
             .iter()
-            .map(|(cl, e, force, closed)| {
-                let (clearance, geometry) = clearance_of(&cl.geometry);
-                Orbit {
-                    joint: cl.name.clone(),
-                    geometry,
-                    clearance,
-                    u: keep.iter().map(|&i| e.values[2 * i]).collect(),
-                    w: keep.iter().map(|&i| e.values[2 * i + 1]).collect(),
-                    force: keep.iter().map(|&i| force[i]).collect(),
-                    contact: keep.iter().map(|&i| closed[i]).collect(),
-                }
+            .map(|(cl, e, force, closed)| Orbit {
+                joint: cl.name.clone(),
+                geometry: geometry_name(&cl.geometry),
+                clearance: cl.geometry.radial_clearance(),
+                u: keep.iter().map(|&i| e.values[2 * i]).collect(),
+                w: keep.iter().map(|&i| e.values[2 * i + 1]).collect(),
+                force: keep.iter().map(|&i| force[i]).collect(),
+                contact: keep.iter().map(|&i| closed[i]).collect(),
             })
             .collect();
         let up = model
@@ -723,14 +714,15 @@ pub fn write_page(
 /// The name of the outputs of a motion of `file`: the file's stem, with the case for a
 /// comparison study's case, `-value-<v>` for a sweep value, `-orbit-<b>-<p>` for an orbit.
 pub fn stem(file: &Path, pick: Pick) -> String {
-    let stem = file
-        .file_stem()
-        .map_or_else(|| "run".into(), |s| s.to_string_lossy().into_owned());
     match pick {
-        Pick::Run { case: Some(c) } => format!("{stem}-{c}"),
-        Pick::Run { case: None } => stem,
-        Pick::Value { value, .. } => format!("{stem}-value-{value}"),
-        Pick::Orbit { branch, point } => format!("{stem}-orbit-{branch}-{point}"),
+        Pick::Run { case } => crate::storage::export::stem(file, case),
+        Pick::Value { value, .. } => {
+            format!("{}-value-{value}", crate::storage::export::stem(file, None))
+        }
+        Pick::Orbit { branch, point } => format!(
+            "{}-orbit-{branch}-{point}",
+            crate::storage::export::stem(file, None)
+        ),
     }
 }
 
