@@ -288,13 +288,27 @@ fn tangent_map_through_onsets(set: &str) {
     for start in &windows {
         let basis = flow.manifold_basis(start.t, &start.y).unwrap().unwrap();
         assert_eq!(basis.ncols(), 4, "twice the 2 free degrees of freedom");
-        for c in 0..basis.ncols() {
+        tangent_against_differences(&mut flow, method, start, tau, &basis);
+    }
+}
+
+/// Carries each column of `basis` from `start` over `tau` by the tangent map (central and
+/// forward quotients) and compares it with central differences of the flow map.
+fn tangent_against_differences(
+    flow: &mut AnyFlow,
+    method: jointplay_solver::ode::Method,
+    start: &HybridState,
+    tau: f64,
+    basis: &nalgebra::DMatrix<f64>,
+) {
+    for c in 0..basis.ncols() {
+        {
             let v: Vec<f64> = basis.column(c).iter().copied().collect();
             let mut carried = Vec::new();
             for difference in [Difference::Central, Difference::Forward] {
                 flow.set_difference(difference);
                 let (_, tv) =
-                    tangent_map(&mut flow, start, std::slice::from_ref(&v), start.t + tau).unwrap();
+                    tangent_map(flow, start, std::slice::from_ref(&v), start.t + tau).unwrap();
                 carried.push(tv);
             }
             // Central differences at two increments: their spread measures the difference
@@ -325,8 +339,8 @@ fn tangent_map_through_onsets(set: &str) {
                     .map(|(a, b)| (a - b) / (2.0 * eps))
                     .collect()
             };
-            let fd = fd_at(1e-7, &mut flow);
-            let fd_coarse = fd_at(1e-6, &mut flow);
+            let fd = fd_at(1e-7, flow);
+            let fd_coarse = fd_at(1e-6, flow);
             let dist = |a: &[f64], b: &[f64]| {
                 a.iter()
                     .zip(b)
@@ -349,6 +363,44 @@ fn tangent_map_through_onsets(set: &str) {
                 );
             }
         }
+    }
+}
+
+/// LuGre's bristle deflections are continuous states of the flow, in and out of contact: the
+/// tangent map carries them like any coordinate (no saltation), on the block of
+/// `data/scenes/lugre-stick-slip.toml` in presliding (around 3 s) and through the first
+/// transition from stick to slip (7.54 s).
+#[test]
+fn tangent_map_through_lugre_stick_and_slip_matches_finite_differences() {
+    let text = "[study]\nname = \"l\"\nscene = \"../../../data/scenes/lugre-stick-slip.toml\"\nset = { \"solver.rtol\" = 1e-11, \"solver.atol\" = 1e-14 }\n[analysis]\nperiods = 1\nsamples_per_period = 0\n[[observables]]\nname = \"x\"\npath = \"bodies.block.position.x\"\n";
+    let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/lyapunov.toml");
+    let target = Loaded::parse(text, &file)
+        .unwrap()
+        .target_with(&[])
+        .unwrap();
+    let mut flow = target.flow();
+    let method = target.method();
+    let mut state = flow.initial_state(None).unwrap();
+    flow.prepare(&state).unwrap();
+    for t0 in [3.0, 7.52] {
+        let (_, r) = advance(
+            &mut flow,
+            method,
+            &mut state,
+            t0,
+            &[],
+            |_, _, _| Step::Continue,
+            None,
+        );
+        r.unwrap();
+        let basis = flow.manifold_basis(state.t, &state.y).unwrap().unwrap();
+        assert_eq!(
+            basis.ncols(),
+            2 * 3 + 12,
+            "twice the 3 free degrees of freedom and the 12 bristle states"
+        );
+        let start = state.for_new_run();
+        tangent_against_differences(&mut flow, method, &start, 0.04, &basis);
     }
 }
 

@@ -285,6 +285,9 @@ pub struct Clearance {
     pub film: Option<Film>,
     /// First slot of this joint's contacts in the workspace contact arrays.
     pub first: usize,
+    /// With LuGre friction: the first of this joint's bristle states in the model's bristle
+    /// array (3 per contact, global axes; see [`crate::model::Model::n_bristle`]).
+    pub bristle: Option<usize>,
 }
 
 /// The state of one contact at one evaluation.
@@ -517,12 +520,30 @@ impl Clearance {
 
     /// Normal and friction forces of the contacts (geometry already in `out`), with the onset
     /// velocities `onset` (NaN: the contact began inside the current step, use delta_dot), and
-    /// their resultant on both bodies.
-    pub fn forces(&self, kh: &Kin, kj: &Kin, onset: &[f64], out: &mut [ContactEval]) -> Resultant {
+    /// their resultant on both bodies. With LuGre friction, `bristle` holds the contacts'
+    /// deflections (3 each) and their rates are written into `rate`, in and out of contact: the
+    /// bristles follow the sliding velocity at the nearest points at all times, so their state
+    /// is continuous and smooth through an onset (empty slices for the other laws).
+    pub fn forces(
+        &self,
+        (kh, kj): (&Kin, &Kin),
+        onset: &[f64],
+        (bristle, rate): (&[f64], &mut [f64]),
+        out: &mut [ContactEval],
+    ) -> Resultant {
         let mut r = Resultant::default();
-        for (c, &v_on) in out.iter_mut().zip(onset) {
+        let lugre = self.friction.has_bristles();
+        for (i, (c, &v_on)) in out.iter_mut().zip(onset).enumerate() {
             c.fn_ = 0.0;
             c.ft = Vector3::zeros();
+            // LuGre: the deflection's rate, and its tangential parts for the force.
+            let bristles = lugre.then(|| {
+                let vt = sliding_velocity(kh, kj, c);
+                let z = Vector3::from_column_slice(&bristle[3 * i..3 * i + 3]);
+                let zd = self.friction.bristle_rate(&z, &vt);
+                rate[3 * i..3 * i + 3].copy_from_slice(zd.as_slice());
+                (perp(&z, &c.n), perp(&zd, &c.n), vt)
+            });
             if c.delta <= 0.0 {
                 continue;
             }
@@ -533,7 +554,10 @@ impl Clearance {
             }
             c.fn_ = fn_;
             let mut f = -c.n * fn_;
-            if !self.friction.is_none() {
+            if let Some((zt, zt_dot, vt)) = bristles {
+                c.ft = self.friction.bristle_force(&zt, &zt_dot, &vt, fn_);
+                f += c.ft;
+            } else if !self.friction.is_none() {
                 let vt = sliding_velocity(kh, kj, c);
                 let v = vt.norm();
                 if v > 0.0 {
@@ -696,6 +720,7 @@ mod tests {
             ref_h: Vector3::x(),
             ref_j: Vector3::x(),
             first: 0,
+            bristle: None,
         }
     }
 
@@ -787,7 +812,7 @@ mod tests {
             let mut out = [ContactEval::default(); 4];
             let kh = kin(Vector3::zeros(), Matrix3::identity());
             c.geometry(&kh, &kj, &mut out);
-            let r = c.forces(&kh, &kj, &onset, &mut out);
+            let r = c.forces((&kh, &kj), &onset, (&[], &mut []), &mut out);
             for v in [r.force_j, r.moment_j, r.force_h, r.moment_h] {
                 assert!(v.iter().all(|x| x.is_finite()), "{kj:?}: {r:?}");
             }
@@ -806,7 +831,7 @@ mod tests {
         let mut out = [ContactEval::default(); 1];
         let k0 = kin(Vector3::zeros(), Matrix3::identity());
         s.geometry(&k0, &k0, &mut out);
-        let r = s.forces(&k0, &k0, &onset[..1], &mut out);
+        let r = s.forces((&k0, &k0), &onset[..1], (&[], &mut []), &mut out);
         assert_eq!(out[0].delta, -3e-4);
         assert_eq!(r.force_j, Vector3::zeros());
     }

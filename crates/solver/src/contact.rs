@@ -50,10 +50,29 @@
 //!   51-52): c = mu c_d, c_d = 0 below v0, (|v_t| - v0)/(v1 - v0) between v0 and v1, 1 above v1;
 //! * Threlfall (Mech. Mach. Theory 13:475-483, 1978), as quoted in the friction survey of
 //!   Marques, Flores, Claro & Lankarani, Nonlinear Dyn. 86:1407-1443 (2016):
-//!   c = mu (1 - exp(-3 |v_t| / v0)).
+//!   c = mu (1 - exp(-3 |v_t| / v0));
+//! * LuGre (Canudas de Wit, Olsson, Astrom & Lischinsky, "A new model for control of systems with
+//!   friction", IEEE Trans. Autom. Control 40(3):419-425, 1995), in the form normalised by the
+//!   normal force that multibody contact uses (Do, Ferri & Bauchau, "Efficient simulation of a
+//!   dynamic system with LuGre friction", J. Comput. Nonlinear Dyn. 2(4):281-289, 2007; in
+//!   clearance joints, Muvengei, Kihiu & Ikua, Multibody Syst. Dyn. 28:369-393, 2012). A bristle
+//!   deflection z (m, a vector per contact) is part of the continuous state and obeys
 //!
-//! Every law keeps |F_T| <= mu F_N.
+//!   ```text
+//!   z' = v_t - sigma0 |v_t| z / g(|v_t|),     g(v) = mu_c + (mu_s - mu_c) exp(-(v / v_s)^2),
+//!   F_T = -(sigma0 z_t + sigma1 z'_t + sigma2 v_t) F_N,
+//!   ```
+//!
+//!   with z_t, z'_t their parts in the contact's tangent plane, sigma0 (1/m) the bristle
+//!   stiffness, sigma1 (s/m) its damping and sigma2 (s/m) the viscous friction, all per newton of
+//!   normal force. Sliding steadily at v_t, z = g(v) v_t / (sigma0 |v_t|) and
+//!   |F_T| = (g(v) + sigma2 v) F_N: the Stribeck curve. At small displacements the bristles act
+//!   as a spring of stiffness sigma0 F_N (presliding). From |z| <= mu_s / sigma0, z stays there.
+//!
+//! The memoryless laws keep |F_T| <= mu F_N; LuGre's force can exceed mu_s F_N for an instant by
+//! its damping and viscous terms.
 
+use nalgebra::Vector3;
 use serde::{Deserialize, Serialize};
 
 /// Kinds of hysteresis damping factor D(c_e).
@@ -344,12 +363,92 @@ pub fn hunt_crossley_restitution(d: f64) -> f64 {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum FrictionLaw {
     None,
-    Coulomb { mu: f64, v_reg: f64 },
-    Ambrosio { mu: f64, v0: f64, v1: f64 },
-    Threlfall { mu: f64, v0: f64 },
+    Coulomb {
+        mu: f64,
+        v_reg: f64,
+    },
+    Ambrosio {
+        mu: f64,
+        v0: f64,
+        v1: f64,
+    },
+    Threlfall {
+        mu: f64,
+        v0: f64,
+    },
+    /// LuGre, normalised by the normal force: Coulomb and static coefficients, Stribeck velocity
+    /// (m/s), bristle stiffness sigma0 (1/m), bristle damping sigma1 (s/m), viscous sigma2 (s/m).
+    LuGre {
+        mu_c: f64,
+        mu_s: f64,
+        v_s: f64,
+        sigma0: f64,
+        sigma1: f64,
+        sigma2: f64,
+    },
 }
 
 impl FrictionLaw {
+    /// Whether the law carries a bristle state (LuGre): three state components per contact.
+    pub fn has_bristles(&self) -> bool {
+        matches!(self, FrictionLaw::LuGre { .. })
+    }
+
+    /// LuGre's bristle rate `z' = v_t - sigma0 |v_t| z / g(|v_t|)` (m/s, global) for deflection
+    /// `z` (m) and tangential sliding velocity `vt` (m/s); zero for the other laws.
+    #[inline]
+    pub fn bristle_rate(&self, z: &Vector3<f64>, vt: &Vector3<f64>) -> Vector3<f64> {
+        match *self {
+            FrictionLaw::LuGre { sigma0, .. } => {
+                let v = vt.norm();
+                vt - z * (sigma0 * v / self.stribeck(v))
+            }
+            FrictionLaw::None
+            | FrictionLaw::Coulomb { .. }
+            | FrictionLaw::Ambrosio { .. }
+            | FrictionLaw::Threlfall { .. } => Vector3::zeros(),
+        }
+    }
+
+    /// LuGre's friction force on the journal (N, global) from the tangential parts of the
+    /// deflection, its rate and the sliding velocity, for normal force `fn_` (N).
+    #[inline]
+    pub fn bristle_force(
+        &self,
+        zt: &Vector3<f64>,
+        zt_dot: &Vector3<f64>,
+        vt: &Vector3<f64>,
+        fn_: f64,
+    ) -> Vector3<f64> {
+        match *self {
+            FrictionLaw::LuGre {
+                sigma0,
+                sigma1,
+                sigma2,
+                ..
+            } => -(zt * sigma0 + zt_dot * sigma1 + vt * sigma2) * fn_,
+            FrictionLaw::None
+            | FrictionLaw::Coulomb { .. }
+            | FrictionLaw::Ambrosio { .. }
+            | FrictionLaw::Threlfall { .. } => Vector3::zeros(),
+        }
+    }
+
+    /// LuGre's g(v) = mu_c + (mu_s - mu_c) exp(-(v / v_s)^2), the coefficient of steady sliding
+    /// without the viscous term (0 for the other laws).
+    #[inline]
+    pub fn stribeck(&self, v: f64) -> f64 {
+        match *self {
+            FrictionLaw::LuGre {
+                mu_c, mu_s, v_s, ..
+            } => mu_c + (mu_s - mu_c) * (-(v / v_s) * (v / v_s)).exp(),
+            FrictionLaw::None
+            | FrictionLaw::Coulomb { .. }
+            | FrictionLaw::Ambrosio { .. }
+            | FrictionLaw::Threlfall { .. } => 0.0,
+        }
+    }
+
     /// The friction coefficient in effect at sliding speed `v` (m/s, >= 0).
     #[inline]
     pub fn coefficient(&self, v: f64) -> f64 {
@@ -366,6 +465,8 @@ impl FrictionLaw {
                 }
             }
             FrictionLaw::Threlfall { mu, v0 } => mu * (1.0 - (-3.0 * v / v0).exp()),
+            // LuGre's coefficient in steady sliding (its Stribeck curve).
+            FrictionLaw::LuGre { sigma2, .. } => self.stribeck(v) + sigma2 * v,
         }
     }
 
@@ -380,7 +481,9 @@ impl FrictionLaw {
         match *self {
             FrictionLaw::Coulomb { v_reg, .. } => ([v_reg, f64::NAN], 1),
             FrictionLaw::Ambrosio { v0, v1, .. } => ([v0, v1], 2),
-            FrictionLaw::None | FrictionLaw::Threlfall { .. } => ([f64::NAN; 2], 0),
+            FrictionLaw::None | FrictionLaw::Threlfall { .. } | FrictionLaw::LuGre { .. } => {
+                ([f64::NAN; 2], 0)
+            }
         }
     }
 
@@ -404,6 +507,19 @@ impl FrictionLaw {
                 }
             }
             FrictionLaw::Threlfall { mu, v0 } => mu * 3.0 / v0 * (-3.0 * v / v0).exp(),
+            // The bristles' damping and the viscous term act as a damper of F_N (sigma1 +
+            // sigma2) while presliding; the steady curve's own slope adds to the latter.
+            FrictionLaw::LuGre {
+                mu_c,
+                mu_s,
+                v_s,
+                sigma1,
+                sigma2,
+                ..
+            } => {
+                let x = v / v_s;
+                sigma1 + sigma2 + ((mu_s - mu_c) * 2.0 * x / v_s * (-x * x).exp()).abs()
+            }
         }
     }
 
@@ -417,6 +533,17 @@ impl FrictionLaw {
                 format!("modified Coulomb (Ambrosio), mu = {mu}, v0 = {v0:e} m/s, v1 = {v1:e} m/s")
             }
             FrictionLaw::Threlfall { mu, v0 } => format!("Threlfall, mu = {mu}, v0 = {v0:e} m/s"),
+            FrictionLaw::LuGre {
+                mu_c,
+                mu_s,
+                v_s,
+                sigma0,
+                sigma1,
+                sigma2,
+            } => format!(
+                "LuGre, mu_c = {mu_c}, mu_s = {mu_s}, v_s = {v_s:e} m/s, sigma0 = {sigma0:e} 1/m, \
+                 sigma1 = {sigma1:e} s/m, sigma2 = {sigma2:e} s/m (3 bristle states per contact)"
+            ),
         }
     }
 }
@@ -592,6 +719,20 @@ pub enum FrictionSpec {
     Ambrosio { coefficient: f64, v0: f64, v1: f64 },
     /// Threlfall: mu (1 - exp(-3 |v| / v0)).
     Threlfall { coefficient: f64, v0: f64 },
+    /// LuGre normalised by the normal force: Coulomb `coefficient`, `static_coefficient`,
+    /// `stribeck_velocity` (m/s), `bristle_stiffness` sigma0 (1/m), `bristle_damping` sigma1
+    /// (s/m), `viscous` sigma2 (s/m).
+    #[serde(rename = "lugre")]
+    LuGre {
+        coefficient: f64,
+        static_coefficient: f64,
+        stribeck_velocity: f64,
+        bristle_stiffness: f64,
+        #[serde(default)]
+        bristle_damping: f64,
+        #[serde(default)]
+        viscous: f64,
+    },
 }
 
 #[cfg(test)]

@@ -284,6 +284,12 @@ impl Model {
                 "Euler parameter z",
             ];
             format!("{} of body '{}'", names[i % 7], self.bodies[i / 7].name)
+        } else if i >= self.bristle_offset() {
+            let names = self.bristle_names();
+            let name = names
+                .get(i - self.bristle_offset())
+                .map_or("?", |n| n.as_str());
+            format!("LuGre bristle deflection '{name}'")
         } else {
             let j = i - np;
             let names = [

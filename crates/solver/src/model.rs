@@ -427,6 +427,9 @@ pub struct Model {
     /// Joints with clearance, and the total number of their contact points.
     pub clearances: Vec<Clearance>,
     pub n_contacts: usize,
+    /// Bristle states of the LuGre contacts (3 per contact, m, global axes): the last
+    /// components of the state, after the bodies' 13 each.
+    pub n_bristle: usize,
     /// Rows of the joints (the first `joint_rows` rows) and in total (joints then drives).
     pub joint_rows: usize,
     pub n_rows: usize,
@@ -459,9 +462,10 @@ pub struct ClosedStart {
     pub moved: bool,
 }
 
-/// The mutable state: time and y = [r_0, q_0, r_1, q_1, ..., v_0, w_0, v_1, w_1, ...] with r the
+/// The mutable state: time and y = [r_0, q_0, r_1, q_1, ..., v_0, w_0, v_1, w_1, ..., z] with r the
 /// centre-of-mass position (m), q the Euler parameters (w, x, y, z) of body-to-global rotation,
-/// v the centre-of-mass velocity (m/s) and w the angular velocity (rad/s), all global.
+/// v the centre-of-mass velocity (m/s) and w the angular velocity (rad/s), all global, and z the
+/// LuGre contacts' bristle deflections (m, global; none without LuGre friction).
 #[derive(Debug, Clone)]
 pub struct State {
     pub t: f64,
@@ -472,6 +476,30 @@ impl Model {
     /// Number of bodies.
     pub fn nb(&self) -> usize {
         self.bodies.len()
+    }
+
+    /// Length of the state: 13 per body, then the bristle states.
+    pub fn dim(&self) -> usize {
+        13 * self.bodies.len() + self.n_bristle
+    }
+
+    /// Offset of the bristle states in the state vector.
+    pub fn bristle_offset(&self) -> usize {
+        13 * self.bodies.len()
+    }
+
+    /// Names of the bristle states, in state order: `<joint>.<contact>.z<axis>` (m, global
+    /// axes).
+    pub fn bristle_names(&self) -> Vec<String> {
+        let mut names = Vec::with_capacity(self.n_bristle);
+        for c in self.clearances.iter().filter(|c| c.bristle.is_some()) {
+            for contact in c.geometry.contact_names() {
+                for axis in ["zx", "zy", "zz"] {
+                    names.push(format!("{}.{contact}.{axis}", c.name));
+                }
+            }
+        }
+        names
     }
 
     /// Length of the position part of the state (7 per body).

@@ -66,6 +66,10 @@ pub struct Workspace {
     pub onset: Vec<f64>,
     /// Contact geometry at the start of the last accepted step (scratch for onset location).
     pub(crate) contacts0: Vec<ContactEval>,
+    /// The LuGre contacts' bristle deflections (m) read from the state by the kinematics, and
+    /// their rates (m/s) from the last evaluation of the contact forces.
+    pub bristle: Vec<f64>,
+    pub bristle_rate: Vec<f64>,
 }
 
 impl Workspace {
@@ -111,6 +115,8 @@ impl Workspace {
             resultants: vec![Resultant::default(); m.clearances.len()],
             onset: vec![f64::NAN; m.n_contacts],
             contacts0: vec![ContactEval::default(); m.n_contacts],
+            bristle: vec![0.0; m.n_bristle],
+            bristle_rate: vec![0.0; m.n_bristle],
         }
     }
 }

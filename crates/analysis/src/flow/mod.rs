@@ -227,6 +227,7 @@ impl Flow for MechFlow<'_> {
                 v.push(format!("{}.{c}", b.name));
             }
         }
+        v.extend(m.bristle_names());
         v
     }
     fn state_units(&self) -> Vec<String> {
@@ -235,7 +236,8 @@ impl Flow for MechFlow<'_> {
         let vel = ["m/s", "m/s", "m/s", "rad/s", "rad/s", "rad/s"];
         let p = pos.iter().cycle().take(7 * nb);
         let v = vel.iter().cycle().take(6 * nb);
-        p.chain(v).map(|u| u.to_string()).collect()
+        let z = std::iter::repeat_n(&"m", self.mech.model.n_bristle);
+        p.chain(v).chain(z).map(|u| u.to_string()).collect()
     }
     fn observable_units(&self) -> Vec<String> {
         self.obs.iter().map(|o| o.unit.clone()).collect()

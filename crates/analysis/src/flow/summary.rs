@@ -97,6 +97,8 @@ pub struct Summary {
     /// The drives' common period (s), when they have one.
     pub period: Option<f64>,
     pub output: OutputSummary,
+    /// State components beyond the bodies' coordinates: the LuGre bristle deflections.
+    pub bristle_states: usize,
 }
 
 fn body_name(m: &Model, b: usize) -> String {
@@ -172,6 +174,7 @@ impl Summary {
             start_time: s.start_time,
             end_time: s.end_time,
             period: s.period,
+            bristle_states: model.n_bristle,
             output: OutputSummary {
                 interval: o.interval,
                 bodies: o.bodies.len(),
@@ -212,6 +215,13 @@ impl Summary {
             "coordinates  {} (6 velocity coordinates per body; positions carry Euler parameters)",
             st.n_coords
         ));
+        if self.bristle_states > 0 {
+            out.push(format!(
+                "bristles     {} states (LuGre deflections, 3 per contact, m), after the bodies' \
+                 coordinates in the state",
+                self.bristle_states
+            ));
+        }
         out.push(format!(
             "joints       {} ({} constraint rows)",
             self.joints.len(),

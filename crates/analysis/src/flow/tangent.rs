@@ -448,10 +448,11 @@ impl Tangent for MechFlow<'_> {
     }
     fn phase_dim(&self) -> usize {
         let m = self.mech.model;
+        // LuGre's bristle deflections are free coordinates of their own.
         if m.n_rows == 0 {
-            return 12 * m.nb();
+            return 12 * m.nb() + m.n_bristle;
         }
-        2 * self.remaining_dof()
+        2 * self.remaining_dof() + m.n_bristle
     }
 }
 

@@ -60,6 +60,7 @@ pub(crate) fn compile(
         friction,
         film,
         first,
+        bristle: None,
     })
 }
 

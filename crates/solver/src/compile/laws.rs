@@ -296,5 +296,53 @@ pub(crate) fn friction(fs: &FrictionSpec, ff: &str, cx: &Ctx) -> Result<Friction
             mu: mu(*coefficient)?,
             v0: positive(Some(*v0), format!("{ff}.v0"), "", cx)?,
         },
+        FrictionSpec::LuGre {
+            coefficient,
+            static_coefficient,
+            stribeck_velocity,
+            bristle_stiffness,
+            bristle_damping,
+            viscous,
+        } => {
+            // g(v) must stay positive (it divides the bristle rate): mu_c > 0; the static
+            // coefficient is the peak of the Stribeck curve, not below the Coulomb one.
+            let mu_c = positive(Some(*coefficient), format!("{ff}.coefficient"), "", cx)?;
+            if !(static_coefficient.is_finite() && *static_coefficient >= mu_c) {
+                return Err(cx.err(
+                    format!("{ff}.static_coefficient"),
+                    format!(
+                        "must be at least the Coulomb coefficient {mu_c}, got {static_coefficient}"
+                    ),
+                ));
+            }
+            let not_negative = |x: f64, field: &str| -> Result<f64> {
+                if x.is_finite() && x >= 0.0 {
+                    Ok(x)
+                } else {
+                    Err(cx.err(
+                        format!("{ff}.{field}"),
+                        format!("must be finite and not negative, got {x}"),
+                    ))
+                }
+            };
+            FrictionLaw::LuGre {
+                mu_c,
+                mu_s: *static_coefficient,
+                v_s: positive(
+                    Some(*stribeck_velocity),
+                    format!("{ff}.stribeck_velocity"),
+                    "",
+                    cx,
+                )?,
+                sigma0: positive(
+                    Some(*bristle_stiffness),
+                    format!("{ff}.bristle_stiffness"),
+                    "",
+                    cx,
+                )?,
+                sigma1: not_negative(*bristle_damping, "bristle_damping")?,
+                sigma2: not_negative(*viscous, "viscous")?,
+            }
+        }
     })
 }

@@ -80,8 +80,17 @@ impl Model {
             &cx,
         )?;
         let (prims, n_rows) = (rows.prims, rows.n);
-        let y = bodies.y;
+        let mut y = bodies.y;
         let bodies = bodies.bodies;
+        // LuGre's bristle deflections follow the bodies' coordinates in the state, 3 per
+        // contact of each joint whose law has them, starting undeflected.
+        let mut clearances = joints.clearances;
+        let mut n_bristle = 0;
+        for c in clearances.iter_mut().filter(|c| c.friction.has_bristles()) {
+            c.bristle = Some(n_bristle);
+            n_bristle += 3 * c.geometry.n_contacts();
+        }
+        y.resize(y.len() + n_bristle, 0.0);
         let blocks: Vec<_> = prims.iter().map(|(p, r0)| p.row_block(*r0)).collect();
         let coupling = crate::coupling::Coupling::new(bodies.len(), &blocks, n_rows);
         let mut model = Model {
@@ -95,8 +104,9 @@ impl Model {
             loads,
             gravity: spec.gravity.map(v3),
             prims,
-            clearances: joints.clearances,
+            clearances,
             n_contacts: joints.n_contacts,
+            n_bristle,
             joint_rows,
             n_rows,
             coupling,

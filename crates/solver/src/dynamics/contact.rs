@@ -17,7 +17,16 @@ impl Model {
             let slots = c.first..c.first + c.geometry.n_contacts();
             let out = &mut ws.contacts[slots.clone()];
             c.geometry(&kh, &kj, out);
-            let r = c.forces(&kh, &kj, &ws.onset[slots], out);
+            let bristles = c.bristle.map_or(0..0, |b| b..b + 3 * slots.len());
+            let r = c.forces(
+                (&kh, &kj),
+                &ws.onset[slots],
+                (
+                    &ws.bristle[bristles.clone()],
+                    &mut ws.bristle_rate[bristles],
+                ),
+                out,
+            );
             ws.resultants[ci] = r;
             for (b, f, m) in [
                 (c.journal, r.force_j, r.moment_j),

@@ -2,7 +2,7 @@
 //! kinematics ([`super::kinematics`]), applied forces ([`super::forces`], contacts included),
 //! `M^-1 Q` per body, constraint rows ([`super::constraints`], skipped without constraints),
 //! `b = G M^-1 Q - rhs` and the reduced solve ([`super::solve`]); then the full right-hand side
-//! `y' = (v, 1/2 (0, w) (x) q, a)`.
+//! `y' = (v, 1/2 (0, w) (x) q, a, z')` (z': the LuGre bristles' rates, [`crate::contact`]).
 
 use nalgebra::Vector3;
 
@@ -72,6 +72,10 @@ impl Model {
             dy[7 * k + 5] = 0.5 * (w1 * q[0] + w2 * q[1] - w0 * q[3]);
             dy[7 * k + 6] = 0.5 * (w2 * q[0] + w0 * q[2] - w1 * q[1]);
             dy[np + 6 * k..np + 6 * k + 6].copy_from_slice(&ws.acc[k]);
+        }
+        if self.n_bristle > 0 {
+            let o = self.bristle_offset();
+            dy[o..o + self.n_bristle].copy_from_slice(&ws.bristle_rate);
         }
     }
 }

@@ -40,6 +40,10 @@ impl Model {
         for k in 0..self.nb() {
             ws.kin[k] = self.body_kinematics(y, k);
         }
+        if self.n_bristle > 0 {
+            let o = self.bristle_offset();
+            ws.bristle.copy_from_slice(&y[o..o + self.n_bristle]);
+        }
     }
 
     /// The kinematics of body `k` (not the ground) from the state vector.

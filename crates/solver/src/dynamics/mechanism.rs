@@ -75,7 +75,7 @@ fn untouched() -> ContactEval {
 
 impl OdeSystem for Mechanism<'_> {
     fn dim(&self) -> usize {
-        13 * self.model.nb()
+        self.model.dim()
     }
     fn rhs(&mut self, t: f64, y: &[f64], dydt: &mut [f64]) {
         self.model.rhs(t, y, &mut self.ws, dydt);

@@ -63,6 +63,17 @@ impl Model {
                     velocity_direction(ws, &sides, dir, dirs);
                 }
             }
+            // LuGre's bristles relax at the rate sigma0 |v_t| / g(|v_t|), in and out of contact:
+            // each of their components is a stiff direction of its own.
+            if let Some(b) = c.bristle {
+                let (n, o) = (self.dim(), self.bristle_offset() + b);
+                for k in 0..3 * c.geometry.n_contacts() {
+                    let start = dirs.len();
+                    dirs.resize(start + n, 0.0);
+                    dirs[start + o + k] = 1.0;
+                }
+                pattern.push(BRISTLES | ci as u32);
+            }
             // An oil film acts at every eccentricity and grows stiff towards the wall: its force
             // depends on the journal centre's offset and its rate in the bearing plane.
             if c.film.is_some() {
@@ -103,7 +114,7 @@ impl Model {
         scratch: &mut Workspace,
     ) {
         let nb = self.nb();
-        let (n, np) = (13 * nb, 7 * nb);
+        let (n, np) = (self.dim(), 7 * nb);
         self.accelerations(t, y, ws);
         scratch.onset.clone_from(&ws.onset);
         let contact_q = |yy: &[f64], sc: &mut Workspace| {
@@ -117,6 +128,8 @@ impl Model {
         };
         contact_q(y, scratch);
         let q0 = scratch.q.clone();
+        let rate0 = scratch.bristle_rate.clone();
+        let bo = self.bristle_offset();
         let eps = f64::EPSILON.sqrt();
         let mut yp = y.to_vec();
         let mut u = vec![0.0; self.n_rows];
@@ -184,6 +197,10 @@ impl Model {
                 }
                 out[np + 6 * b..np + 6 * b + 6].copy_from_slice(&scratch.minv_q[b]);
             }
+            // The bristles' rates change with the sliding velocity and with their deflection.
+            for (k, r0) in rate0.iter().enumerate() {
+                out[bo + k] = (scratch.bristle_rate[k] - r0) / eps;
+            }
         }
     }
 }
@@ -191,6 +208,8 @@ impl Model {
 /// The pattern entry of a clearance joint's oil film (its index in the low bits), apart from
 /// the contact slots.
 const FILM: u32 = 1 << 31;
+/// The pattern entry of a clearance joint's bristle directions (its index in the low bits).
+const BRISTLES: u32 = 1 << 30;
 
 /// Appends the gradient of `d . (p_journal - p_housing)` with respect to the positions: `sides`
 /// holds each body with the point and the sign (+1 journal, -1 housing); translations give `d`,
@@ -202,7 +221,7 @@ fn position_gradient(
     dir: &Vector3<f64>,
     dirs: &mut Vec<f64>,
 ) {
-    let n = ws.kin.len().saturating_sub(1) * 13;
+    let n = ws.kin.len().saturating_sub(1) * 13 + ws.bristle.len();
     let start = dirs.len();
     dirs.resize(start + n, 0.0);
     // The sides that move (the ground's coordinates are not in the state).
@@ -230,7 +249,7 @@ fn velocity_direction(
     dirs: &mut Vec<f64>,
 ) {
     let nb = ws.kin.len().saturating_sub(1);
-    let (n, np) = (13 * nb, 7 * nb);
+    let (n, np) = (13 * nb + ws.bristle.len(), 7 * nb);
     let start = dirs.len();
     dirs.resize(start + n, 0.0);
     for &(b, p, sign) in sides.iter().filter(|side| side.0 != GROUND) {
