@@ -108,6 +108,49 @@ fn a_run_split_through_its_file_is_the_same_run() {
     assert_ne!(other.final_state.y, whole.final_state.y);
 }
 
+/// The same with LuGre friction, whose bristle deflections are part of the continuous state: the
+/// block of `data/scenes/lugre-stick-slip.toml`, with RK4 at 10 us, split half a second in
+/// while it sticks in presliding (its bristles deflected), is the same run; continued with the
+/// bristles undeflected, it is another.
+#[test]
+fn a_lugre_run_split_through_its_file_is_the_same_run() {
+    let path = scenes().join("lugre-stick-slip.toml");
+    let text = std::fs::read_to_string(&path).unwrap().replacen(
+        "integrator = \"dopri5\"",
+        "integrator = \"rk4\"\nstep = 1e-5",
+        1,
+    );
+    let file = jointplay_solver::scene::SceneFile {
+        spec: SceneSpec::parse(&text, &path).unwrap(),
+        path,
+        text,
+    };
+    let (mut model, state) = Model::compile(&file).unwrap();
+    let (t_split, t_end) = (50_000.0 * 1e-5, 100_000.0 * 1e-5);
+    model.settings.end_time = t_end;
+    let whole = simulate(&model, state.clone(), &mut |_| {}).unwrap();
+    model.settings.end_time = t_split;
+    let first = simulate(&model, state, &mut |_| {}).unwrap();
+    let dir = std::env::temp_dir().join(format!("jointplay-lugre-split-{}", std::process::id()));
+    let written = write_run(&dir, &meta(&model), &first).unwrap();
+    let saved = read_state(&hdf5::File::open(&written).unwrap()).unwrap();
+    std::fs::remove_dir_all(&dir).unwrap();
+    assert_eq!(&saved, &first.final_state);
+    let bristles = &saved.y[model.bristle_offset()..];
+    assert_eq!(bristles.len(), 12);
+    // Presliding at 0.5 s: the spring pulls with 0.1 N, which the bristles of the two lower
+    // corners hold at sigma0 z m g = 0.1 N, z = 1e-6 m.
+    assert!(bristles.iter().any(|z| z.abs() > 5e-7), "{bristles:?}");
+    model.settings.end_time = t_end;
+    let second = resume(&model, saved.clone(), &mut |_| {}).unwrap();
+    assert_eq!(second.final_state, whole.final_state);
+    let mut fresh = saved;
+    let o = model.bristle_offset();
+    fresh.y[o..].fill(0.0);
+    let other = resume(&model, fresh, &mut |_| {}).unwrap();
+    assert_ne!(other.final_state.y, whole.final_state.y);
+}
+
 /// A continuation sweep of the mixed 4-UPS/RPU over the friction coefficient, one drive period
 /// per value, with RK4 at the scene's step; gravity along -X, whose rattling contacts make the
 /// onset history matter (see above).

@@ -440,6 +440,7 @@ impl Scene {
         d.set_item("drives", drives)?;
         let st = &s.structure;
         d.set_item("coordinates", st.n_coords)?;
+        d.set_item("bristle_states", s.bristle_states)?;
         d.set_item("joint_rows", st.joint_rows)?;
         d.set_item("drive_rows", st.drive_rows)?;
         d.set_item("joint_rank", st.joint_rank)?;

@@ -493,6 +493,21 @@ def test_a_lubricated_bearing_from_python_carries_its_weight_on_the_film():
     assert dry["joints/bearing/penetration"].max() > 0.0
 
 
+def test_lugre_bristles_are_states_of_the_run_from_python():
+    scene = jointplay.load_scene(SCENES / "lugre-stick-slip.toml")
+    assert scene.check()["bristle_states"] == 12
+    scene["solver.end_time"] = 1.0
+    run = scene.run(progress=False)
+    # Presliding after 1 s: the spring pulls with k v t = 0.2 N, which the bristles hold
+    # (sigma0 z m g = 0.2 N), while the block has crept a few micrometres.
+    friction = run["joints/floor/friction_force"][-1].sum()
+    assert abs(abs(friction) - 0.2) < 1e-3
+    assert abs(run["bodies/block/position"][-1, 0]) < 5e-5
+    # Without friction the block slides off with the spring.
+    scene["disable"] = ["friction"]
+    assert scene.check()["bristle_states"] == 0
+
+
 def test_export_writes_csv_and_mat_files_that_read_back_to_the_run(program, tmp_path):
     # scipy.io.loadmat reads MAT level 5 on its own: it checks the file against MATLAB's
     # format, not against the writer's idea of it.

@@ -52,7 +52,8 @@ class Scene:
     def copy(self) -> Scene: ...
     def check(self) -> dict[str, Any]:
         """What ``jointplay check`` prints, as a dict: ``dof``, ``rank``, ``joint_rank``,
-        ``redundant_joint_rows``, ``redundant_drives``, ``coordinates``, ``bodies`` (mass in kg,
+        ``redundant_joint_rows``, ``redundant_drives``, ``coordinates``, ``bristle_states`` (the
+        LuGre contacts' deflections, 3 each, after the bodies' coordinates in the state), ``bodies`` (mass in kg,
         inertia in kg m^2, the number of ``shapes`` it is drawn with), ``joints``, ``drives`` (period in s), ``assembly`` (residuals in m or
         rad, m/s or rad/s), ``closed_start`` (the clearance joints the start closed as ideal
         joints with their eccentricities in m, whether that moved the start, and how far the
