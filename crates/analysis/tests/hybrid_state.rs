@@ -242,3 +242,60 @@ fn a_study_sets_any_parameter_by_path() {
         "{e}"
     );
 }
+
+/// A continuation sweep of the forced LuGre block over its bristles' damping, one drive period
+/// per value: each value starts from the previous one's final state, bristle deflections
+/// included.
+const LUGRE_CONTINUATION: &str = r#"
+[study]
+name = "continuation-lugre"
+scene = "variants/lugre-stick-slip-forced.toml"
+
+[analysis]
+periods = 1
+transient = 0
+samples_per_period = 0
+
+[[observables]]
+name = "x"
+path = "bodies.block.position.x"
+
+[sweep]
+parameter = "joints.floor.clearance.friction.bristle_damping"
+from = 30.0
+to = 34.0
+count = 2
+continuation = true
+"#;
+
+#[test]
+fn a_continuation_sweep_hands_over_the_bristle_deflections() {
+    use jointplay_analysis::storage::hybrid::read_row;
+    use jointplay_analysis::study::analysis::{Loaded, Options, execute};
+
+    let st = Loaded::parse(
+        LUGRE_CONTINUATION,
+        &scenes().join("continuation-lugre.toml"),
+    )
+    .unwrap();
+    let dir = std::env::temp_dir().join(format!("jointplay-lugre-cont-{}", std::process::id()));
+    let out = execute(&st, &dir, Options::default(), "test", &|_| {}).unwrap();
+    let file = hdf5::File::open(&out.file).unwrap();
+    let sweep = file.group("sweep").unwrap();
+    let (first, second) = (read_row(&sweep, 0).unwrap(), read_row(&sweep, 1).unwrap());
+    std::fs::remove_dir_all(&dir).unwrap();
+    // 26 body coordinates, then the 12 bristle states, deflected at the hand-over.
+    assert_eq!(first.y.len(), 38);
+    assert!(
+        first.y[26..].iter().any(|z| z.abs() > 1e-7),
+        "{:?}",
+        &first.y[26..]
+    );
+    let v1 = st.jobs[1].0;
+    let again = st.run_value_from(v1, &first, &mut |_| {}).unwrap();
+    assert_eq!(again.trace.final_state, second);
+    let mut fresh = first.clone();
+    fresh.y[26..].fill(0.0);
+    let other = st.run_value_from(v1, &fresh, &mut |_| {}).unwrap();
+    assert_ne!(other.trace.final_state.y, second.y);
+}
