@@ -372,7 +372,7 @@ fn tangent_against_differences(
 /// transition from stick to slip (7.54 s).
 #[test]
 fn tangent_map_through_lugre_stick_and_slip_matches_finite_differences() {
-    let text = "[study]\nname = \"l\"\nscene = \"../../../data/scenes/lugre-stick-slip.toml\"\nset = { \"solver.rtol\" = 1e-11, \"solver.atol\" = 1e-14 }\n[analysis]\nperiods = 1\nsamples_per_period = 0\n[[observables]]\nname = \"x\"\npath = \"bodies.block.position.x\"\n";
+    let text = "[study]\nname = \"l\"\nscene = \"../../../data/scenes/lugre-stick-slip.toml\"\nset = { \"solver.rtol\" = 1e-11, \"solver.atol\" = 1e-14 }\n[analysis]\nperiod = 1.0\nperiods = 1\nsamples_per_period = 0\n[[observables]]\nname = \"x\"\npath = \"bodies.block.position.x\"\n";
     let file = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/lyapunov.toml");
     let target = Loaded::parse(text, &file)
         .unwrap()

@@ -503,7 +503,7 @@ def test_lugre_bristles_are_states_of_the_run_from_python():
     friction = run["joints/floor/friction_force"][-1].sum()
     assert abs(abs(friction) - 0.2) < 1e-3
     assert abs(run["bodies/block/position"][-1, 0]) < 5e-5
-    # Without friction the block slides off with the spring.
+    # Without friction there are no bristles.
     scene["disable"] = ["friction"]
     assert scene.check()["bristle_states"] == 0
 

@@ -286,7 +286,7 @@ pub struct Clearance {
     /// First slot of this joint's contacts in the workspace contact arrays.
     pub first: usize,
     /// With LuGre friction: the first of this joint's bristle states in the model's bristle
-    /// array (3 per contact, global axes; see [`crate::model::Model::n_bristle`]).
+    /// array (3 per contact, housing body axes; see [`crate::model::Model::n_bristle`]).
     pub bristle: Option<usize>,
 }
 
@@ -521,7 +521,8 @@ impl Clearance {
     /// Normal and friction forces of the contacts (geometry already in `out`), with the onset
     /// velocities `onset` (NaN: the contact began inside the current step, use delta_dot), and
     /// their resultant on both bodies. With LuGre friction, `bristle` holds the contacts'
-    /// deflections (3 each) and their rates are written into `rate`, in and out of contact: the
+    /// deflections (3 each, housing body axes, m) and their rates (the rate of change seen from
+    /// the housing) are written into `rate`, in and out of contact: the
     /// bristles follow the sliding velocity at the nearest points at all times, so their state
     /// is continuous and smooth through an onset (empty slices for the other laws).
     pub fn forces(
@@ -536,12 +537,20 @@ impl Clearance {
         for (i, (c, &v_on)) in out.iter_mut().zip(onset).enumerate() {
             c.fn_ = 0.0;
             c.ft = Vector3::zeros();
-            // LuGre: the deflection's rate, and its tangential parts for the force.
+            // LuGre: the deflection is held in the housing's axes, so that bristles stuck to a
+            // turning housing turn with it; its rate there, and the tangential parts of both
+            // (global) for the force. Where the geometry leaves the contact undefined (a
+            // centred journal, no normal) the bristles rest.
             let bristles = lugre.then(|| {
-                let vt = sliding_velocity(kh, kj, c);
-                let z = Vector3::from_column_slice(&bristle[3 * i..3 * i + 3]);
+                let vt = if c.n.norm_squared() > 0.5 {
+                    sliding_velocity(kh, kj, c)
+                } else {
+                    Vector3::zeros()
+                };
+                let z = kh.rot * Vector3::from_column_slice(&bristle[3 * i..3 * i + 3]);
                 let zd = self.friction.bristle_rate(&z, &vt);
-                rate[3 * i..3 * i + 3].copy_from_slice(zd.as_slice());
+                let zd_h = kh.rot.transpose() * zd;
+                rate[3 * i..3 * i + 3].copy_from_slice(zd_h.as_slice());
                 (perp(&z, &c.n), perp(&zd, &c.n), vt)
             });
             if c.delta <= 0.0 {
@@ -834,5 +843,71 @@ mod tests {
         let r = s.forces((&k0, &k0), &onset[..1], (&[], &mut []), &mut out);
         assert_eq!(out[0].delta, -3e-4);
         assert_eq!(r.force_j, Vector3::zeros());
+    }
+
+    /// A ball stuck in its socket while both turn together about z: the bristles' deflection,
+    /// held in the housing's axes, turns with them, so the friction force seen from the housing
+    /// is the same at every angle (held in global axes it would shrink as the contact normal
+    /// turns away from it, and vanish after a quarter turn).
+    #[test]
+    fn lugre_bristles_turn_with_the_housing() {
+        let c = Clearance {
+            geometry: Geometry::Spherical {
+                ball_radius: 0.015,
+                clearance: 3e-4,
+            },
+            law: NormalLaw::Hertz {
+                el: Elastic::Power { k: 1e10, n: 1.5 },
+            },
+            friction: FrictionLaw::LuGre {
+                mu_c: 0.1,
+                mu_s: 0.15,
+                v_s: 1e-3,
+                sigma0: 1e5,
+                sigma1: 0.0,
+                sigma2: 0.0,
+            },
+            bristle: Some(0),
+            ..revolute()
+        };
+        // In the housing's axes: the ball 10 um into the wall along x, the bristles deflected
+        // 1 um along y (tangent to the wall there).
+        let (e_h, z_h) = (Vector3::new(3.1e-4, 0.0, 0.0), [0.0, 1e-6, 0.0]);
+        let w = Vector3::new(0.0, 0.0, 2.0);
+        let mut seen = Vec::new();
+        for angle in [0.0, 0.7, std::f64::consts::FRAC_PI_2, 2.5] {
+            let rot = *nalgebra::Rotation3::from_axis_angle(&Vector3::z_axis(), angle).matrix();
+            let kh = Kin {
+                r: Vector3::zeros(),
+                rot,
+                v: Vector3::zeros(),
+                w,
+            };
+            let r = rot * e_h;
+            let kj = Kin {
+                r,
+                rot,
+                v: w.cross(&r),
+                w,
+            };
+            let mut out = [ContactEval::default(); 1];
+            c.geometry(&kh, &kj, &mut out);
+            let mut rate = [0.0; 3];
+            c.forces((&kh, &kj), &[f64::NAN], (&z_h, &mut rate), &mut out);
+            // The bristles' rate (in the housing's axes: what the co-rotating contact's points,
+            // a penetration apart, slide by, omega delta) and the force in the housing's axes.
+            seen.push((Vector3::from(rate), rot.transpose() * out[0].ft));
+        }
+        let (r0, f0) = seen[0];
+        // The spring sigma0 z F_N: no damping terms here (sigma1 = sigma2 = 0).
+        let spring = -1e5 * 1e-6 * 1e10 * (1e-5f64).powf(1.5);
+        assert!(
+            (f0.y / spring - 1.0).abs() < 1e-9 && f0.x.abs() < 1e-12 * f0.y.abs(),
+            "{f0:?}"
+        );
+        for (r, f) in &seen {
+            assert!((r - r0).norm() <= 1e-12 * r0.norm(), "{r:?} against {r0:?}");
+            assert!((f - f0).norm() <= 1e-12 * f0.norm(), "{f:?} against {f0:?}");
+        }
     }
 }

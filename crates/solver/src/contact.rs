@@ -56,7 +56,8 @@
 //!   normal force that multibody contact uses (Do, Ferri & Bauchau, "Efficient simulation of a
 //!   dynamic system with LuGre friction", J. Comput. Nonlinear Dyn. 2(4):281-289, 2007; in
 //!   clearance joints, Muvengei, Kihiu & Ikua, Multibody Syst. Dyn. 28:369-393, 2012). A bristle
-//!   deflection z (m, a vector per contact) is part of the continuous state and obeys
+//!   deflection z (m, a vector per contact, held in the housing's axes so that bristles stuck
+//!   to a turning housing turn with it) is part of the continuous state and obeys
 //!
 //!   ```text
 //!   z' = v_t - sigma0 |v_t| z / g(|v_t|),     g(v) = mu_c + (mu_s - mu_c) exp(-(v / v_s)^2),
@@ -394,7 +395,7 @@ impl FrictionLaw {
         matches!(self, FrictionLaw::LuGre { .. })
     }
 
-    /// LuGre's bristle rate `z' = v_t - sigma0 |v_t| z / g(|v_t|)` (m/s, global) for deflection
+    /// LuGre's bristle rate `z' = v_t - sigma0 |v_t| z / g(|v_t|)` (m/s) for deflection
     /// `z` (m) and tangential sliding velocity `vt` (m/s); zero for the other laws.
     #[inline]
     pub fn bristle_rate(&self, z: &Vector3<f64>, vt: &Vector3<f64>) -> Vector3<f64> {

@@ -48,6 +48,7 @@
 use nalgebra::Vector3;
 
 use crate::clearance::{Clearance, ContactEval};
+use crate::contact::FrictionLaw;
 use crate::kin::{GROUND, Kin, any_normal};
 use crate::model::Model;
 use crate::ode::Method;
@@ -496,21 +497,42 @@ impl Model {
                     } else {
                         any_normal(&ce.n)
                     };
-                    let mut slope = cl.friction.slope(speed);
-                    if speed > 0.0 {
-                        slope = slope.max(cl.friction.coefficient(speed) / speed);
-                    }
-                    let ct = ce.fn_ * slope;
+                    // A memoryless law acts as a damper of F_N c(v) / v (its secant) or of its
+                    // slope; LuGre's bristles as a spring of sigma0 F_N with the damper
+                    // (sigma1 + sigma2) F_N (its secant c(v) / v is no damping: it grows
+                    // without bound in stick, where the force is the bristles' spring).
+                    let (kt, ct) = match cl.friction {
+                        FrictionLaw::LuGre { sigma0, .. } => {
+                            (ce.fn_ * sigma0, ce.fn_ * cl.friction.slope(speed))
+                        }
+                        FrictionLaw::None
+                        | FrictionLaw::Coulomb { .. }
+                        | FrictionLaw::Ambrosio { .. }
+                        | FrictionLaw::Threlfall { .. } => {
+                            let mut slope = cl.friction.slope(speed);
+                            if speed > 0.0 {
+                                slope = slope.max(cl.friction.coefficient(speed) / speed);
+                            }
+                            (0.0, ce.fn_ * slope)
+                        }
+                    };
                     let (inv_t, blocks_t) = self.free_inverse_mass(cl, &dir, points, ws);
                     found = self
                         .unstable_mode(
                             (&method, h),
-                            (0.0, ct),
+                            (kt, ct),
                             (inv_t, &blocks_t),
                             ws,
                             (&mut guard.u, &mut guard.x),
                         )
-                        .map(|m| (m, format!("friction damping {ct:.3e} N s/m (sliding speed {speed:.3e} m/s)")));
+                        .map(|m| {
+                            let what = if kt > 0.0 {
+                                format!("bristle stiffness {kt:.3e} N/m, friction damping {ct:.3e} N s/m (sliding speed {speed:.3e} m/s)")
+                            } else {
+                                format!("friction damping {ct:.3e} N s/m (sliding speed {speed:.3e} m/s)")
+                            };
+                            (m, what)
+                        });
                 }
                 if let Some((found, what)) = found {
                     guard.warned[ci] = true;
@@ -522,6 +544,44 @@ impl Model {
                         &method,
                     ));
                     break;
+                }
+            }
+            // LuGre's bristles relax at lambda = sigma0 |v_t| / g(|v_t|), in and out of
+            // contact. A fixed step that cannot follow them goes wrong before it goes unstable
+            // (RK4's bound is h lambda = 2.78), and it goes wrong quietly: its run settles where
+            // lambda is smaller. Measured on the stick-slip block with RK4: at h = 5e-5 s
+            // (h lambda up to 1.85) the slips match the adaptive run's to 1e-5 m/s; at
+            // h = 1.2e-4 s the run slips at half the speed, where h lambda peaks at 2.2. So
+            // h lambda > 2 is warned about.
+            if let (false, FrictionLaw::LuGre { sigma0, .. }) = (guard.warned[ci], cl.friction) {
+                let (kh, kj) = (self.kin_of(cl.housing, ws), self.kin_of(cl.journal, ws));
+                let slots = cl.first..cl.first + cl.geometry.n_contacts();
+                let (rate, i) = contacts[slots]
+                    .iter()
+                    .enumerate()
+                    .map(|(i, ce)| {
+                        let vj = kj.v + kj.w.cross(&(ce.pj - kj.r));
+                        let vh = kh.v + kh.w.cross(&(ce.ph - kh.r));
+                        let vrel = vj - vh;
+                        let v = (vrel - ce.n * ce.n.dot(&vrel)).norm();
+                        (sigma0 * v / cl.friction.stribeck(v), i)
+                    })
+                    .fold((0.0f64, 0), |a, b| if b.0 > a.0 { b } else { a });
+                if h * rate > 2.0 {
+                    guard.warned[ci] = true;
+                    let name = cl.geometry.contact_names()[i];
+                    out.push(Warning {
+                        time: t,
+                        message: format!(
+                            "clearance joint '{}', contact '{name}': at t = {t} s its LuGre \
+                             bristles relax at {rate:.3e} 1/s (sigma0 |v_t| / g), faster than \
+                             the fixed step {h:e} s follows (h times the rate is {:.2}, above 2): \
+                             use step = {:e} s or smaller, or integrator = \"ros34pw2\"",
+                            cl.name,
+                            h * rate,
+                            suggested_step(2.0 / rate)
+                        ),
+                    });
                 }
             }
             // An oil film is a spring and damper along the eccentricity at every state.

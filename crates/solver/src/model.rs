@@ -180,6 +180,18 @@ pub struct Drive {
     pub row: usize,
 }
 
+impl Drive {
+    /// The period of the motion it prescribes (s), when it has one: its profile's, except that a
+    /// translation at a constant rate (a conveyor) repeats nothing. A rotation at a constant rate
+    /// repeats every turn.
+    pub fn period(&self) -> Option<f64> {
+        match (&self.profile, self.coordinate) {
+            (crate::profile::Profile::ConstantRate { .. }, DriveCoordinate::Translation) => None,
+            _ => self.profile.period(),
+        }
+    }
+}
+
 /// A compiled spring-damper.
 #[derive(Debug, Clone)]
 pub struct Spring {
@@ -427,7 +439,7 @@ pub struct Model {
     /// Joints with clearance, and the total number of their contact points.
     pub clearances: Vec<Clearance>,
     pub n_contacts: usize,
-    /// Bristle states of the LuGre contacts (3 per contact, m, global axes): the last
+    /// Bristle states of the LuGre contacts (3 per contact, m, housing body axes): the last
     /// components of the state, after the bodies' 13 each.
     pub n_bristle: usize,
     /// Rows of the joints (the first `joint_rows` rows) and in total (joints then drives).
@@ -465,7 +477,7 @@ pub struct ClosedStart {
 /// The mutable state: time and y = [r_0, q_0, r_1, q_1, ..., v_0, w_0, v_1, w_1, ..., z] with r the
 /// centre-of-mass position (m), q the Euler parameters (w, x, y, z) of body-to-global rotation,
 /// v the centre-of-mass velocity (m/s) and w the angular velocity (rad/s), all global, and z the
-/// LuGre contacts' bristle deflections (m, global; none without LuGre friction).
+/// LuGre contacts' bristle deflections (m, housing body axes; none without LuGre friction).
 #[derive(Debug, Clone)]
 pub struct State {
     pub t: f64,
@@ -488,8 +500,8 @@ impl Model {
         13 * self.bodies.len()
     }
 
-    /// Names of the bristle states, in state order: `<joint>.<contact>.z<axis>` (m, global
-    /// axes).
+    /// Names of the bristle states, in state order: `<joint>.<contact>.z<axis>` (m, the
+    /// housing body's axes).
     pub fn bristle_names(&self) -> Vec<String> {
         let mut names = Vec::with_capacity(self.n_bristle);
         for c in self.clearances.iter().filter(|c| c.bristle.is_some()) {

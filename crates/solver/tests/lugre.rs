@@ -205,11 +205,10 @@ fn presliding_is_hysteresis_on_the_laws_closed_form_branches() {
     };
     for omega in [1.0, 2.0] {
         let cycle = loop_at(omega);
+        // The bristles are well into their presliding range (they cannot leave it: |z| <=
+        // mu_s / sigma0 holds from an undeflected start), so the branches are curved.
         let zmax = cycle.iter().fold(0.0f64, |m, p| m.max(p.1.abs()));
-        assert!(
-            zmax < MU_S / S0 && zmax > 0.2 * MU_S / S0,
-            "presliding: {zmax} m"
-        );
+        assert!(zmax > 0.2 * MU_S / S0, "presliding: {zmax} m");
         // Between reversals the deflection follows the closed-form branch from the last
         // reversal; the reversals are where x turns.
         let mut reversal = (cycle[0].0, cycle[0].1);
@@ -296,4 +295,44 @@ fn bad_lugre_parameters_are_refused_naming_their_field() {
             "{err}"
         );
     }
+}
+
+/// The step-size guard's warnings of a run of the block with RK4 at `step` to 8 s (through
+/// the first slip).
+fn rk4_warnings(step: f64) -> Vec<String> {
+    use jointplay_solver::dynamics::Mechanism;
+    use jointplay_solver::ode::{Flow, integrate};
+    let text = edit(
+        &scene(),
+        "integrator = \"dopri5\"",
+        &format!("integrator = \"rk4\"\nstep = {step}"),
+    );
+    let (m, mut s) = compile(&text).unwrap();
+    let mut sys = Mechanism::new(&m);
+    sys.check_initial(s.t, &s.y).unwrap();
+    integrate(
+        &mut sys,
+        m.settings.method,
+        s.t,
+        &mut s.y,
+        8.0,
+        &[],
+        |_, _, _| Flow::Continue,
+    )
+    .unwrap();
+    sys.warnings.into_iter().map(|w| w.message).collect()
+}
+
+#[test]
+fn a_fixed_step_too_long_for_the_bristles_is_warned_about_and_stick_is_not_damping() {
+    // At 2e-5 s RK4 follows everything: no warning (in stick the bristles are a spring of
+    // sigma0 F_N, not the unbounded damper F_N g(v) / v a memoryless law would be taken for).
+    assert_eq!(rk4_warnings(2e-5), Vec::<String>::new());
+    // At 1.2e-4 s the bristles' relaxation outruns the step before the first slip: the run
+    // would slip at half the speed of the adaptive run (measured 0.187 against 0.370 m/s).
+    let w = rk4_warnings(1.2e-4);
+    assert!(
+        w.len() == 1 && w[0].contains("LuGre bristles relax") && w[0].contains("step = 5e-5 s"),
+        "{w:?}"
+    );
 }

@@ -159,7 +159,7 @@ impl Summary {
                     joint: model.joints[d.joint].name.clone(),
                     coordinate: d.coordinate,
                     profile: d.profile.describe(),
-                    period: d.profile.period(),
+                    period: d.period(),
                 })
                 .collect(),
             structure,

@@ -88,7 +88,7 @@ pub(crate) fn settings(sv: &SolverSpec, drives: &[Drive], cx: &Ctx) -> Result<Se
 fn period(drives: &[Drive], cx: &Ctx) -> Result<Option<f64>> {
     let mut period = None;
     for (i, d) in drives.iter().enumerate() {
-        if let Some(p) = d.profile.period() {
+        if let Some(p) = d.period() {
             match period {
                 None => period = Some(p),
                 Some(q) if ((p - q) / q).abs() > 1e-9 => {
