@@ -646,7 +646,7 @@ impl FilmState {
 /// The journal's velocity relative to the housing at a contact, in the contact's tangent plane
 /// (m/s): what the friction law reads, and what the friction events compare with its kinks.
 #[inline]
-fn sliding_velocity(kh: &Kin, kj: &Kin, c: &ContactEval) -> Vector3<f64> {
+pub(crate) fn sliding_velocity(kh: &Kin, kj: &Kin, c: &ContactEval) -> Vector3<f64> {
     perp(&(vel(kj, &c.pj) - vel(kh, &c.ph)), &c.n)
 }
 

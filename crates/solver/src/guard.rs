@@ -47,7 +47,7 @@
 
 use nalgebra::Vector3;
 
-use crate::clearance::{Clearance, ContactEval};
+use crate::clearance::{Clearance, ContactEval, sliding_velocity};
 use crate::contact::FrictionLaw;
 use crate::kin::{GROUND, Kin, any_normal};
 use crate::model::Model;
@@ -487,10 +487,7 @@ impl Model {
                     });
                 if found.is_none() && !cl.friction.is_none() && ce.fn_ > 0.0 {
                     let (kh, kj) = (self.kin_of(cl.housing, ws), self.kin_of(cl.journal, ws));
-                    let vj = kj.v + kj.w.cross(&(ce.pj - kj.r));
-                    let vh = kh.v + kh.w.cross(&(ce.ph - kh.r));
-                    let vrel = vj - vh;
-                    let vt = vrel - ce.n * ce.n.dot(&vrel);
+                    let vt = sliding_velocity(kh, kj, &ce);
                     let speed = vt.norm();
                     let dir = if speed > 0.0 {
                         vt / speed
@@ -560,10 +557,7 @@ impl Model {
                     .iter()
                     .enumerate()
                     .map(|(i, ce)| {
-                        let vj = kj.v + kj.w.cross(&(ce.pj - kj.r));
-                        let vh = kh.v + kh.w.cross(&(ce.ph - kh.r));
-                        let vrel = vj - vh;
-                        let v = (vrel - ce.n * ce.n.dot(&vrel)).norm();
+                        let v = sliding_velocity(kh, kj, ce).norm();
                         (sigma0 * v / cl.friction.stribeck(v), i)
                     })
                     .fold((0.0f64, 0), |a, b| if b.0 > a.0 { b } else { a });
