@@ -299,3 +299,29 @@ fn a_continuation_sweep_hands_over_the_bristle_deflections() {
     let other = st.run_value_from(v1, &fresh, &mut |_| {}).unwrap();
     assert_ne!(other.trace.final_state.y, second.y);
 }
+
+/// `joints.J.bristle.K_A` reads a LuGre contact's bristle state; a name that is not a contact
+/// and an axis, or a joint without LuGre, is refused naming what there is.
+#[test]
+fn the_bristle_observable_reads_the_state_and_refuses_what_is_not_there() {
+    use jointplay_analysis::flow::observe::Observable;
+    let file = SceneSpec::load(&scenes().join("lugre-stick-slip.toml")).unwrap();
+    let (model, mut state) = Model::compile(&file).unwrap();
+    model.assemble(&mut state).unwrap();
+    let o = model.bristle_offset();
+    state.y[o + 3 * 3 + 1] = 1.5e-6; // rear_lower, y
+    let ob = Observable::for_run(&model, "joints.floor.bristle.rear_lower_y").unwrap();
+    assert_eq!(ob.unit, "m");
+    let mut ws = jointplay_solver::dynamics::Workspace::new(&model);
+    model.kinematics(&state.y, &mut ws);
+    assert_eq!(ob.eval_model(&model, &ws, state.t, &state.y), 1.5e-6);
+    let e = Observable::for_run(&model, "joints.floor.bristle.rear_lower_w").unwrap_err();
+    assert!(
+        e.contains("front_upper") && e.contains("front_upper_x"),
+        "{e}"
+    );
+    let file = SceneSpec::load(&scenes().join("slider-in-guide.toml")).unwrap();
+    let (plain, _) = Model::compile(&file).unwrap();
+    let e = Observable::for_run(&plain, "joints.guide.bristle.front_lower_x").unwrap_err();
+    assert!(e.contains("no LuGre friction"), "{e}");
+}

@@ -503,6 +503,12 @@ def test_lugre_bristles_are_states_of_the_run_from_python():
     friction = run["joints/floor/friction_force"][-1].sum()
     assert abs(abs(friction) - 0.2) < 1e-3
     assert abs(run["bodies/block/position"][-1, 0]) < 5e-5
+    # The bristles are recorded (three columns per contact, housing axes): the lower corners'
+    # hold the spring between them, z = 0.2 N / (sigma0 m g) = 2.0 um (the damping terms are
+    # below 1 % at this creep).
+    z = run["joints/floor/bristle"]
+    assert z.shape[1] == 12 and run.units["joints/floor/bristle"] == "m"
+    assert abs(z[-1, 3] / (0.2 / (10193.68 * 9.81)) - 1.0) < 0.02
     # Without friction there are no bristles.
     scene["disable"] = ["friction"]
     assert scene.check()["bristle_states"] == 0

@@ -22,6 +22,7 @@
 //! | `joints.J.normal_force.K` | normal force of contact K | N |
 //! | `joints.J.friction_force.K` | magnitude of the friction force of contact K | N |
 //! | `joints.J.contact_state.K` | 1 while contact K is in contact, 0 while free | 1 |
+//! | `joints.J.bristle.K_A` | LuGre: the bristle deflection of contact K along the housing's axis `A` (`x`, `y`, `z`) | m |
 //! | `joints.J.contact_force.C` (or `force_on_journal.C`) | resultant contact force on the journal (film included) | N |
 //! | `joints.J.film_force.C` | a lubricated joint's oil-film force on the journal (part of the resultant) | N |
 //! | `joints.J.moment_on_journal.C` | resultant contact moment on the journal, about its centre of mass | N m |
@@ -110,6 +111,12 @@ enum Source {
         c: usize,
         what: ResultantQ,
         comp: usize,
+    },
+    /// Component `i` of the bristle states of LuGre joint `c` (its contact `i / 3`, housing
+    /// axis `i % 3`).
+    Bristle {
+        c: usize,
+        i: usize,
     },
     /// The oil film's force on the journal of lubricated joint `c`.
     Film {
@@ -362,6 +369,27 @@ fn clearance_source(m: &Model, j: &str, ci: usize, what: &str, c: &str) -> Resol
                 "N",
             ))
         }
+        "bristle" => {
+            if m.clearances[ci].bristle.is_none() {
+                return Err(format!(
+                    "joint '{j}' has no LuGre friction, so it has no bristle"
+                ));
+            }
+            let names = geometry.contact_names();
+            let found = c.rsplit_once('_').and_then(|(k, axis)| {
+                let k = names.iter().position(|n| *n == k)?;
+                let a = ["x", "y", "z"].iter().position(|x| *x == axis)?;
+                Some(3 * k + a)
+            });
+            let i = found.ok_or_else(|| {
+                format!(
+                    "joint '{j}' has no bristle '{c}': name a contact ({}) and a housing axis, as in {}_x",
+                    names.join(", "),
+                    names[0]
+                )
+            })?;
+            Ok((Source::Bristle { c: ci, i }, "m"))
+        }
         "moment_on_journal" => resultant(ResultantQ::MomentOnJournal, "N m"),
         "force_on_housing" => resultant(ResultantQ::ForceOnHousing, "N"),
         "moment_on_housing" => resultant(ResultantQ::MomentOnHousing, "N m"),
@@ -384,7 +412,7 @@ fn clearance_source(m: &Model, j: &str, ci: usize, what: &str, c: &str) -> Resol
             Ok((Source::Contact { c: ci, k, what }, unit))
         }
         other => Err(format!(
-            "unknown joint quantity '{other}': use eccentricity, eccentricity_rate, eccentricity_global, eccentricity_global_rate, radial_eccentricity, radial_eccentricity_rate, end_eccentricity, penetration, penetration_rate, normal_force, friction_force, contact_state, contact_force (force_on_journal), film_force, moment_on_journal, force_on_housing, moment_on_housing, reaction (reaction_force) or reaction_torque"
+            "unknown joint quantity '{other}': use eccentricity, eccentricity_rate, eccentricity_global, eccentricity_global_rate, radial_eccentricity, radial_eccentricity_rate, end_eccentricity, penetration, penetration_rate, normal_force, friction_force, contact_state, bristle, contact_force (force_on_journal), film_force, moment_on_journal, force_on_housing, moment_on_housing, reaction (reaction_force) or reaction_torque"
         )),
     }
 }
@@ -571,6 +599,9 @@ impl Observable {
                     .as_ref()
                     .map_or(f64::NAN, |f| pick(cl.film_force(f, &kh, &kj), comp))
             }
+            Source::Bristle { c, i } => m.clearances[c]
+                .bristle
+                .map_or(f64::NAN, |b| y[m.bristle_offset() + b + i]),
             Source::End { c, comp } => {
                 let cl = &m.clearances[c];
                 let (kh, kj) = (

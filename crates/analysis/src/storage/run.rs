@@ -335,6 +335,19 @@ impl Declare<'_> {
         ] {
             self.channel(&p(q), &contacts, &per(what), None)?;
         }
+        if cl.bristle.is_some() {
+            let columns: Vec<String> = contacts
+                .iter()
+                .flat_map(|k| ["x", "y", "z"].map(|a| format!("{k}_{a}")))
+                .collect();
+            let columns: Vec<&str> = columns.iter().map(|c| c.as_str()).collect();
+            self.channel(
+                &p("bristle"),
+                &columns,
+                "LuGre bristle deflection, housing axes, three columns per contact (contact_x, contact_y, contact_z)",
+                None,
+            )?;
+        }
         for (q, what, desc) in [
             (
                 "force_on_journal",
