@@ -712,6 +712,53 @@ values = [0.0097, 0.0099, 0.0100]
 }
 
 #[test]
+fn a_lugre_sweep_merges_bit_for_bit() {
+    // The forced LuGre block over its bristles' stiffness: the bristle deflections are part of
+    // each value's final state and recorded as observables.
+    let scene = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .join("data/scenes/variants/lugre-stick-slip-forced.toml");
+    let s = Setup::new(&format!(
+        r#"
+[study]
+name = "{NAME}"
+scene = "{}"
+[analysis]
+periods = 2
+transient = 1
+samples_per_period = 20
+[[observables]]
+name = "x"
+path = "bodies.block.position.x"
+[[observables]]
+name = "z"
+path = "joints.floor.bristle.front_lower_x"
+[sweep]
+parameter = "joints.floor.clearance.friction.bristle_stiffness"
+unit = "1/m"
+values = [8000.0, 10193.68, 12000.0]
+"#,
+        scene.display()
+    ));
+    s.run("single", &[]);
+    let single = s.path("single").join(format!("{NAME}.h5"));
+    {
+        let f = hdf5::File::open(&single).unwrap();
+        assert_eq!(f.dataset("sweep/final_state").unwrap().shape(), [3, 38]);
+    }
+    for i in 0..2 {
+        s.run("sh", &["--shard", &format!("{i}/2")]);
+    }
+    let merged = s.path("merged.h5");
+    let o = s.merge(
+        &[s.shard("sh", 1, 2), s.shard("sh", 0, 2)],
+        &merged,
+        &["--no-plots"],
+    );
+    assert!(o.status.success(), "{:?}", text(&o));
+    assert_same(&single, &merged);
+}
+
+#[test]
 fn a_failed_value_is_refused_and_partial_with_resume_records_it_as_one_process_does() {
     // RK4 at 0.05 s is unstable once gamma = 1e6 drives the oscillator to |x| ~ 100.
     let s = Setup::new(
