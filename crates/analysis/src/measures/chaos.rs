@@ -220,4 +220,101 @@ mod tests {
             Class::Undetermined
         );
     }
+
+    /// Maps with known dynamics, iterated here: a series of `n` iterates after 1000 of
+    /// transient, each map's largest exponent (per iterate) with its batch-means standard error
+    /// (20 batches), and the 0-1 test's reading of the series.
+    fn map_case(
+        n: usize,
+        mut step: impl FnMut() -> (f64, f64),
+    ) -> (Vec<f64>, Spectrum, Vec<Reading>) {
+        use crate::measures::indicator::Indicator;
+        for _ in 0..1000 {
+            step();
+        }
+        let (series, logs): (Vec<f64>, Vec<f64>) = (0..n).map(|_| step()).unzip();
+        let batch = n / 20;
+        let means: Vec<f64> = logs
+            .chunks_exact(batch)
+            .map(|c| c.iter().sum::<f64>() / batch as f64)
+            .collect();
+        let l = means.iter().sum::<f64>() / means.len() as f64;
+        let var = means.iter().map(|m| (m - l).powi(2)).sum::<f64>() / (means.len() - 1) as f64;
+        let e = (var / means.len() as f64).sqrt();
+        let reading = crate::measures::zero_one::ZeroOneTest
+            .compute(&series)
+            .unwrap();
+        (series, spectrum(l, e), vec![reading])
+    }
+
+    /// The logistic map x -> r x (1 - x) with its exponent ln |r (1 - 2 x)| per iterate.
+    fn logistic(r: f64, n: usize) -> (Vec<f64>, Spectrum, Vec<Reading>) {
+        let mut x = 0.3;
+        map_case(n, move || {
+            let d = (r * (1.0 - 2.0 * x)).abs().ln();
+            x = r * x * (1.0 - x);
+            (x, d)
+        })
+    }
+
+    /// The classifier on maps whose dynamics are known: the logistic map's period-doubling
+    /// cascade (periods 2, 4 and 8 at r = 3.2, 3.5, 3.55) and its period-3 window (r = 3.83,
+    /// inside 1 + sqrt(8) = 3.8284 .. 3.8415), fully developed chaos at r = 4 (lambda_1 = ln 2
+    /// exactly: the map is conjugate to the tent map), the Henon map at a = 1.4, b = 0.3
+    /// (lambda_1 = 0.419, Sprott, *Chaos and Time-Series Analysis*, 2003, table A.1), and a
+    /// rotation by the golden mean (quasi-periodic, lambda_1 = 0).
+    #[test]
+    fn the_classifier_knows_the_windows_of_the_logistic_and_henon_maps() {
+        for (r, p) in [(3.2, 2), (3.5, 4), (3.55, 8), (3.83, 3)] {
+            let (series, spec, readings) = logistic(r, 4000);
+            let period = strobe_period(&series);
+            assert_eq!(period, Some(p), "logistic r = {r}");
+            assert!(spec.exponents[0] < 0.0, "r = {r}: {}", spec.exponents[0]);
+            assert_eq!(classify(Some(&spec), &readings, period), Class::Periodic);
+        }
+        // Chaos: no period, lambda_1 = ln 2 within its standard error (4 of them: the batch
+        // means of a chaotic series scatter), K near 1.
+        let (series, spec, readings) = logistic(4.0, 10000);
+        let (l, e) = (spec.exponents[0], spec.stderr[0]);
+        assert!(
+            (l - std::f64::consts::LN_2).abs() < 4.0 * e && e < 0.01,
+            "{l} +- {e}"
+        );
+        let period = strobe_period(&series);
+        assert_eq!(period, None);
+        assert_eq!(classify(Some(&spec), &readings, period), Class::Chaotic);
+
+        // Henon: the exponent from the tangent map, re-orthonormalised each iterate (in 2D the
+        // growth of one vector is lambda_1).
+        let (mut x, mut y, mut v) = (0.1, 0.1, (1.0f64, 0.0f64));
+        let (series, spec, readings) = map_case(10000, move || {
+            let w = (-2.8 * x * v.0 + v.1, 0.3 * v.0);
+            let norm = (w.0 * w.0 + w.1 * w.1).sqrt();
+            v = (w.0 / norm, w.1 / norm);
+            (x, y) = (1.0 - 1.4 * x * x + y, 0.3 * x);
+            (x, norm.ln())
+        });
+        let (l, e) = (spec.exponents[0], spec.stderr[0]);
+        assert!((l - 0.419).abs() < 0.01 && e < 0.01, "Henon {l} +- {e}");
+        let period = strobe_period(&series);
+        assert_eq!(period, None);
+        assert_eq!(classify(Some(&spec), &readings, period), Class::Chaotic);
+
+        // A rotation by the golden mean, observed through sin(2 pi x): never repeats, every
+        // exponent zero, K near 0.
+        let omega = (5f64.sqrt() - 1.0) / 2.0;
+        let mut x = 0.0f64;
+        let (series, spec, readings) = map_case(4000, move || {
+            x = (x + omega).fract();
+            ((std::f64::consts::TAU * x).sin(), 0.0)
+        });
+        let period = strobe_period(&series);
+        assert_eq!(period, None);
+        assert_eq!(
+            classify(Some(&spec), &readings, period),
+            Class::QuasiPeriodic,
+            "{:?}",
+            readings[0]
+        );
+    }
 }
