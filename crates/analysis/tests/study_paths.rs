@@ -141,3 +141,35 @@ label = "low-floor"
         "{err}"
     );
 }
+
+/// A sweep path with a typo makes a key the scene's law does not have: the error names the
+/// scene, the edit, the field and the keys there are, without the line and excerpt of the
+/// edited tree written out again (they are not the user's file's).
+#[test]
+fn a_misspelt_sweep_path_is_named_without_the_edited_texts_lines() {
+    let text = r#"
+[study]
+name = "typo"
+scene = "variants/lugre-stick-slip-forced.toml"
+[analysis]
+periods = 2
+transient = 1
+[[observables]]
+name = "x"
+path = "bodies.block.position.x"
+[sweep]
+parameter = "joints.floor.clearance.friction.bristle_stifness"
+values = [1.0, 2.0]
+"#;
+    let e = Loaded::parse(text, &scenes().join("typo.toml"))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("lugre-stick-slip-forced.toml")
+            && e.contains("bristle_stifness = 1.0 in")
+            && e.contains("joints[0].clearance.friction.bristle_stifness: unknown field")
+            && e.contains("`bristle_stiffness`"),
+        "{e}"
+    );
+    assert!(!e.contains("line ") && !e.contains(" | "), "{e}");
+}
