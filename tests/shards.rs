@@ -651,6 +651,22 @@ fn slurm_writes_an_array_and_a_merge_script_and_submits_them() {
     }
 }
 
+/// The study of `s` run as two shards (as separate processes) and merged, shards out of order:
+/// the merged file equals `single` dataset by dataset.
+fn two_shards_merge_into(s: &Setup, single: &Path) {
+    for i in 0..2 {
+        s.run("sh", &["--shard", &format!("{i}/2")]);
+    }
+    let merged = s.path("merged.h5");
+    let o = s.merge(
+        &[s.shard("sh", 1, 2), s.shard("sh", 0, 2)],
+        &merged,
+        &["--no-plots"],
+    );
+    assert!(o.status.success(), "{:?}", text(&o));
+    assert_same(single, &merged);
+}
+
 #[test]
 fn a_mechanism_sweep_with_contacts_merges_bit_for_bit() {
     // The clearance slider-crank over three bushing radii: rows of contact onsets and guard
@@ -698,17 +714,7 @@ values = [0.0097, 0.0099, 0.0100]
             3
         );
     }
-    for i in 0..2 {
-        s.run("sh", &["--shard", &format!("{i}/2")]);
-    }
-    let merged = s.path("merged.h5");
-    let o = s.merge(
-        &[s.shard("sh", 1, 2), s.shard("sh", 0, 2)],
-        &merged,
-        &["--no-plots"],
-    );
-    assert!(o.status.success(), "{:?}", text(&o));
-    assert_same(&single, &merged);
+    two_shards_merge_into(&s, &single);
 }
 
 #[test]
@@ -745,17 +751,7 @@ values = [8000.0, 10193.68, 12000.0]
         let f = hdf5::File::open(&single).unwrap();
         assert_eq!(f.dataset("sweep/final_state").unwrap().shape(), [3, 38]);
     }
-    for i in 0..2 {
-        s.run("sh", &["--shard", &format!("{i}/2")]);
-    }
-    let merged = s.path("merged.h5");
-    let o = s.merge(
-        &[s.shard("sh", 1, 2), s.shard("sh", 0, 2)],
-        &merged,
-        &["--no-plots"],
-    );
-    assert!(o.status.success(), "{:?}", text(&o));
-    assert_same(&single, &merged);
+    two_shards_merge_into(&s, &single);
 }
 
 #[test]

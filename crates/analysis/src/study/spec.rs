@@ -369,11 +369,11 @@ fn load_case(spec: &StudySpec, path: &Path, dir: &Path, i: usize, c: &CaseSpec) 
             (&format!("cases[{i}]"), &c.set, &c.remove),
         ],
     )?;
-    let edited = if c.set.is_empty()
+    let unedited = c.set.is_empty()
         && c.remove.is_empty()
         && spec.study.set.is_empty()
-        && spec.study.remove.is_empty()
-    {
+        && spec.study.remove.is_empty();
+    let edited = if unedited {
         text
     } else {
         toml::to_string(&tree).map_err(|e| invalid(path, format!("cases[{i}]"), e.to_string()))?
@@ -384,7 +384,11 @@ fn load_case(spec: &StudySpec, path: &Path, dir: &Path, i: usize, c: &CaseSpec) 
         c.label,
         path.display()
     ));
-    let scene_spec = SceneSpec::parse(&edited, &named)?;
+    let scene_spec = if unedited {
+        SceneSpec::parse(&edited, &named)?
+    } else {
+        parse_edited(&edited, &named)?
+    };
     // The report reads these from every case's file: a name no case records would be
     // found only once the whole study had run.
     check_recorded(path, &spec.report, &c.label, &scene_spec)?;
@@ -775,6 +779,35 @@ fn component(
             "'{head}' is an array of numbers: select a component by index (0, 1, ...) or '*', not '{sel}'"
         )),
     }
+}
+
+/// Parses `text`, a scene tree that a study's edits wrote out again (named `named` in
+/// messages). A parse error's line and excerpt are of that text, not of the user's file, so
+/// only its field and sentence are kept: `FIELD: TOML parse error at line L, column C`, lines of
+/// the text framed by `|`, then the sentence, becomes `FIELD: the sentence`.
+pub(crate) fn parse_edited(text: &str, named: &Path) -> Result<SceneSpec> {
+    SceneSpec::parse(text, named).map_err(|e| match e {
+        jointplay_solver::Error::Parse { file, message } => {
+            const AT: &str = "TOML parse error at line";
+            let Some(i) = message.find(AT) else {
+                return jointplay_solver::Error::Parse { file, message }.into();
+            };
+            let excerpt = |l: &str| {
+                let t = l.trim_start();
+                t.starts_with('|')
+                    || t.split_once(" |")
+                        .is_some_and(|(n, _)| n.trim().parse::<u64>().is_ok())
+            };
+            let sentence: Vec<&str> = message[i..]
+                .lines()
+                .skip(1)
+                .filter(|l| !excerpt(l))
+                .collect();
+            let message = format!("{}{}", &message[..i], sentence.join("\n").trim());
+            jointplay_solver::Error::Parse { file, message }.into()
+        }
+        other => other.into(),
+    })
 }
 
 #[cfg(test)]

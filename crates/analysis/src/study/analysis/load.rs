@@ -227,19 +227,11 @@ impl Loaded {
                     }
                     None => sp.clone(),
                 };
-                // The text parsed is the edited tree written out again: the line and the excerpt
-                // a parse error quotes are of that text, not of the user's file, so only its
-                // sentence is kept (the error names the file, the edit and the field).
-                let edited = named != *sp;
-                let spec = SceneSpec::parse(&text, &named).map_err(|e| match e {
-                    jointplay_solver::Error::Parse { file, message } if edited => {
-                        jointplay_solver::Error::Parse {
-                            file,
-                            message: without_excerpt(&message),
-                        }
-                    }
-                    other => other,
-                })?;
+                let spec = if named == *sp {
+                    SceneSpec::parse(&text, &named)?
+                } else {
+                    crate::study::spec::parse_edited(&text, &named)?
+                };
                 let scene = SceneFile {
                     path: named,
                     text,
@@ -624,26 +616,4 @@ fn base_of(spec: &AnalysisStudy, path: &Path) -> Result<Base> {
             ));
         }
     })
-}
-
-/// A TOML parse error's sentence without its location and excerpt: `FIELD: TOML parse error
-/// at line L, column C`, then lines of the text framed by `|`, then the sentence, becomes
-/// `FIELD: the sentence`.
-fn without_excerpt(message: &str) -> String {
-    const AT: &str = "TOML parse error at line";
-    let Some(i) = message.find(AT) else {
-        return message.to_string();
-    };
-    let excerpt = |l: &str| {
-        let t = l.trim_start();
-        t.starts_with('|')
-            || t.split_once(" |")
-                .is_some_and(|(n, _)| n.trim().parse::<u64>().is_ok())
-    };
-    let sentence: Vec<&str> = message[i..]
-        .lines()
-        .skip(1)
-        .filter(|l| !excerpt(l))
-        .collect();
-    format!("{}{}", &message[..i], sentence.join("\n").trim())
 }
